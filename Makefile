@@ -1,0 +1,45 @@
+# make test : set up everything on a fresh machine, then run the whole suite.
+# make run  : set up, then reconstruct the bundled sample and print the result.
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed-stamp
+
+# Debian packages for Xvfb and Qt's xcb platform plugin (GUI tests run in Xvfb).
+DEBS := xvfb xauth libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 \
+        libxcb-shape0 libxcb-image0 libxcb-render-util0 libxcb-xinerama0 libegl1 libgl1 \
+        libglib2.0-0 libfontconfig1 libdbus-1-3
+
+.PHONY: test run lint bench system-deps clean
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+system-deps:
+	@missing=""; for p in $(DEBS); do dpkg -s $$p >/dev/null 2>&1 || missing="$$missing $$p"; done; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ]; then \
+	    echo "installing:$$missing"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null; \
+	  else \
+	    echo "missing Debian packages (run as root or install them):$$missing"; exit 1; \
+	  fi; \
+	fi
+
+test: system-deps $(STAMP)
+	$(PY) -m pytest
+
+run: $(STAMP)
+	$(PY) -m tactile_viewer --report sample_data/hertz_shear_turning.npz
+
+lint: $(STAMP)
+	$(PY) -m ruff check solver tactile_viewer tests
+
+bench: $(STAMP)
+	$(PY) -m solver.bench
+
+clean:
+	rm -rf $(VENV) .pytest_cache

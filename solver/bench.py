@@ -1,0 +1,96 @@
+"""Benchmarks: ``python -m solver.bench`` (``make bench``).
+
+Prints the median per-frame ``solve`` time on a 16x16 skin (automatic
+parameters, given parameters, normal only) and the set-up time of
+:class:`solver.Reconstructor` for larger grids against ``numpy.linalg.pinv``
+of the same ``(m, 3m)`` matrix, as a ratio from the same run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+
+import numpy as np
+
+from . import loads
+from .geometry import SensorGrid
+from .inverse import Reconstructor
+from .kernels import stress_matrix
+
+
+def _median_ms(fn, repeat):
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return 1e3 * float(np.median(times))
+
+
+def machine() -> str:
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, numpy {np.__version__}, python {platform.python_version()}"
+
+
+def per_frame(n=16, frames=40, kernel="cell"):
+    """Median solve times (ms) on simulated Hertzian frames with 1% noise."""
+    grid = SensorGrid.regular(n, n, 2e-3, 2e-3)
+    rng = np.random.default_rng(0)  # fixed seed: the same frames every run
+    stress = [loads.simulate(grid, loads.hertz(tuple(rng.uniform(-2e-3, 2e-3, 2)), 5e-3, 1.0,
+                                               shear_ratio=0.3 * (k % 2), shear_direction=0.4 * k),
+                             noise=0.01, rng=rng).stress for k in range(frames)]
+    r = Reconstructor(grid, kernel=kernel)
+    out = {}
+    for label, call in (("auto", lambda b: r.solve(b)),
+                        ("given", lambda b: r.solve(b, shear_ratio=0.3, shear_direction=0.5)),
+                        ("normal", lambda b: r.solve_normal(b))):
+        times = []
+        for b in stress:
+            start = time.perf_counter()
+            call(b)
+            times.append(time.perf_counter() - start)
+        out[label] = 1e3 * float(np.median(times))
+    return out
+
+
+def setup(n, *, pinv=True, repeat=1):
+    """Set-up seconds for an n x n grid: our factorization and, optionally, numpy pinv."""
+    grid = SensorGrid.regular(n, n, 2e-3, 2e-3)
+    ours = _median_ms(lambda: Reconstructor(grid), repeat) / 1e3
+    reference = None
+    if pinv:
+        C = stress_matrix(grid, "cell")
+        start = time.perf_counter()
+        np.linalg.pinv(C)
+        reference = time.perf_counter() - start
+    return ours, reference
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="*", default=[32, 64])
+    parser.add_argument("--no-pinv", action="store_true", help="skip numpy.linalg.pinv (90 s at 64x64)")
+    args = parser.parse_args(argv)
+    print(f"machine: {machine()}")
+    for kernel in ("cell", "point"):
+        t = per_frame(kernel=kernel)
+        print(f"16x16 {kernel:5} solve median: auto {t['auto']:.3f} ms, given parameters "
+              f"{t['given']:.3f} ms, normal only {t['normal']:.3f} ms")
+    for n in args.sizes:
+        ours, ref = setup(n, pinv=not args.no_pinv)
+        line = f"{n}x{n} set-up: Reconstructor {ours:.2f} s"
+        if ref is not None:
+            line += f", numpy.linalg.pinv {ref:.2f} s, ratio pinv/ours {ref / ours:.1f}x"
+        print(line, flush=True)
+
+
+if __name__ == "__main__":
+    main()

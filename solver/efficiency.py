@@ -1,0 +1,313 @@
+"""Efficiency functionals: which member of the exact solution family is eligible.
+
+Every ``x(mu, theta) = C+ b + (I - C+ C) y(mu, theta)`` fits the data exactly,
+so a functional must reward physical admissibility, not fit. A functional here
+is an object with a ``name`` and a method
+``choose(frame, *, shear_ratio=None, shear_direction=None) -> Choice`` that
+returns the shear parameters (the given ones, or the maximizer over the free
+ones), the compressive normal profile ``g`` of the template load and the value
+of the functional. :class:`solver.Reconstructor` takes any such object.
+
+Chosen: :class:`ContactFit` (see its notes and ``docs/efficiency.md`` for the
+measured comparison). Kept for comparison: :class:`Admissibility` (penalties
+on the linear family, the DESIGN's first sketch) and :class:`NoShear` (the
+baseline that never reports shear).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+from scipy.optimize import nnls
+
+__all__ = ["Frame", "Choice", "ContactFit", "Admissibility", "NoShear", "FUNCTIONALS"]
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """What a functional may look at for one frame.
+
+    Attributes
+    ----------
+    stress : (m,) ndarray
+        Sensor stress ``b``, pascals.
+    normal : (m,) ndarray
+        Normal-only solution ``Cz^-1 b``, newtons.
+    region : (m,) ndarray of bool
+        Contact region: nodes where ``normal`` exceeds 5% of its peak, grown
+        by ``ceil(h / pitch) + 1`` pitches.
+    matrix : (m, 3m) ndarray
+        ``C = [Cx | Cy | Cz]``.
+    max_shear_ratio : float
+        Upper bound for the shear ratio search.
+    project_null : callable or None
+        ``y -> (I - C+ C) y`` for ``(3m,)`` or ``(3m, k)`` arrays.
+    apply_pinv : callable or None
+        ``b -> C+ b``.
+    """
+
+    stress: np.ndarray
+    normal: np.ndarray
+    region: np.ndarray
+    matrix: np.ndarray
+    max_shear_ratio: float
+    project_null: object = None
+    apply_pinv: object = None
+
+    @cached_property
+    def region_index(self) -> np.ndarray:
+        return np.flatnonzero(self.region)
+
+    @cached_property
+    def region_blocks(self):
+        """``(Cx_R, Cy_R, Cz_R)``: the columns of the region's nodes, each ``(m, r)``."""
+        m = self.stress.size
+        idx = self.region_index
+        return tuple(np.ascontiguousarray(self.matrix[:, k * m + idx]) for k in range(3))
+
+
+@dataclass(frozen=True)
+class Choice:
+    """Parameters and template profile chosen for one frame.
+
+    Attributes
+    ----------
+    shear_x, shear_y : float
+        ``mu cos(theta)`` and ``mu sin(theta)``.
+    profile : (m,) ndarray
+        Compressive normal profile ``g`` of the template load, newtons.
+    efficiency : float
+        Value of the functional at the chosen parameters.
+    shear_detected : bool
+        True when automatic search kept a non-zero shear.
+    """
+
+    shear_x: float
+    shear_y: float
+    profile: np.ndarray
+    efficiency: float
+    shear_detected: bool = False
+
+
+def _fixed_pair(shear_ratio, shear_direction):
+    return shear_ratio * math.cos(shear_direction), shear_ratio * math.sin(shear_direction)
+
+
+class ContactFit:
+    """How well a compressive, friction-shaped load on the contact region explains the data.
+
+    For a pair ``s = mu (cos theta, sin theta)`` the template load is
+    ``Fz = g``, ``(Fx, Fy) = s g`` with ``g >= 0`` on the contact region only.
+    Its best fit to the data is a non-negative least-squares problem
+
+        rho(s) = min_{g >= 0} | (Cz_R + sx Cx_R + sy Cy_R) g - b |^2
+
+    and the efficiency is ``E(s) = 1 - sqrt(rho(s)) / |b|`` (1: explained
+    exactly). With more sensors than region nodes and ``g >= 0``, a wrong
+    shear leaves a residual: the shear signature (compression ahead of the
+    load, relief behind it) cannot be mimicked by a compressive normal load.
+
+    The maximization is continuous: Gauss-Newton on the free parameters, with
+    the profile eliminated (variable projection: each step solves the
+    linearized problem for ``g`` on its current support and the parameter
+    step together, then re-solves the NNLS at the new parameters and halves
+    the step until the residual drops). A found shear is kept only when it
+    explains the data significantly better than no shear: the F statistic
+    ``((rho(0) - rho(s)) / k) / (rho(s) / dof)`` must exceed ``significance``
+    and the residual must drop by more than ``min_gain`` (a fraction of
+    ``rho(0)``) so model error alone (the kernel's discretisation of a smooth
+    load) does not read as shear.
+
+    Parameters
+    ----------
+    significance : float, optional
+        F-statistic threshold for keeping shear. Default 30.
+    min_gain : float, optional
+        Least relative residual drop for keeping shear. Default 0.1.
+    max_iterations : int, optional
+        Gauss-Newton iterations. Default 12.
+    """
+
+    name = "contact_fit"
+
+    def __init__(self, *, significance: float = 30.0, min_gain: float = 0.1,
+                 max_iterations: int = 12):
+        if not (math.isfinite(significance) and significance >= 0):
+            raise ValueError(f"significance must be finite and >= 0, got {significance!r}")
+        if not 0 <= min_gain < 1:
+            raise ValueError(f"min_gain must be in [0, 1), got {min_gain!r}")
+        if int(max_iterations) < 0:
+            raise ValueError(f"max_iterations must be >= 0, got {max_iterations!r}")
+        self.significance = float(significance)
+        self.min_gain = float(min_gain)
+        self.max_iterations = int(max_iterations)
+
+    # rho(s) and the profile on the region
+    def fit(self, frame: Frame, shear_x: float, shear_y: float):
+        """Best compressive profile at ``s`` and its squared residual.
+
+        Returns
+        -------
+        profile : (r,) ndarray
+            ``g`` on the region nodes, newtons.
+        rho : float
+            Squared residual, pascals squared.
+        """
+        cx, cy, cz = frame.region_blocks
+        if cz.shape[1] == 0:
+            return np.zeros(0), float(frame.stress @ frame.stress)
+        g, rnorm = nnls(cz + shear_x * cx + shear_y * cy, frame.stress)
+        return g, rnorm * rnorm
+
+    def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None) -> Choice:
+        norm = float(np.linalg.norm(frame.stress))
+        mu_max = frame.max_shear_ratio
+        if shear_ratio is not None and shear_direction is not None:
+            s = _fixed_pair(shear_ratio, shear_direction)
+            g, rho = self.fit(frame, *s)
+            return self._choice(frame, s, g, rho, norm, detected=False)
+
+        # Parametrize the free parameters p -> s(p) with Jacobian ds/dp (2, k).
+        if shear_ratio is None and shear_direction is None:
+            def shear(p):
+                mu = math.hypot(p[0], p[1])
+                return (p[0], p[1]) if mu <= mu_max else (p[0] * mu_max / mu, p[1] * mu_max / mu)
+
+            def jacobian(p):
+                return np.eye(2)
+            starts = [np.zeros(2)]
+        elif shear_ratio is None:
+            c, s_ = math.cos(shear_direction), math.sin(shear_direction)
+
+            def shear(p):
+                mu = min(max(p[0], 0.0), mu_max)
+                return (mu * c, mu * s_)
+
+            def jacobian(p):
+                return np.array([[c], [s_]])
+            starts = [np.zeros(1)]
+        else:
+            mu = shear_ratio
+
+            def shear(p):
+                return (mu * math.cos(p[0]), mu * math.sin(p[0]))
+
+            def jacobian(p):
+                return np.array([[-mu * math.sin(p[0])], [mu * math.cos(p[0])]])
+            # theta alone is periodic and may have several local optima: scan first.
+            starts = [np.array([t]) for t in np.linspace(-math.pi, math.pi, 12, endpoint=False)]
+
+        scanned = []
+        for start in starts:
+            g_start, rho_start = self.fit(frame, *shear(start))
+            scanned.append((rho_start, start, g_start))
+        rho0, _, g0 = scanned[0]  # the first start is the shear-free load when mu is free
+        rho, p, g = min(scanned, key=lambda item: item[0])
+        p, g, rho = self._gauss_newton(frame, p, g, rho, shear, jacobian)
+        s = shear(p)
+        if shear_ratio is None:
+            # Keep shear only when it is significant against a shear-free load.
+            dof = frame.stress.size - int(np.count_nonzero(g)) - len(p)
+            gain = rho0 - rho
+            significant = (
+                dof > 0 and gain > self.min_gain * rho0
+                and (rho <= 0 or (gain / len(p)) / (rho / dof) > self.significance)
+            )
+            if not significant:
+                return self._choice(frame, (0.0, 0.0), g0, rho0, norm, detected=False)
+        return self._choice(frame, s, g, rho, norm, detected=shear_ratio is None)
+
+    def _gauss_newton(self, frame, p, g, rho, shear, jacobian):
+        cx, cy, cz = frame.region_blocks
+        b = frame.stress
+        for _ in range(self.max_iterations):
+            support = g > 0
+            if not support.any():
+                break
+            sx, sy = shear(p)
+            a = (cz + sx * cx + sy * cy)[:, support]
+            sensitivity = np.column_stack([cx[:, support] @ g[support],
+                                           cy[:, support] @ g[support]]) @ jacobian(p)
+            solution = np.linalg.lstsq(np.hstack([a, sensitivity]), b, rcond=None)[0]
+            step = solution[a.shape[1]:]
+            for _halving in range(6):
+                trial = p + step
+                g_trial, rho_trial = self.fit(frame, *shear(trial))
+                if rho_trial < rho:
+                    break
+                step = step / 2
+            else:
+                break
+            p, g, rho = trial, g_trial, rho_trial
+            if np.max(np.abs(step)) < 1e-4:
+                break
+        return p, g, rho
+
+    def _choice(self, frame, s, g_region, rho, norm, *, detected):
+        profile = np.zeros(frame.stress.size)
+        profile[frame.region_index] = g_region
+        efficiency = 1.0 if norm == 0 else 1.0 - math.sqrt(max(rho, 0.0)) / norm
+        return Choice(float(s[0]), float(s[1]), profile, efficiency, detected)
+
+
+class NoShear:
+    """Baseline: never report shear; the template is the shear-free contact fit."""
+
+    name = "no_shear"
+
+    def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None) -> Choice:
+        return ContactFit().choose(frame, shear_ratio=shear_ratio or 0.0,
+                                   shear_direction=shear_direction or 0.0)
+
+
+class Admissibility:
+    """Penalties on the linear family with a fixed profile (the DESIGN's first sketch).
+
+    With ``g`` the positive part of the normal-only solution, the family is
+    ``x = a0 + sx a1 + sy a2`` (three vectors per frame), evaluated on a grid of
+    pairs in one matrix product. The efficiency is minus the squared sum of
+    tension (``Fz < 0``), friction-cone violation (``|Ft| > mu Fz``) and force
+    outside the contact region, relative to ``|g|^2``.
+
+    Parameters
+    ----------
+    ratios, directions : int, optional
+        Grid resolution of the search. Defaults 31 and 72.
+    """
+
+    name = "admissibility"
+
+    def __init__(self, *, ratios: int = 31, directions: int = 72):
+        self.ratios = int(ratios)
+        self.directions = int(directions)
+
+    def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None) -> Choice:
+        m = frame.stress.size
+        g = np.maximum(frame.normal, 0.0) * frame.region
+        zeros = np.zeros(m)
+        a0 = frame.apply_pinv(frame.stress) + frame.project_null(np.concatenate([zeros, zeros, g]))
+        a12 = frame.project_null(np.column_stack([np.concatenate([g, zeros, zeros]),
+                                                  np.concatenate([zeros, g, zeros])]))
+        mus = (np.linspace(0, frame.max_shear_ratio, self.ratios) if shear_ratio is None
+               else np.array([shear_ratio]))
+        thetas = (np.linspace(-math.pi, math.pi, self.directions, endpoint=False)
+                  if shear_direction is None else np.array([shear_direction]))
+        mu, theta = (a.ravel() for a in np.meshgrid(mus, thetas))
+        sx, sy = mu * np.cos(theta), mu * np.sin(theta)
+        x = a0[:, None] + a12 @ np.vstack([sx, sy])
+        fx, fy, fz = x[:m], x[m:2 * m], x[2 * m:]
+        outside = ~frame.region
+        tension = np.minimum(fz, 0.0)
+        cone = np.maximum(np.hypot(fx, fy) - mu * np.maximum(fz, 0.0), 0.0)
+        penalty = ((tension**2).sum(0) + (cone**2).sum(0)
+                   + (fx[outside]**2 + fy[outside]**2 + fz[outside]**2).sum(0))
+        scale = max(float(g @ g), 1e-300)
+        best = int(np.argmin(penalty))
+        return Choice(float(sx[best]), float(sy[best]), g, -float(penalty[best]) / scale,
+                      bool(mu[best] > 0) and shear_ratio is None)
+
+
+FUNCTIONALS = {f.name: f for f in (ContactFit, Admissibility, NoShear)}

@@ -1,0 +1,160 @@
+"""The standard accuracy set: simulated contacts with known truth, and its scoring.
+
+Used by the accuracy tests, the functional comparison (``python -m
+solver.validation``) and the benchmarks, so all of them measure the same thing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import loads, metrics
+from .geometry import SensorGrid
+
+__all__ = ["Case", "standard_cases", "evaluate", "summarize", "format_table"]
+
+GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
+
+
+@dataclass(frozen=True)
+class Case:
+    """One simulated frame of the accuracy set."""
+
+    name: str
+    shape: str
+    thickness_ratio: float
+    shear_ratio: float
+    shear_direction: float
+    frame: loads.SimulatedFrame
+
+
+def standard_cases(*, n: int = 16, pitch: float = 2e-3, thickness_ratios=(0.5, 1.0, 1.5),
+                   shapes=("hertz", "cone", "flat_punch", "ellipse"), shear_ratios=(0.0, 0.2, 0.4),
+                   noise: float = 0.01, seed: int = 7) -> list[Case]:
+    """Every combination of shape, thickness and shear ratio on an ``n x n`` grid.
+
+    Directions follow the golden angle from case to case (so they cover the
+    circle), centres are drawn within one pitch of the grid centre, ellipses
+    are turned at random, the total normal force is 1 N and the noise is
+    ``noise`` times the peak stress.
+    """
+    # seed fixed so every run scores the very same frames
+    rng = np.random.default_rng(seed)
+    cases = []
+    index = 0
+    for ratio_h in thickness_ratios:
+        grid = SensorGrid.regular(n, n, pitch, ratio_h * pitch)
+        for shape in shapes:
+            for mu in shear_ratios:
+                theta = math.remainder(index * GOLDEN_ANGLE + 0.3, 2 * math.pi)
+                index += 1
+                center = tuple(rng.uniform(-pitch, pitch, size=2))
+                kw = dict(shear_ratio=mu, shear_direction=theta)
+                if shape == "hertz":
+                    contact = loads.hertz(center, 2.5 * pitch, 1.0, **kw)
+                elif shape == "cone":
+                    contact = loads.cone(center, 2.5 * pitch, 1.0, **kw)
+                elif shape == "flat_punch":
+                    contact = loads.flat_punch(center, 2.0 * pitch, 1.0, **kw)
+                else:
+                    contact = loads.ellipse(center, (3.0 * pitch, 1.8 * pitch), 1.0,
+                                            angle=rng.uniform(0, math.pi), **kw)
+                frame = loads.simulate(grid, contact, noise=noise, rng=rng)
+                name = f"{shape} h/p={ratio_h:g} mu={mu:g} th={math.degrees(theta):+.0f}"
+                cases.append(Case(name, shape, ratio_h, mu, theta, frame))
+    return cases
+
+
+def evaluate(cases, make_reconstructor, *, solve=None):
+    """Score reconstructions of every case.
+
+    Parameters
+    ----------
+    cases : list of Case
+    make_reconstructor : callable
+        ``grid -> Reconstructor`` (called once per distinct grid).
+    solve : callable, optional
+        ``(reconstructor, stress) -> Reconstruction``; default ``r.solve(stress)``.
+
+    Returns
+    -------
+    list of dict
+        One row per case: its description, the errors and the solve time in ms.
+    """
+    solve = solve or (lambda r, b: r.solve(b))
+    cache = {}
+    rows = []
+    for case in cases:
+        key = (case.frame.grid.shape, case.frame.grid.pitch, case.frame.grid.thickness)
+        if key not in cache:
+            cache[key] = make_reconstructor(case.frame.grid)
+        reconstructor = cache[key]
+        start = time.perf_counter()
+        result = solve(reconstructor, case.frame.stress)
+        elapsed = time.perf_counter() - start
+        errors = metrics.compare(result.forces, case.frame.forces)
+        rows.append(dict(case=case.name, shape=case.shape, thickness_ratio=case.thickness_ratio,
+                         true_ratio=case.shear_ratio, ratio=result.shear_ratio,
+                         true_direction=math.degrees(case.shear_direction),
+                         direction=math.degrees(result.shear_direction), ms=elapsed * 1e3,
+                         **errors.as_dict()))
+    return rows
+
+
+def summarize(rows) -> dict:
+    """Medians over the set: normal and tangential total errors over all cases,
+    direction error over cases with shear ratio >= 0.2, false shear on shear-free cases."""
+    normal = np.median([r["normal_total"] for r in rows])
+    tangential = np.median([r["tangential_total"] for r in rows])
+    sheared = [r["direction_deg"] for r in rows if r["true_ratio"] >= 0.2]
+    free = [r["ratio"] for r in rows if r["true_ratio"] == 0]
+    return dict(normal_total=float(normal), tangential_total=float(tangential),
+                direction_deg=float(np.median(sheared)) if sheared else math.nan,
+                false_shear=float(np.median(free)) if free else math.nan,
+                ms=float(np.median([r["ms"] for r in rows])))
+
+
+def format_table(rows) -> str:
+    lines = [f"{'case':<40} {'mu':>5} {'mu est':>6} {'dir err':>7} {'normal':>7} {'tang':>6} {'ms':>6}"]
+    for r in rows:
+        lines.append(f"{r['case']:<40} {r['true_ratio']:5.2f} {r['ratio']:6.2f} "
+                     f"{r['direction_deg']:7.1f} {100 * r['normal_total']:6.2f}% "
+                     f"{100 * r['tangential_total']:5.1f}% {r['ms']:6.2f}")
+    s = summarize(rows)
+    lines.append(f"{'median':<40} {'':5} {'':6} {s['direction_deg']:7.1f} "
+                 f"{100 * s['normal_total']:6.2f}% {100 * s['tangential_total']:5.1f}% {s['ms']:6.2f}")
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    from .efficiency import FUNCTIONALS
+    from .inverse import Reconstructor
+
+    parser = argparse.ArgumentParser(description="Score the efficiency functionals and kernels "
+                                                 "on the standard accuracy set.")
+    parser.add_argument("--noise", type=float, default=0.01)
+    parser.add_argument("--kernel", choices=("cell", "point"), default="cell")
+    parser.add_argument("--functional", choices=sorted(FUNCTIONALS), action="append")
+    parser.add_argument("--cases", action="store_true", help="print the per-case table too")
+    args = parser.parse_args(argv)
+    cases = standard_cases(noise=args.noise)
+    print(f"{len(cases)} cases, 16x16, noise {args.noise:g}, kernel {args.kernel}")
+    print(f"{'functional':<15} {'normal':>8} {'tangential':>10} {'direction':>9} "
+          f"{'false mu':>8} {'ms':>7}")
+    for name in args.functional or sorted(FUNCTIONALS):
+        rows = evaluate(cases, lambda g: Reconstructor(g, kernel=args.kernel,
+                                                       efficiency=FUNCTIONALS[name]()))
+        if args.cases:
+            print(format_table(rows))
+        s = summarize(rows)
+        print(f"{name:<15} {100 * s['normal_total']:7.2f}% {100 * s['tangential_total']:9.1f}% "
+              f"{s['direction_deg']:8.1f}d {s['false_shear']:8.3f} {s['ms']:7.2f}")
+
+
+if __name__ == "__main__":
+    main()

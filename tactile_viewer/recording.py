@@ -1,0 +1,214 @@
+"""Recordings: a sensor grid, frames of stress and their timestamps, in NPZ or CSV.
+
+NPZ keys: ``frames (T, m)`` pascals, ``t (T,)`` seconds, ``nx``, ``ny``,
+``pitch``, ``thickness`` (metres), optional ``positions (m, 2)``, optional
+``truth_forces (T, m, 3)`` newtons, ``units``, ``description``.
+
+CSV: ``#`` header lines of ``key=value`` (nx, ny, pitch, thickness, units,
+description), then one frame per row: ``t, v0, v1, ...``.
+
+No Qt here: the command line, the tests and the solver tools use it too.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from solver import SensorGrid
+
+__all__ = ["Recording", "RecordingError", "load", "save"]
+
+UNIT_SCALES = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
+
+
+class RecordingError(ValueError):
+    """A recording file that cannot be read; the message names the file and the problem."""
+
+
+def _frozen(array, dtype=float):
+    array = np.array(array, dtype=dtype)
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """Frames of sensor stress over time.
+
+    Attributes
+    ----------
+    grid : SensorGrid
+    frames : (T, m) ndarray
+        Stress at each sensor, pascals, compression positive.
+    t : (T,) ndarray
+        Time of each frame, seconds, non-decreasing.
+    truth_forces : (T, m, 3) ndarray or None
+        Known nodal forces (simulated recordings), newtons.
+    description : str
+    """
+
+    grid: SensorGrid
+    frames: np.ndarray
+    t: np.ndarray
+    truth_forces: np.ndarray | None = None
+    description: str = ""
+
+    def __post_init__(self):
+        frames = np.array(self.frames, dtype=float)
+        if frames.ndim != 2 or frames.shape[1] != self.grid.size:
+            raise ValueError(f"frames must have shape (T, {self.grid.size}), got {frames.shape}")
+        t = np.array(self.t, dtype=float)
+        if t.shape != (frames.shape[0],):
+            raise ValueError(f"t must have shape ({frames.shape[0]},), got {t.shape}")
+        if not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
+            raise ValueError("t must be finite and non-decreasing")
+        object.__setattr__(self, "frames", _frozen(frames))
+        object.__setattr__(self, "t", _frozen(t))
+        if self.truth_forces is not None:
+            truth = np.array(self.truth_forces, dtype=float)
+            if truth.shape != (frames.shape[0], self.grid.size, 3):
+                raise ValueError(f"truth_forces must have shape ({frames.shape[0]}, "
+                                 f"{self.grid.size}, 3), got {truth.shape}")
+            object.__setattr__(self, "truth_forces", _frozen(truth))
+
+    def __len__(self) -> int:
+        return self.frames.shape[0]
+
+
+def load(path) -> Recording:
+    """Read a recording (``.npz`` or ``.csv``); :class:`RecordingError` names what is wrong."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".npz", ".csv"):
+        raise RecordingError(f"{path}: unknown recording type {path.suffix!r}, expected .npz or .csv")
+    try:
+        if suffix == ".npz":
+            return _load_npz(path)
+        return _load_csv(path)
+    except RecordingError:
+        raise
+    except OSError as exc:
+        raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    except (ValueError, KeyError, TypeError) as exc:
+        raise RecordingError(f"{path}: {exc}") from exc
+
+
+def _scalar(data, key, path, cast=float):
+    if key not in data:
+        raise RecordingError(f"{path}: missing {key!r}")
+    try:
+        value = cast(np.asarray(data[key]).item())
+    except (ValueError, TypeError):
+        raise RecordingError(f"{path}: {key!r} must be a single number, got {data[key]!r}") from None
+    if cast is float and not math.isfinite(value):
+        raise RecordingError(f"{path}: {key!r} must be finite, got {value!r}")
+    return value
+
+
+def _grid(meta, path, positions=None) -> SensorGrid:
+    nx, ny = _scalar(meta, "nx", path, int), _scalar(meta, "ny", path, int)
+    pitch, thickness = _scalar(meta, "pitch", path), _scalar(meta, "thickness", path)
+    try:
+        grid = SensorGrid.regular(nx, ny, pitch, thickness)
+        if positions is not None:
+            grid = SensorGrid(np.asarray(positions, dtype=float), thickness, pitch, (ny, nx))
+    except ValueError as exc:
+        raise RecordingError(f"{path}: impossible geometry: {exc}") from None
+    return grid
+
+
+def _scale(units: str, path) -> float:
+    if units not in UNIT_SCALES:
+        raise RecordingError(f"{path}: units must be one of {sorted(UNIT_SCALES)}, got {units!r}")
+    return UNIT_SCALES[units]
+
+
+def _checked_frames(frames, grid, path):
+    if frames.ndim != 2 or frames.shape[1] != grid.size:
+        raise RecordingError(
+            f"{path}: frames must have {grid.size} values each for a "
+            f"{grid.shape[1]}x{grid.shape[0]} grid, got shape {frames.shape}")
+    if frames.shape[0] == 0:
+        raise RecordingError(f"{path}: no frames")
+    bad = np.argwhere(~np.isfinite(frames))
+    if bad.size:
+        raise RecordingError(f"{path}: frame {bad[0][0]} taxel {bad[0][1]} is not a finite number")
+    return frames
+
+
+def _load_npz(path) -> Recording:
+    try:
+        data = np.load(path, allow_pickle=False)
+    except (ValueError, OSError, EOFError) as exc:
+        raise RecordingError(f"{path}: not a readable NPZ archive ({exc})") from None
+    with data:
+        if "frames" not in data:
+            raise RecordingError(f"{path}: missing 'frames'")
+        grid = _grid(data, path, data["positions"] if "positions" in data else None)
+        units = str(data["units"]) if "units" in data else "Pa"
+        frames = _checked_frames(np.asarray(data["frames"], dtype=float), grid, path) * _scale(units, path)
+        t = np.asarray(data["t"], dtype=float) if "t" in data else np.arange(len(frames), dtype=float)
+        truth = np.asarray(data["truth_forces"], dtype=float) if "truth_forces" in data else None
+        description = str(data["description"]) if "description" in data else ""
+    try:
+        return Recording(grid, frames, t, truth, description)
+    except ValueError as exc:
+        raise RecordingError(f"{path}: {exc}") from None
+
+
+def _load_csv(path) -> Recording:
+    meta, rows = {}, []
+    with open(path, encoding="utf-8") as handle:
+        for number, line in enumerate(handle, start=1):
+            text = line.strip()
+            if not text:
+                continue
+            if text.startswith("#"):
+                key, sep, value = text[1:].partition("=")
+                if sep:
+                    meta[key.strip()] = value.strip()
+                continue
+            try:
+                rows.append([float(v) for v in text.replace(";", ",").split(",")])
+            except ValueError:
+                raise RecordingError(f"{path}: line {number}: not a row of numbers: {text[:60]!r}") from None
+            if len(rows[-1]) != len(rows[0]):
+                raise RecordingError(f"{path}: line {number}: {len(rows[-1]) - 1} values, "
+                                     f"earlier rows have {len(rows[0]) - 1}")
+    grid = _grid(meta, path)
+    if not rows:
+        raise RecordingError(f"{path}: no frames")
+    table = np.asarray(rows, dtype=float)
+    frames = _checked_frames(table[:, 1:], grid, path) * _scale(meta.get("units", "Pa"), path)
+    try:
+        return Recording(grid, frames, table[:, 0], None, meta.get("description", ""))
+    except ValueError as exc:
+        raise RecordingError(f"{path}: {exc}") from None
+
+
+def save(recording: Recording, path) -> Path:
+    """Write a recording as ``.npz`` (everything) or ``.csv`` (frames and geometry)."""
+    path = Path(path)
+    grid = recording.grid
+    ny, nx = grid.shape
+    if path.suffix.lower() == ".npz":
+        extra = {} if recording.truth_forces is None else {"truth_forces": recording.truth_forces}
+        np.savez_compressed(path, frames=recording.frames, t=recording.t, nx=nx, ny=ny,
+                            pitch=grid.pitch, thickness=grid.thickness, positions=grid.positions,
+                            units="Pa", description=recording.description, **extra)
+    elif path.suffix.lower() == ".csv":
+        buffer = io.StringIO()
+        buffer.write(f"# nx={nx}\n# ny={ny}\n# pitch={grid.pitch!r}\n# thickness={grid.thickness!r}\n")
+        buffer.write("# units=Pa\n")
+        if recording.description:
+            buffer.write(f"# description={' '.join(recording.description.split())}\n")
+        np.savetxt(buffer, np.column_stack([recording.t, recording.frames]), delimiter=",", fmt="%.9g")
+        path.write_text(buffer.getvalue(), encoding="utf-8")
+    else:
+        raise RecordingError(f"{path}: unknown recording type {path.suffix!r}, expected .npz or .csv")
+    return path

@@ -1,0 +1,78 @@
+"""Make the bundled sample recordings in ``sample_data/`` from :mod:`solver.loads`.
+
+``python -m tactile_viewer.samples [OUTDIR]`` rewrites them; every sample
+carries its true nodal forces. Seeds are fixed, so the files are reproducible.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+
+from solver import SensorGrid, loads
+
+from .recording import Recording, save
+
+PITCH = 2e-3
+THICKNESS = 2e-3
+RATE = 30.0  # frames per second
+NOISE = 0.01
+
+
+def _record(grid, contacts_at, count, description, seed):
+    # one generator for the whole recording: frames get independent noise
+    rng = np.random.default_rng(seed)
+    frames, truth = [], []
+    for k in range(count):
+        frame = loads.simulate(grid, contacts_at(k / RATE), noise=NOISE, rng=rng)
+        frames.append(frame.stress)
+        truth.append(frame.forces)
+    return Recording(grid, np.array(frames), np.arange(count) / RATE, np.array(truth), description)
+
+
+def _ramp(t, rise=0.5):
+    return min(1.0, 0.1 + 0.9 * t / rise)
+
+
+def make_all(outdir: Path) -> list[Path]:
+    grid = SensorGrid.regular(16, 16, PITCH, THICKNESS)
+    samples = {
+        "hertz_static.npz": _record(
+            grid, lambda t: loads.hertz((0.6e-3, -0.4e-3), 5e-3, 1.0), 30,
+            "Static Hertzian press: radius 5 mm, 1 N, no shear; 16x16, pitch 2 mm, "
+            "thickness 2 mm, 1% noise.", seed=1),
+        "hertz_shear_turning.npz": _record(
+            grid, lambda t: loads.hertz((0.0, 0.0), 5e-3, 1.0, shear_ratio=0.4,
+                                        shear_direction=math.remainder(2 * math.pi * t / 2.0, 2 * math.pi)),
+            60, "Hertzian press, radius 5 mm, 1 N, shear ratio 0.4 turning once through all "
+                "directions in 2 s; 16x16, pitch 2 mm, thickness 2 mm, 1% noise.", seed=2),
+        "flat_punch_shear.npz": _record(
+            grid, lambda t: loads.flat_punch((-1e-3, 1e-3), 4e-3, 1.5 * _ramp(t), shear_ratio=0.3,
+                                             shear_direction=math.radians(30)),
+            45, "Flat punch, radius 4 mm, force ramping to 1.5 N, shear ratio 0.3 towards 30 degrees; "
+                "16x16, pitch 2 mm, thickness 2 mm, 1% noise.", seed=3),
+        "two_contacts.npz": _record(
+            grid, lambda t: [loads.hertz((-7e-3, -5e-3), 3.5e-3, 0.6, shear_ratio=0.3, shear_direction=0.0),
+                             loads.hertz((7e-3, 6e-3), 4e-3, 0.8 * _ramp(t),
+                                         shear_ratio=0.2, shear_direction=math.radians(120))],
+            45, "Two Hertzian contacts (0.6 N with shear 0.3 along +x; 0.8 N ramping, shear 0.2 "
+                "towards 120 degrees); 16x16, pitch 2 mm, thickness 2 mm, 1% noise.", seed=4),
+    }
+    outdir.mkdir(parents=True, exist_ok=True)
+    return [save(recording, outdir / name) for name, recording in samples.items()]
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("outdir", nargs="?", default=Path(__file__).resolve().parent.parent / "sample_data",
+                        type=Path)
+    args = parser.parse_args(argv)
+    for path in make_all(args.outdir):
+        print(path, f"{path.stat().st_size / 1024:.0f} KiB")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,101 @@
+"""Forward model against closed forms and fine quadrature."""
+
+import math
+
+import numpy as np
+import pytest
+
+from solver import SensorGrid, loads
+from solver.kernels import cell_force_stress, point_force_stress, stress_matrix
+
+
+def love_rectangle(q, L, B, z):
+    # Love's uniform rectangle below one corner, written out independently of solver.kernels
+    r1, r2, r3 = math.hypot(L, z), math.hypot(B, z), math.sqrt(L * L + B * B + z * z)
+    return q / (2 * math.pi) * (math.atan(L * B / (z * r3)) + L * B * z / r3 * (1 / r1**2 + 1 / r2**2))
+
+
+def test_hertz_on_axis_matches_closed_form():
+    # T33(0, z) = p0 a^2 / (a^2 + z^2), from the fine integration of the continuous load
+    a, force, z = 4e-3, 2.0, 3e-3
+    p0 = 3 * force / (2 * math.pi * a * a)
+    grid = SensorGrid.regular(1, 1, pitch=30e-3, thickness=z)
+    frame = loads.simulate(grid, loads.hertz((0.0, 0.0), a, force), subdivisions=600)
+    assert frame.stress[0] == pytest.approx(p0 * a * a / (a * a + z * z), rel=2e-3)
+
+
+@pytest.mark.parametrize("point", [(0.0, 0.0), (0.7e-3, -0.2e-3), (3e-3, 2e-3), (-5e-3, 0.4e-3)])
+def test_cell_normal_kernel_is_loves_rectangle(point):
+    # a cell of side w centred at the origin = signed sum of four corner rectangles
+    w, z = 2e-3, 1.2e-3
+    q = 1.0 / (w * w)
+    x, y = point
+    total = 0.0
+    for u, su in ((w / 2 - x, 1), (-w / 2 - x, -1)):
+        for v, sv in ((w / 2 - y, 1), (-w / 2 - y, -1)):
+            total += su * sv * math.copysign(1, u) * math.copysign(1, v) * love_rectangle(q, abs(u), abs(v), z)
+    kz = cell_force_stress(np.array(x), np.array(y), z, w)[2]
+    assert float(kz) == pytest.approx(total, rel=1e-10)
+
+
+@pytest.mark.parametrize("point", [(0.0, 0.0), (1.1e-3, 0.3e-3), (-2.5e-3, 1.9e-3), (0.3e-3, -4e-3)])
+def test_cell_kernel_matches_fine_quadrature_of_point_kernel(point):
+    w, z, n = 2e-3, 0.8e-3, 600
+    s = ((np.arange(n) + 0.5) / n - 0.5) * w
+    u, v = np.meshgrid(s, s)
+    expected = [k.mean() for k in point_force_stress(point[0] - u, point[1] - v, z)]
+    got = cell_force_stress(np.array(point[0]), np.array(point[1]), z, w)
+    scale = max(abs(e) for e in expected)
+    np.testing.assert_allclose(got, expected, atol=1e-5 * scale)
+
+
+def test_uniform_pressure_over_a_large_area_reads_back_as_that_pressure():
+    # every cell of a wide skin carries q * pitch^2; the central sensor reads q
+    q, pitch, h = 5e3, 2e-3, 1e-3
+    grid = SensorGrid.regular(41, 41, pitch, h)
+    C = stress_matrix(grid, "cell")
+    m = grid.size
+    stress = C[:, 2 * m:] @ np.full(m, q * pitch * pitch)
+    centre = (41 * 41) // 2
+    assert stress[centre] == pytest.approx(q, rel=2e-3)
+
+
+@pytest.mark.parametrize("kernel", ["cell", "point"])
+def test_cerruti_term_is_antisymmetric(kernel):
+    grid = SensorGrid.regular(7, 5, 2e-3, 1.5e-3)
+    C = stress_matrix(grid, kernel)
+    m = grid.size
+    cx, cy, cz = C[:, :m], C[:, m:2 * m], C[:, 2 * m:]
+    # swapping sensor and node flips the sign of the tangential kernels
+    np.testing.assert_allclose(cx, -cx.T, atol=1e-12 * np.abs(cx).max())
+    np.testing.assert_allclose(cy, -cy.T, atol=1e-12 * np.abs(cy).max())
+    np.testing.assert_allclose(cz, cz.T, rtol=1e-12)
+    assert np.all(np.diag(cx) == 0)
+    # ahead of a +x load the sensor is compressed
+    k = 2 * 7 + 3
+    assert cx[k + 1, k] > 0 > cx[k - 1, k]
+
+
+def test_regular_and_general_assembly_agree():
+    grid = SensorGrid.regular(6, 4, 1.5e-3, 2e-3)
+    shifted = SensorGrid(grid.positions * [1, 1 + 1e-7], grid.thickness, grid.pitch, (24,))
+    assert not shifted.is_regular
+    for kernel in ("cell", "point"):
+        np.testing.assert_allclose(stress_matrix(grid, kernel), stress_matrix(shifted, kernel),
+                                   rtol=1e-5, atol=1e-9)
+
+
+def test_cell_kernel_keeps_the_total_force_where_the_point_kernel_loses_it():
+    grid = SensorGrid.regular(25, 25, 2e-3, 1e-3)  # h / pitch = 0.5
+    m = grid.size
+    centre = m // 2
+    # pascals per newton integrated over the sensors' cells: 1 when the total is kept
+    cell = stress_matrix(grid, "cell")[:, 2 * m + centre].sum() * grid.pitch**2
+    point = stress_matrix(grid, "point")[:, 2 * m + centre].sum() * grid.pitch**2
+    assert cell == pytest.approx(1.0, abs=1e-3)
+    assert abs(point - 1.0) > 0.5
+
+
+def test_unknown_kernel_is_rejected():
+    with pytest.raises(ValueError, match="kernel must be one of .* got 'spline'"):
+        stress_matrix(SensorGrid.regular(2, 2, 1e-3, 1e-3), "spline")
