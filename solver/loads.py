@@ -208,13 +208,16 @@ def _subcell_forces(contact: Contact, x, y, step, supersample):
     return total / supersample**2 * step * step
 
 
-def _normalisation(contact: Contact, step, supersample):
+def _normalisation(contact: Contact, step, supersample, anchor):
     # Integrals of the profile over its whole support (on or off the skin),
-    # on the same sub-cell lattice, so clipped and discretised shapes carry
-    # exactly the requested totals.
-    n = int(math.ceil(contact.extent / step)) + 1
-    lattice = (np.arange(-n, n) + 0.5) * step
-    gx, gy = np.meshgrid(lattice + contact.center[0], lattice + contact.center[1])
+    # on the skin's own sub-cell lattice (through ``anchor``), so clipped and
+    # discretised shapes carry exactly the requested totals.
+    axes = []
+    for k in range(2):
+        low = math.floor((contact.center[k] - contact.extent - anchor[k]) / step) - 1
+        high = math.ceil((contact.center[k] + contact.extent - anchor[k]) / step) + 1
+        axes.append(anchor[k] + (np.arange(low, high) + 0.5) * step)
+    gx, gy = np.meshgrid(*axes)
     weights = _subcell_forces(contact, gx, gy, step, supersample)
     r2 = (gx - contact.center[0]) ** 2 + (gy - contact.center[1]) ** 2
     return weights.sum(), (weights * r2).sum()
@@ -260,12 +263,13 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
     offsets = ((np.arange(subdivisions) + 0.5) / subdivisions - 0.5) * pitch
     ox, oy = np.meshgrid(offsets, offsets)
     tree = cKDTree(grid.positions)
+    anchor = grid.positions[0] - pitch / 2  # a corner of the sub-cell lattice
 
     m = grid.size
     forces = np.zeros((m, 3))
     stress = np.zeros(m)
     for contact in contacts:
-        total, second_moment = _normalisation(contact, step, supersample)
+        total, second_moment = _normalisation(contact, step, supersample, anchor)
         # node cells that the contact can touch
         near = tree.query_ball_point(contact.center, contact.extent + pitch)
         if not near:

@@ -1,0 +1,102 @@
+"""Simulated contacts: totals, shear, torsion, noise and input checks."""
+
+import math
+
+import numpy as np
+import pytest
+
+from solver import SensorGrid, loads
+
+
+@pytest.fixture(scope="module")
+def grid():
+    return SensorGrid.regular(16, 16, pitch=2e-3, thickness=2e-3)
+
+
+@pytest.mark.parametrize("make", [
+    lambda **kw: loads.hertz((0.3e-3, -0.5e-3), 5e-3, 1.3, **kw),
+    lambda **kw: loads.cone((0.3e-3, -0.5e-3), 5e-3, 1.3, **kw),
+    lambda **kw: loads.flat_punch((0.3e-3, -0.5e-3), 4e-3, 1.3, **kw),
+    lambda **kw: loads.ellipse((0.3e-3, -0.5e-3), (6e-3, 3e-3), 1.3, angle=0.4, **kw),
+    lambda **kw: loads.ring((0.3e-3, -0.5e-3), 2e-3, 5e-3, 1.3, **kw),
+], ids=["hertz", "cone", "flat_punch", "ellipse", "ring"])
+def test_totals_and_shear_are_as_requested(grid, make):
+    frame = loads.simulate(grid, make(shear_ratio=0.4, shear_direction=2.0))
+    total = frame.forces.sum(0)
+    assert total[2] == pytest.approx(1.3, rel=1e-9)
+    np.testing.assert_allclose(total[:2], 0.4 * 1.3 * np.array([math.cos(2.0), math.sin(2.0)]), rtol=1e-9)
+    # compression ahead of the shear, relief behind: the stress centroid moves along theta
+    still = loads.simulate(grid, make())
+    shift = (frame.stress - still.stress) @ grid.positions
+    assert math.atan2(shift[1], shift[0]) == pytest.approx(2.0, abs=0.05)
+    np.testing.assert_allclose(frame.stress, frame.clean_stress)
+
+
+def test_torsion_carries_the_torque_and_no_net_shear(grid):
+    frame = loads.simulate(grid, loads.hertz((0.0, 0.0), 5e-3, 1.0, torsion=2e-3))
+    f, p = frame.forces, grid.positions
+    # nodal forces act at node positions, so the torque is only approximately kept
+    torque = np.sum(p[:, 0] * f[:, 1] - p[:, 1] * f[:, 0])
+    assert torque == pytest.approx(2e-3, rel=0.1)
+    np.testing.assert_allclose(f[:, :2].sum(0), 0, atol=1e-12)
+
+
+def test_several_contacts_add_up(grid):
+    a = loads.hertz((-8e-3, -8e-3), 4e-3, 0.5, shear_ratio=0.2)
+    b = loads.flat_punch((8e-3, 6e-3), 3e-3, 0.7, shear_ratio=0.3, shear_direction=1.0)
+    both = loads.simulate(grid, [a, b], subdivisions=16)
+    apart = [loads.simulate(grid, c, subdivisions=16) for c in (a, b)]
+    np.testing.assert_allclose(both.stress, apart[0].stress + apart[1].stress, rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(both.forces, apart[0].forces + apart[1].forces, atol=1e-15)
+
+
+def test_noise_is_relative_to_the_peak_and_seeded(grid):
+    contact = loads.hertz((0.0, 0.0), 5e-3, 1.0)
+    one = loads.simulate(grid, contact, noise=0.01, rng=4)
+    two = loads.simulate(grid, contact, noise=0.01, rng=4)
+    np.testing.assert_array_equal(one.stress, two.stress)
+    deviation = np.std(one.stress - one.clean_stress)
+    assert deviation == pytest.approx(0.01 * one.clean_stress.max(), rel=0.15)
+
+
+def test_load_off_the_skin_is_counted_nowhere():
+    grid = SensorGrid.regular(8, 8, 2e-3, 1e-3)
+    # centred on the right edge of the skin: about half of it is off
+    frame = loads.simulate(grid, loads.hertz((8e-3, 0.0), 3e-3, 1.0))
+    assert 0.4 < frame.forces[:, 2].sum() < 0.6
+
+
+def test_fine_integration_converges(grid):
+    contact = loads.hertz((0.2e-3, 0.1e-3), 5e-3, 1.0)
+    coarse = loads.simulate(grid, contact, subdivisions=8).stress
+    fine = loads.simulate(grid, contact, subdivisions=32).stress
+    assert np.abs(coarse - fine).max() < 5e-3 * fine.max()
+
+
+def test_arrays_are_read_only(grid):
+    frame = loads.simulate(grid, loads.hertz((0.0, 0.0), 3e-3, 1.0))
+    for array in (frame.stress, frame.clean_stress, frame.forces):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 0
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: loads.hertz((0.0, 0.0), -1e-3, 1.0), "semi_axes must be two positive radii"),
+    (lambda: loads.hertz((0.0, math.nan), 1e-3, 1.0), "center must be two finite coordinates"),
+    (lambda: loads.hertz((0.0, 0.0), 1e-3, math.inf), "force must be finite"),
+    (lambda: loads.hertz((0.0, 0.0), 1e-3, 1.0, shear_ratio=-0.1), "shear_ratio must be finite and >= 0"),
+    (lambda: loads.ring((0.0, 0.0), 3e-3, 2e-3, 1.0), r"inner_radius must be in \[0, outer radius"),
+    (lambda: loads.flat_punch((0.0, 0.0), 1e-3, 1.0, clip=1.5), r"clip must be in \(0, 1\)"),
+    (lambda: loads.Contact("blob", (0, 0), (1e-3, 1e-3), 1.0), "shape must be one of"),
+], ids=["radius", "center", "force", "shear", "ring", "clip", "shape"])
+def test_invalid_contacts_are_rejected(make, message):
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+def test_invalid_simulation_arguments_are_rejected(grid):
+    contact = loads.hertz((0.0, 0.0), 3e-3, 1.0)
+    with pytest.raises(ValueError, match="contacts must be one or more Contact"):
+        loads.simulate(grid, [])
+    with pytest.raises(ValueError, match="noise must be finite and >= 0, got -0.1"):
+        loads.simulate(grid, contact, noise=-0.1)
