@@ -150,6 +150,12 @@ class ContactFit:
     ----------
     significance : float, optional
         F-statistic threshold for keeping shear. Default 2.
+    model_error : float, optional
+        Floor of the misfit standard deviation in the F statistic, relative
+        to the peak stress: the cell kernel's own error on continuous loads,
+        which would otherwise read as significant shear on clean data.
+        Default 0.008: with it the median false shear ratio on shear-free
+        loads is 0 at 0%, 0.3% and 1% noise (without it, 0.05 on clean data).
     max_iterations : int, optional
         Gauss-Newton iterations. Default 12.
     tolerance : float, optional
@@ -159,13 +165,16 @@ class ContactFit:
 
     name = "contact_fit"
 
-    def __init__(self, *, significance: float = 2.0, max_iterations: int = 12,
-                 tolerance: float = 1e-3):
+    def __init__(self, *, significance: float = 2.0, model_error: float = 0.008,
+                 max_iterations: int = 12, tolerance: float = 1e-3):
         if not (math.isfinite(significance) and significance >= 0):
             raise ValueError(f"significance must be finite and >= 0, got {significance!r}")
         if int(max_iterations) < 0:
             raise ValueError(f"max_iterations must be >= 0, got {max_iterations!r}")
         self.significance = float(significance)
+        if not (math.isfinite(model_error) and model_error >= 0):
+            raise ValueError(f"model_error must be finite and >= 0, got {model_error!r}")
+        self.model_error = float(model_error)
         self.max_iterations = int(max_iterations)
         if not tolerance > 0:
             raise ValueError(f"tolerance must be > 0, got {tolerance!r}")
@@ -255,8 +264,11 @@ class ContactFit:
             # Keep shear only when it is significant against a shear-free load.
             dof = frame.stress.size - int(np.count_nonzero(g)) - len(p)
             gain = rho0 - rho
-            significant = dof > 0 and gain > 0 and (
-                rho <= 0 or (gain / len(p)) / (rho / dof) > self.significance)
+            # The misfit of the kernel's model of a continuous load acts as noise
+            # that does not shrink with the sensor noise: floor the variance.
+            floor = (self.model_error * float(np.abs(frame.stress).max())) ** 2
+            variance = max(rho / dof, floor) if dof > 0 else math.inf
+            significant = gain > 0 and (variance <= 0 or (gain / len(p)) / variance > self.significance)
             if not significant:
                 return self._choice(frame, (0.0, 0.0), g0, rho0, norm, detected=False)
         return self._choice(frame, s, g, rho, norm, detected=shear_ratio is None)
