@@ -24,7 +24,8 @@ def _positive_count(name: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise ValueError(f"{name} must be a positive integer, got {value!r}")
     if value < 1:
-        raise ValueError(f"{name} must be a positive integer (a grid needs at least one taxel), got {value!r}")
+        raise ValueError(
+            f"{name} must be a positive integer (a grid needs at least one taxel), got {value!r}")
     return int(value)
 
 
@@ -74,7 +75,7 @@ class SensorGrid:
         object.__setattr__(self, "shape", shape)
 
     @classmethod
-    def regular(cls, nx: int, ny: int, pitch: float, thickness: float) -> "SensorGrid":
+    def regular(cls, nx: int, ny: int, pitch: float, thickness: float) -> SensorGrid:
         """A rectangular grid of ``nx`` by ``ny`` sensors centred on the origin.
 
         Parameters
@@ -111,7 +112,7 @@ class SensorGrid:
         offset = self.positions[0] - reference[0]
         return np.allclose(self.positions, reference + offset, rtol=0, atol=1e-9 * self.pitch)
 
-    def with_thickness(self, thickness: float) -> "SensorGrid":
+    def with_thickness(self, thickness: float) -> SensorGrid:
         """The same layout under a layer of another thickness."""
         return SensorGrid(self.positions, thickness, self.pitch, self.shape)
 

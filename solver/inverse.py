@@ -30,8 +30,9 @@ from .kernels import KERNELS, stress_matrix
 
 __all__ = ["Reconstructor", "Reconstruction", "SymmetricFactor"]
 
-# Largest grid (sensors) for which C^T C (3m x 3m, 72 m^2 bytes) is kept.
-GRAM_LIMIT = 1024
+# Largest grid (sensors) for which C^T C (3m x 3m) is kept: beyond it, forming
+# it costs more set-up time than the per-frame region Gram blocks ever save.
+GRAM_LIMIT = 400
 
 
 def _readonly(array) -> np.ndarray:
@@ -62,7 +63,7 @@ class SymmetricFactor:
     condition_undamped: float
 
     @classmethod
-    def of(cls, matrix: np.ndarray, *, max_condition: float) -> "SymmetricFactor":
+    def of(cls, matrix: np.ndarray, *, max_condition: float) -> SymmetricFactor:
         # Tikhonov damping: (A + lambda I) with lambda = |A|_1 / max_condition
         # bounds cond(A + lambda I) by about max_condition + 1 and leaves the
         # well-conditioned cases exact (lambda = 0).

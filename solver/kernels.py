@@ -102,11 +102,13 @@ def cell_force_stress(dx, dy, depth, width):
     return kx, ky, kz
 
 
-def _offsets_to_matrix(values, ny, nx):
+def _spread_offsets(values, out):
     # values[u, v] holds the kernel for sensor - node = (v - nx + 1, u - ny + 1)
-    # pitches; spread it to the (m, m) block-Toeplitz matrix without recomputing.
+    # pitches; spread it into the (m, m) block-Toeplitz block ``out`` (a view)
+    # with a single copy and no recomputation.
+    ny, nx = (values.shape[0] + 1) // 2, (values.shape[1] + 1) // 2
     windows = sliding_window_view(values[::-1, ::-1], (ny, nx))[::-1, ::-1]
-    return windows.reshape(ny * nx, ny * nx)
+    np.copyto(out.reshape(ny, nx, ny, nx), windows)
 
 
 def stress_matrix(grid: SensorGrid, kernel: str = "cell") -> np.ndarray:
@@ -135,18 +137,18 @@ def stress_matrix(grid: SensorGrid, kernel: str = "cell") -> np.ndarray:
         return cell_force_stress(dx, dy, h, pitch)
 
     m = grid.size
+    matrix = np.empty((m, 3 * m))
     if grid.is_regular:
         # Translation invariance: evaluate on the (2ny-1, 2nx-1) offsets once.
         ny, nx = grid.shape
         oy, ox = np.meshgrid(np.arange(-(ny - 1), ny) * pitch, np.arange(-(nx - 1), nx) * pitch,
                              indexing="ij")
-        blocks = [_offsets_to_matrix(k, ny, nx) for k in evaluate(ox, oy)]
+        for i, values in enumerate(evaluate(ox, oy)):
+            _spread_offsets(values, matrix[:, i * m:(i + 1) * m])
     else:
         p = grid.positions
         dx = p[:, 0, None] - p[None, :, 0]
         dy = p[:, 1, None] - p[None, :, 1]
-        blocks = evaluate(dx, dy)
-    matrix = np.empty((m, 3 * m))
-    for i, block in enumerate(blocks):
-        matrix[:, i * m:(i + 1) * m] = block
+        for i, block in enumerate(evaluate(dx, dy)):
+            matrix[:, i * m:(i + 1) * m] = block
     return matrix

@@ -203,7 +203,7 @@ def _subcell_forces(contact: Contact, x, y, step, supersample):
     offsets = ((np.arange(supersample) + 0.5) / supersample - 0.5) * step
     ox, oy = np.meshgrid(offsets, offsets)
     total = np.zeros_like(x)
-    for sx, sy in zip(ox.ravel(), oy.ravel()):
+    for sx, sy in zip(ox.ravel(), oy.ravel(), strict=True):
         total += contact.profile(x + sx, y + sy)
     return total / supersample**2 * step * step
 

@@ -147,8 +147,8 @@ def main(argv=None):
     print(f"{'functional':<15} {'normal':>8} {'tangential':>10} {'direction':>9} "
           f"{'false mu':>8} {'ms':>7}")
     for name in args.functional or sorted(FUNCTIONALS):
-        rows = evaluate(cases, lambda g: Reconstructor(g, kernel=args.kernel,
-                                                       efficiency=FUNCTIONALS[name]()))
+        functional = FUNCTIONALS[name]
+        rows = evaluate(cases, lambda g, f=functional: Reconstructor(g, kernel=args.kernel, efficiency=f()))
         if args.cases:
             print(format_table(rows))
         s = summarize(rows)

@@ -19,7 +19,8 @@ from solver import Reconstructor, metrics
 from .recording import RecordingError, load
 
 
-def report(path, *, frame=None, kernel="cell", shear_ratio=None, shear_direction_deg=None, out=sys.stdout):
+def report(path, *, frame=None, kernel="cell", shear_ratio=None, shear_direction_deg=None, out=None):
+    out = sys.stdout if out is None else out
     recording = load(path)
     grid = recording.grid
     start = time.perf_counter()

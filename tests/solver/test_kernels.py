@@ -33,7 +33,8 @@ def test_cell_normal_kernel_is_loves_rectangle(point):
     total = 0.0
     for u, su in ((w / 2 - x, 1), (-w / 2 - x, -1)):
         for v, sv in ((w / 2 - y, 1), (-w / 2 - y, -1)):
-            total += su * sv * math.copysign(1, u) * math.copysign(1, v) * love_rectangle(q, abs(u), abs(v), z)
+            sign = su * sv * math.copysign(1, u) * math.copysign(1, v)
+            total += sign * love_rectangle(q, abs(u), abs(v), z)
     kz = cell_force_stress(np.array(x), np.array(y), z, w)[2]
     assert float(kz) == pytest.approx(total, rel=1e-10)
 

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from solver import Reconstructor
-from solver.validation import format_table, standard_cases, evaluate, summarize
+from solver.validation import evaluate, format_table, standard_cases, summarize
 
 
 @pytest.fixture(scope="module")

@@ -1,0 +1,67 @@
+"""The headless command line over the bundled samples."""
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tactile_viewer import samples
+from tactile_viewer.__main__ import main
+from tactile_viewer.recording import load
+
+SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
+NAMES = ["hertz_static.npz", "hertz_shear_turning.npz", "flat_punch_shear.npz", "two_contacts.npz"]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_bundled_samples_load_with_truth(name):
+    recording = load(SAMPLES / name)
+    assert len(recording) >= 30
+    assert recording.truth_forces is not None
+    assert recording.grid.shape == (16, 16)
+    assert recording.description
+
+
+def test_samples_are_reproducible_from_the_script(tmp_path):
+    written = samples.make_all(tmp_path)
+    assert sorted(p.name for p in written) == sorted(NAMES)
+    for path in written:
+        ours, bundled = load(path), load(SAMPLES / path.name)
+        np.testing.assert_allclose(ours.frames, bundled.frames, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(ours.truth_forces, bundled.truth_forces, rtol=1e-12, atol=1e-15)
+    assert sum(p.stat().st_size for p in SAMPLES.glob("*.npz")) < 5 * 2**20
+
+
+def test_report_on_the_turning_shear_sample(capsys):
+    assert main([str(SAMPLES / "hertz_shear_turning.npz"), "--report"]) == 0
+    out = capsys.readouterr().out
+    rows = [line.split() for line in out.splitlines() if re.match(r"\s+\d+\s+\d\.\d{3}\s", line)]
+    assert len(rows) == 60
+    # total normal force within 5% of the 1 N truth on every frame
+    assert all(abs(float(r[2]) - 1.0) < 0.05 for r in rows)
+    assert "median solve" in out
+
+
+def test_report_with_given_parameters_on_one_frame(capsys):
+    assert main([str(SAMPLES / "hertz_static.npz"), "--frame", "3", "--shear-ratio", "0.2",
+                 "--shear-direction", "90"]) == 0
+    out = capsys.readouterr().out
+    row = next(line.split() for line in out.splitlines() if re.match(r"\s+3\s", line))
+    assert float(row[4]) == pytest.approx(0.2) and float(row[5]) == pytest.approx(90)
+
+
+def test_a_malformed_file_is_named_and_exits_2(tmp_path, capsys):
+    bad = tmp_path / "broken.npz"
+    bad.write_bytes(b"not a zip archive at all")
+    assert main([str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "broken.npz" in err and "NPZ" in err
+
+
+def test_module_entry_point_runs():
+    out = subprocess.run([sys.executable, "-m", "tactile_viewer", str(SAMPLES / "hertz_static.npz"),
+                          "--frame", "0"], capture_output=True, text=True, check=True)
+    assert "median solve" in out.stdout
