@@ -161,8 +161,11 @@ class Reconstructor:
         Stress kernel (see :mod:`solver.kernels`). Default "cell".
     max_condition : float, optional
         Largest condition number of ``Cz`` and of ``C`` accepted undamped;
-        beyond it Tikhonov damping keeps the forces bounded (thick layers).
-        Default ``1e4``.
+        beyond it Tikhonov damping keeps the forces bounded (thick layers,
+        ``h / pitch`` above about 1.7). Default 100: on a 16x16 Hertzian
+        contact with 1% noise at ``h / pitch = 3`` the field error is 0.9 of
+        ``|F|`` with it, 5.2 with 1e3 and 23 with 1e4 (total normal error
+        1.3%, 5.9%, 7.9%).
     max_shear_ratio : float, optional
         Upper bound of the automatic shear-ratio search. Default 1.5.
     region_threshold : float, optional
@@ -178,7 +181,7 @@ class Reconstructor:
         :class:`solver.efficiency.ContactFit`.
     """
 
-    def __init__(self, grid: SensorGrid, *, kernel: str = "cell", max_condition: float = 1e4,
+    def __init__(self, grid: SensorGrid, *, kernel: str = "cell", max_condition: float = 100.0,
                  max_shear_ratio: float = 1.5, region_threshold: float = 0.2,
                  region_margin: int = 1,
                  efficiency=None):
