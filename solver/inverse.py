@@ -62,6 +62,11 @@ class SymmetricFactor:
     condition: float
     condition_undamped: float
 
+    def __post_init__(self):
+        # LAPACK wants column-major storage; converting once here saves a full
+        # copy of the factor on every solve.
+        object.__setattr__(self, "factor", np.asfortranarray(self.factor))
+
     @classmethod
     def of(cls, matrix: np.ndarray, *, max_condition: float) -> SymmetricFactor:
         # Tikhonov damping: (A + lambda I) with lambda = |A|_1 / max_condition
