@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .arrays import read_only
+
 __all__ = ["SensorGrid"]
 
 
@@ -56,14 +58,13 @@ class SensorGrid:
     shape: tuple
 
     def __post_init__(self):
-        positions = np.array(self.positions, dtype=float)
+        positions = read_only(self.positions)
         if positions.ndim != 2 or positions.shape[1] != 2 or positions.shape[0] < 1:
             raise ValueError(
                 f"positions must have shape (m, 2) with m >= 1, got shape {positions.shape}"
             )
         if not np.all(np.isfinite(positions)):
             raise ValueError("positions must be finite, got NaN or inf")
-        positions.setflags(write=False)
         object.__setattr__(self, "positions", positions)
         object.__setattr__(self, "thickness", _positive_finite("thickness", self.thickness))
         object.__setattr__(self, "pitch", _positive_finite("pitch", self.pitch))

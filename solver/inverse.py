@@ -24,6 +24,7 @@ from scipy import ndimage, sparse
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from .arrays import read_only
 from .efficiency import ContactFit, Frame
 from .geometry import SensorGrid
 from .kernels import KERNELS, stress_matrix
@@ -33,12 +34,6 @@ __all__ = ["Reconstructor", "Reconstruction", "SymmetricFactor"]
 # Largest grid (sensors) for which C^T C (3m x 3m) is kept: beyond it, forming
 # it costs more set-up time than the per-frame region Gram blocks ever save.
 GRAM_LIMIT = 400
-
-
-def _readonly(array) -> np.ndarray:
-    array = np.array(array, dtype=float)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True)
@@ -256,10 +251,10 @@ class Reconstructor:
         forces = np.zeros((m, 3))
         forces[:, 2] = fz
         return Reconstruction(
-            forces=_readonly(forces), shear_ratio=0.0, shear_direction=0.0, efficiency=math.nan,
+            forces=read_only(forces), shear_ratio=0.0, shear_direction=0.0, efficiency=math.nan,
             residual=self._residual(np.concatenate([np.zeros(2 * m), fz]), b),
             condition=self._normal.condition, regularized=self._normal.shift > 0,
-            normal_only=True, shear_detected=False, region=_readonly_bool(fz > 0))
+            normal_only=True, shear_detected=False, region=read_only(fz > 0, bool))
 
     def solve(self, stress, *, shear_ratio: float | None = None,
               shear_direction: float | None = None) -> Reconstruction:
@@ -300,11 +295,11 @@ class Reconstructor:
         if direction == -math.pi:
             direction = math.pi
         return Reconstruction(
-            forces=_readonly(x.reshape(3, m).T), shear_ratio=ratio, shear_direction=direction,
+            forces=read_only(x.reshape(3, m).T), shear_ratio=ratio, shear_direction=direction,
             efficiency=choice.efficiency, residual=self._residual(x, b),
             condition=self._gram.condition, regularized=self._gram.shift > 0,
             normal_only=False, shear_detected=choice.shear_detected,
-            region=_readonly_bool(frame.region))
+            region=read_only(frame.region, bool))
 
     # -- helpers ------------------------------------------------------------------
 
@@ -379,9 +374,3 @@ def _within(tree: cKDTree, distance: float):
     # Sparse boolean adjacency of nodes closer than ``distance`` (self included).
     pairs = tree.sparse_distance_matrix(tree, distance, output_type="coo_matrix").tocsr()
     return (pairs + sparse.identity(tree.n, format="csr")).astype(bool).astype(np.int8)
-
-
-def _readonly_bool(mask) -> np.ndarray:
-    mask = np.array(mask, dtype=bool)
-    mask.setflags(write=False)
-    return mask

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .arrays import read_only
 from .geometry import SensorGrid
 from .kernels import point_force_stress
 
@@ -33,12 +34,6 @@ __all__ = [
 ]
 
 SHAPES = ("hertz", "cone", "flat_punch", "ellipse", "ring")
-
-
-def _readonly(array) -> np.ndarray:
-    array = np.array(array, dtype=float)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True)
@@ -310,5 +305,5 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
     if noise > 0:
         generator = np.random.default_rng(rng)
         stress = stress + generator.normal(0.0, noise * np.abs(clean).max(), size=m)
-    return SimulatedFrame(grid=grid, stress=_readonly(stress), clean_stress=_readonly(clean),
-                          forces=_readonly(forces), contacts=contacts, noise=float(noise))
+    return SimulatedFrame(grid=grid, stress=read_only(stress), clean_stress=read_only(clean),
+                          forces=read_only(forces), contacts=contacts, noise=float(noise))

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from solver import SensorGrid
+from solver.arrays import read_only
 
 __all__ = ["Recording", "RecordingError", "load", "save"]
 
@@ -28,12 +29,6 @@ UNIT_SCALES = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
 
 class RecordingError(ValueError):
     """A recording file that cannot be read; the message names the file and the problem."""
-
-
-def _frozen(array, dtype=float):
-    array = np.array(array, dtype=dtype)
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,14 +62,14 @@ class Recording:
             raise ValueError(f"t must have shape ({frames.shape[0]},), got {t.shape}")
         if not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
             raise ValueError("t must be finite and non-decreasing")
-        object.__setattr__(self, "frames", _frozen(frames))
-        object.__setattr__(self, "t", _frozen(t))
+        object.__setattr__(self, "frames", read_only(frames))
+        object.__setattr__(self, "t", read_only(t))
         if self.truth_forces is not None:
             truth = np.array(self.truth_forces, dtype=float)
             if truth.shape != (frames.shape[0], self.grid.size, 3):
                 raise ValueError(f"truth_forces must have shape ({frames.shape[0]}, "
                                  f"{self.grid.size}, 3), got {truth.shape}")
-            object.__setattr__(self, "truth_forces", _frozen(truth))
+            object.__setattr__(self, "truth_forces", read_only(truth))
 
     def __len__(self) -> int:
         return self.frames.shape[0]
