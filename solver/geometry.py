@@ -68,7 +68,10 @@ class SensorGrid:
         object.__setattr__(self, "positions", positions)
         object.__setattr__(self, "thickness", _positive_finite("thickness", self.thickness))
         object.__setattr__(self, "pitch", _positive_finite("pitch", self.pitch))
-        shape = tuple(int(s) for s in self.shape)
+        shape = tuple(self.shape)
+        if not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 1 for s in shape):
+            raise ValueError(f"shape entries must be whole numbers >= 1, got {self.shape!r}")
+        shape = tuple(int(s) for s in shape)
         if math.prod(shape) != positions.shape[0]:
             raise ValueError(
                 f"shape {shape} does not hold the {positions.shape[0]} positions given"

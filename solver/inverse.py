@@ -93,7 +93,8 @@ class SymmetricFactor:
 
 def _condition_from_cholesky(lower: np.ndarray, norm: float) -> float:
     rcond, info = scipy.linalg.lapack.dpocon(lower, norm, uplo="L")
-    return math.inf if rcond <= 0 else 1.0 / rcond
+    # rcond is an estimate: clamp the rounding that can put it a hair above 1
+    return math.inf if rcond <= 0 else max(1.0, 1.0 / rcond)
 
 
 @dataclass(frozen=True)
@@ -274,6 +275,9 @@ class Reconstructor:
         Reconstruction
         """
         b = self._check_stress(stress)
+        for name, value in (("shear_ratio", shear_ratio), ("shear_direction", shear_direction)):
+            if value is not None and not isinstance(value, (int, float, np.integer, np.floating)):
+                raise ValueError(f"{name} must be a real number (or None), got {type(value).__name__}")
         if shear_ratio is not None and not (math.isfinite(shear_ratio) and shear_ratio >= 0):
             raise ValueError(f"shear_ratio must be finite and >= 0 (or None), got {shear_ratio!r}")
         if shear_direction is not None and not math.isfinite(shear_direction):
@@ -351,6 +355,8 @@ class Reconstructor:
 
     def _check_stress(self, stress) -> np.ndarray:
         m = self.grid.size
+        if np.iscomplexobj(stress):
+            raise ValueError("stress must be real pascals, got complex values")
         try:
             b = np.asarray(stress, dtype=float)
         except (TypeError, ValueError):

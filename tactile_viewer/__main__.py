@@ -1,8 +1,9 @@
-"""Command line: ``tactile-viewer RECORDING [--report]``.
+"""Command line: ``tactile-viewer [RECORDING] [options]``.
 
-Reconstructs every frame (or one, with ``--frame``) and prints the total
-force, the shear parameters, the errors against the truth when the
-recording has it, and the solve time.
+- no option: open the window (on RECORDING if given);
+- ``--screenshot out.png``: render one frame off screen, save PNG and JSON
+  sidecar, exit (batch figures);
+- ``--report``: reconstruct headlessly and print a per-frame table.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ def report(path, *, frame=None, kernel="cell", shear_ratio=None, shear_direction
     if recording.description:
         print(f"  {recording.description}", file=out)
     direction = None if shear_direction_deg is None else math.radians(shear_direction_deg)
-    indices = range(len(recording)) if frame is None else [frame]
+    indices = range(len(recording)) if frame is None else [_frame_index(frame, recording)]
     header = f"{'frame':>5} {'t s':>6} {'Fz N':>7} {'Ft N':>6} {'mu':>5} {'theta':>6} {'eff':>6}"
     if recording.truth_forces is not None:
         header += f" {'dFz':>6} {'dFt/F':>6} {'dth':>6}"
@@ -53,22 +54,92 @@ def report(path, *, frame=None, kernel="cell", shear_ratio=None, shear_direction
     print(f"median solve {np.median(times) * 1e3:.2f} ms over {len(times)} frames", file=out)
 
 
+def _frame_index(frame, recording):
+    if not 0 <= frame < len(recording):
+        raise ValueError(f"--frame must be in [0, {len(recording) - 1}] for this recording, got {frame}")
+    return frame
+
+
+def screenshot(path, out, *, frame=0, kernel="cell", shear_ratio=None, shear_direction_deg=None,
+               scale=1, transparent=False, camera="iso", size=(1200, 800), display_map="pressure"):
+    """Render one frame off screen with the window's own scene and save PNG + JSON sidecar."""
+    import pyvista as pv
+
+    from . import export
+    from .model import ViewerModel
+    from .scene import Scene
+
+    recording = load(path)
+    model = ViewerModel()
+    model.install(recording, ViewerModel.build(recording, kernel), path)
+    model.set_frame(_frame_index(frame, recording))
+    if shear_ratio is not None or shear_direction_deg is not None:
+        model.set_parameters(shear_ratio=shear_ratio if shear_ratio is not None else model.shear_ratio,
+                             shear_direction=math.radians(shear_direction_deg or 0.0))
+    model.set_display(map=display_map)
+    solved = model.solve()
+    plotter = pv.Plotter(off_screen=True, window_size=list(size))
+    try:
+        scene = Scene(plotter, smooth=True)
+        scene.set_grid(recording.grid)
+        scene.camera(camera)
+        scene.update(solved.stress, solved.result, model.display, render=False)
+        scene.screenshot(out, scale=scale, transparent=transparent)
+    finally:
+        plotter.close()
+    export.write_sidecar(out, **model.describe(), scale=scale, transparent=transparent)
+    return solved
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="tactile-viewer", description=__doc__.splitlines()[0])
-    parser.add_argument("recording")
+    parser.add_argument("recording", nargs="?")
     parser.add_argument("--report", action="store_true", help="print the reconstruction (headless)")
     parser.add_argument("--frame", type=int)
     parser.add_argument("--kernel", choices=("cell", "point"), default="cell")
     parser.add_argument("--shear-ratio", type=float)
     parser.add_argument("--shear-direction", type=float, help="degrees")
+    parser.add_argument("--screenshot", metavar="PNG",
+                        help="render one frame to PNG (+ JSON sidecar) and exit")
+    parser.add_argument("--scale", type=int, choices=(1, 2, 4), default=1, help="screenshot size multiplier")
+    parser.add_argument("--transparent", action="store_true", help="screenshot with transparent background")
+    parser.add_argument("--camera", choices=("iso", "top"), default="iso")
+    parser.add_argument("--map", choices=("pressure", "stress", "none"), default="pressure")
     args = parser.parse_args(argv)
     try:
-        report(args.recording, frame=args.frame, kernel=args.kernel, shear_ratio=args.shear_ratio,
-               shear_direction_deg=args.shear_direction)
-    except (RecordingError, ValueError, IndexError) as exc:
+        if args.report or args.screenshot:
+            if not args.recording:
+                parser.error("a RECORDING is needed with --report or --screenshot")
+            if args.report:
+                report(args.recording, frame=args.frame, kernel=args.kernel, shear_ratio=args.shear_ratio,
+                       shear_direction_deg=args.shear_direction)
+            else:
+                solved = screenshot(args.recording, args.screenshot, frame=args.frame or 0,
+                                    kernel=args.kernel,
+                                    shear_ratio=args.shear_ratio, shear_direction_deg=args.shear_direction,
+                                    scale=args.scale, transparent=args.transparent, camera=args.camera,
+                                    display_map=args.map)
+                print(f"saved {args.screenshot} (frame {solved.frame}, mu {solved.result.shear_ratio:.2f}, "
+                      f"theta {math.degrees(solved.result.shear_direction):+.0f} deg)")
+            return 0
+    except (RecordingError, ValueError) as exc:
         print(f"tactile-viewer: {exc}", file=sys.stderr)
         return 2
-    return 0
+    return run_window(args.recording, kernel=args.kernel)
+
+
+def run_window(path=None, *, kernel="cell"):
+    from PyQt6 import QtWidgets
+
+    from .main_window import MainWindow
+
+    app = QtWidgets.QApplication.instance() or QtWidgets.QApplication(sys.argv[:1])
+    window = MainWindow()
+    window.model.kernel = kernel
+    window.show()
+    if path:
+        window.open(path)
+    return app.exec()
 
 
 if __name__ == "__main__":

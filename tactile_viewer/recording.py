@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import io
 import math
+import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -91,15 +93,22 @@ def load(path) -> Recording:
         raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
     except (ValueError, KeyError, TypeError) as exc:
         raise RecordingError(f"{path}: {exc}") from exc
+    except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError) as exc:
+        # members are decompressed lazily, so a damaged archive can fail long after np.load
+        raise RecordingError(f"{path}: damaged NPZ archive ({exc})") from exc
 
 
 def _scalar(data, key, path, cast=float):
     if key not in data:
         raise RecordingError(f"{path}: missing {key!r}")
     try:
-        value = cast(np.asarray(data[key]).item())
+        value = float(np.asarray(data[key], dtype=float).item())
     except (ValueError, TypeError):
         raise RecordingError(f"{path}: {key!r} must be a single number, got {data[key]!r}") from None
+    if cast is int:
+        if not value.is_integer():
+            raise RecordingError(f"{path}: {key!r} must be a whole number, got {value!r}")
+        return int(value)
     if cast is float and not math.isfinite(value):
         raise RecordingError(f"{path}: {key!r} must be finite, got {value!r}")
     return value
@@ -139,8 +148,10 @@ def _checked_frames(frames, grid, path):
 def _load_npz(path) -> Recording:
     try:
         data = np.load(path, allow_pickle=False)
-    except (ValueError, OSError, EOFError) as exc:
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
         raise RecordingError(f"{path}: not a readable NPZ archive ({exc})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise RecordingError(f"{path}: not an NPZ archive (a single array, as .npy writes)")
     with data:
         if "frames" not in data:
             raise RecordingError(f"{path}: missing 'frames'")
@@ -193,9 +204,11 @@ def save(recording: Recording, path) -> Path:
     ny, nx = grid.shape
     if path.suffix.lower() == ".npz":
         extra = {} if recording.truth_forces is None else {"truth_forces": recording.truth_forces}
-        np.savez_compressed(path, frames=recording.frames, t=recording.t, nx=nx, ny=ny,
-                            pitch=grid.pitch, thickness=grid.thickness, positions=grid.positions,
-                            units="Pa", description=recording.description, **extra)
+        # through a handle: np.savez would append ".npz" to a name ending ".NPZ"
+        with open(path, "wb") as handle:
+            np.savez_compressed(handle, frames=recording.frames, t=recording.t, nx=nx, ny=ny,
+                                pitch=grid.pitch, thickness=grid.thickness, positions=grid.positions,
+                                units="Pa", description=recording.description, **extra)
     elif path.suffix.lower() == ".csv":
         buffer = io.StringIO()
         buffer.write(f"# nx={nx}\n# ny={ny}\n# pitch={grid.pitch!r}\n# thickness={grid.thickness!r}\n")

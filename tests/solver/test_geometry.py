@@ -1,4 +1,7 @@
+"""SensorGrid: layout order, centring, immutability, regularity and rejected input."""
+
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -6,46 +9,158 @@ import pytest
 from solver import SensorGrid
 
 
-def test_regular_grid_is_row_major_x_fastest_and_centred():
+@pytest.mark.parametrize("nx, ny", [(4, 3), (3, 4), (1, 5), (5, 1), (1, 1)])
+def test_regular_grid_is_row_major_x_fastest(nx, ny):
+    pitch = 2e-3
+    grid = SensorGrid.regular(nx, ny, pitch=pitch, thickness=1e-3)
+    assert grid.shape == (ny, nx) and grid.size == nx * ny
+    assert grid.positions.shape == (nx * ny, 2) and grid.positions.dtype == float
+    for iy in range(ny):
+        for ix in range(nx):
+            k = iy * nx + ix
+            expected = [(ix - (nx - 1) / 2) * pitch, (iy - (ny - 1) / 2) * pitch]
+            np.testing.assert_allclose(grid.positions[k], expected, rtol=0, atol=1e-15)
+
+
+def test_a_frame_reshapes_to_ny_nx():
     grid = SensorGrid.regular(4, 3, pitch=2e-3, thickness=1e-3)
-    assert grid.shape == (3, 4) and grid.size == 12
-    k = 1 * 4 + 2  # iy = 1, ix = 2
-    np.testing.assert_allclose(grid.positions[k], [(2 - 1.5) * 2e-3, 0.0])
-    np.testing.assert_allclose(grid.positions.mean(0), 0, atol=1e-18)
-    # a frame reshapes to (ny, nx) with x along the rows
     xs = grid.positions[:, 0].reshape(grid.shape)
-    assert np.all(np.diff(xs, axis=1) > 0) and np.all(np.diff(xs, axis=0) == 0)
-    assert grid.is_regular
+    ys = grid.positions[:, 1].reshape(grid.shape)
+    # along a row x grows and y is fixed; down a column y grows and x is fixed
+    np.testing.assert_allclose(np.diff(xs, axis=1), 2e-3)
+    np.testing.assert_array_equal(np.diff(xs, axis=0), 0)
+    np.testing.assert_allclose(np.diff(ys, axis=0), 2e-3)
+    np.testing.assert_array_equal(np.diff(ys, axis=1), 0)
 
 
-def test_grid_is_frozen_and_its_positions_read_only():
+@pytest.mark.parametrize("nx, ny", [(4, 3), (5, 5), (1, 6), (1, 1)])
+def test_regular_grid_is_centred_on_the_origin(nx, ny):
+    grid = SensorGrid.regular(nx, ny, pitch=1.5e-3, thickness=1e-3)
+    np.testing.assert_allclose(grid.positions.mean(axis=0), 0, atol=1e-18)
+    # symmetric: the first and the last node are mirror images
+    np.testing.assert_allclose(grid.positions[0], -grid.positions[-1], atol=1e-18)
+    half = [(nx - 1) / 2 * 1.5e-3, (ny - 1) / 2 * 1.5e-3]
+    np.testing.assert_allclose(grid.positions.max(axis=0), half)
+
+
+def test_scalars_are_stored_as_floats():
+    grid = SensorGrid.regular(np.int64(3), 2, pitch=2, thickness=1)  # integer metres are fine
+    assert grid.shape == (2, 3) and all(type(s) is int for s in grid.shape)
+    assert type(grid.pitch) is float and type(grid.thickness) is float
+    assert grid.pitch == 2.0 and grid.thickness == 1.0
+
+
+@pytest.mark.parametrize("field, value", [
+    ("positions", np.zeros((4, 2))), ("thickness", 2e-3), ("pitch", 2e-3), ("shape", (4, 1)),
+])
+def test_grid_is_frozen(field, value):
     grid = SensorGrid.regular(2, 2, 1e-3, 1e-3)
-    with pytest.raises(dataclasses.FrozenInstanceError):
-        grid.pitch = 2e-3
+    with pytest.raises(dataclasses.FrozenInstanceError, match=f"cannot assign to field '{field}'"):
+        setattr(grid, field, value)
+    assert grid.shape == (2, 2) and grid.pitch == 1e-3 and grid.thickness == 1e-3
+
+
+def test_positions_are_read_only_and_a_copy():
+    source = np.array([[0.0, 0.0], [1e-3, 0.0]])
+    grid = SensorGrid(source, 1e-3, 1e-3, (1, 2))
     with pytest.raises(ValueError, match="read-only"):
         grid.positions[0, 0] = 1.0
+    with pytest.raises(ValueError, match="read-only"):
+        grid.positions += 1.0
+    source[0, 0] = 5.0  # changing the caller's array afterwards does not move the sensors
+    assert grid.positions[0, 0] == 0.0
+    regular = SensorGrid.regular(3, 3, 1e-3, 1e-3)
+    with pytest.raises(ValueError, match="read-only"):
+        regular.positions[4] = (1.0, 1.0)
+
+
+def test_is_regular():
+    grid = SensorGrid.regular(4, 3, 2e-3, 1e-3)
+    assert grid.is_regular
+    assert grid.with_thickness(5e-3).is_regular
+    # the same lattice shifted as a whole is still a regular grid
+    shifted = SensorGrid(grid.positions + [0.7e-3, -3e-3], 1e-3, 2e-3, (3, 4))
+    assert shifted.is_regular
+
+
+@pytest.mark.parametrize("change", ["column-major", "reversed", "wrong-pitch", "jittered", "flat-shape"])
+def test_is_not_regular(change):
+    grid = SensorGrid.regular(3, 3, 2e-3, 1e-3)
+    positions, pitch, shape = grid.positions.copy(), grid.pitch, grid.shape
+    if change == "column-major":
+        positions = positions[:, ::-1]  # y fastest
+    elif change == "reversed":
+        positions = positions[::-1]
+    elif change == "wrong-pitch":
+        pitch = 1e-3
+    elif change == "jittered":
+        positions[4] += [0.1e-3, 0.0]
+    else:
+        shape = (9,)
+    assert not SensorGrid(positions, grid.thickness, pitch, shape).is_regular
 
 
 def test_irregular_layout_and_thickness_change():
     positions = np.array([[0.0, 0.0], [1e-3, 0.0], [0.3e-3, 1.2e-3]])
     grid = SensorGrid(positions, 1e-3, 1e-3, (3,))
-    assert not grid.is_regular and grid.size == 3
+    assert not grid.is_regular and grid.size == 3 and grid.shape == (3,)
     thicker = grid.with_thickness(2e-3)
-    assert thicker.thickness == 2e-3 and thicker.positions is not positions
+    assert thicker.thickness == 2e-3 and grid.thickness == 1e-3
+    assert thicker.pitch == grid.pitch and thicker.shape == grid.shape
     np.testing.assert_array_equal(thicker.positions, positions)
-
-
-@pytest.mark.parametrize("kwargs, message", [
-    (dict(positions=np.zeros((3, 3)), thickness=1e-3, pitch=1e-3, shape=(3,)), r"positions must have shape \(m, 2\)"),
-    (dict(positions=np.full((2, 2), np.nan), thickness=1e-3, pitch=1e-3, shape=(2,)), "positions must be finite"),
-    (dict(positions=np.zeros((4, 2)), thickness=1e-3, pitch=1e-3, shape=(3,)), r"shape \(3,\) does not hold"),
-    (dict(positions=np.zeros((1, 2)), thickness="thick", pitch=1e-3, shape=(1,)), "thickness must be .* got 'thick'"),
-    (dict(positions=np.zeros((1, 2)), thickness=1e-3, pitch=np.inf, shape=(1,)), "pitch must be .* got inf"),
-], ids=["columns", "nan", "shape", "text", "inf"])
-def test_invalid_layouts_are_rejected(kwargs, message):
-    with pytest.raises(ValueError, match=message):
-        SensorGrid(**kwargs)
+    with pytest.raises(ValueError, match="thickness must be a positive finite number of metres, got 0"):
+        grid.with_thickness(0)
 
 
 def test_repr_names_the_geometry():
     assert repr(SensorGrid.regular(3, 2, 2e-3, 1e-3)) == "SensorGrid(shape=(2, 3), pitch=0.002 m, thickness=0.001 m)"
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(nx=0), r"nx must be a positive integer \(a grid needs at least one taxel\), got 0"),
+    (dict(ny=-2), r"ny must be a positive integer \(a grid needs at least one taxel\), got -2"),
+    (dict(nx=2.5), "nx must be a positive integer, got 2.5"),
+    (dict(nx=3.0), "nx must be a positive integer, got 3.0"),
+    (dict(ny="3"), "ny must be a positive integer, got '3'"),
+    (dict(nx=True), "nx must be a positive integer, got True"),
+    (dict(ny=None), "ny must be a positive integer, got None"),
+    (dict(pitch=0), "pitch must be a positive finite number of metres, got 0"),
+    (dict(pitch=-1e-3), "pitch must be a positive finite number of metres, got -0.001"),
+    (dict(pitch=math.inf), "pitch must be a positive finite number of metres, got inf"),
+    (dict(pitch="wide"), "pitch must be a positive finite number of metres, got 'wide'"),
+    (dict(pitch=None), "pitch must be a positive finite number of metres, got None"),
+    (dict(thickness=0.0), "thickness must be a positive finite number of metres, got 0.0"),
+    (dict(thickness=-math.inf), "thickness must be a positive finite number of metres, got -inf"),
+    (dict(thickness=math.nan), "thickness must be a positive finite number of metres, got nan"),
+], ids=["nx0", "ny-negative", "nx-fraction", "nx-float", "ny-text", "nx-bool", "ny-none", "pitch0",
+        "pitch-negative", "pitch-inf", "pitch-text", "pitch-none", "thickness0", "thickness-minus-inf",
+        "thickness-nan"])
+def test_regular_rejects_impossible_arguments(kwargs, message):
+    arguments = dict(nx=4, ny=3, pitch=1e-3, thickness=1e-3)
+    arguments.update(kwargs)
+    with pytest.raises(ValueError, match=message):
+        SensorGrid.regular(**arguments)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(positions=np.zeros((3, 3)), shape=(3,)), r"positions must have shape \(m, 2\) with m >= 1, got shape \(3, 3\)"),
+    (dict(positions=np.zeros(2), shape=(1,)), r"positions must have shape \(m, 2\) with m >= 1, got shape \(2,\)"),
+    (dict(positions=np.zeros((0, 2)), shape=(0,)), r"positions must have shape \(m, 2\) with m >= 1, got shape \(0, 2\)"),
+    (dict(positions=np.full((2, 2), np.nan), shape=(2,)), "positions must be finite, got NaN or inf"),
+    (dict(positions=[[0.0, np.inf]], shape=(1,)), "positions must be finite, got NaN or inf"),
+    (dict(positions=np.zeros((4, 2)), shape=(3,)), r"shape \(3,\) does not hold the 4 positions given"),
+    (dict(positions=np.zeros((4, 2)), shape=(2, 3)), r"shape \(2, 3\) does not hold the 4 positions given"),
+    (dict(positions=np.zeros((1, 2)), thickness="thick"), "thickness must be a positive finite number of metres, got 'thick'"),
+    (dict(positions=np.zeros((1, 2)), pitch=np.inf), "pitch must be a positive finite number of metres, got inf"),
+], ids=["columns", "flat", "empty", "nan", "inf", "count", "count-2d", "text", "inf-pitch"])
+def test_invalid_layouts_are_rejected(kwargs, message):
+    arguments = dict(thickness=1e-3, pitch=1e-3, shape=(1,))
+    arguments.update(kwargs)
+    with pytest.raises(ValueError, match=message):
+        SensorGrid(**arguments)
+
+
+@pytest.mark.parametrize("shape", [(-2, -2), (2.9, 2.1), (1, -1, -4)], ids=["negative", "fraction", "3d-negative"])
+def test_impossible_shapes_are_rejected(shape):
+    with pytest.raises(ValueError, match=r"shape entries must be whole numbers >= 1, got \("):
+        SensorGrid(np.zeros((4, 2)), 1e-3, 1e-3, shape)

@@ -46,7 +46,7 @@ def test_report_on_the_turning_shear_sample(capsys):
 
 
 def test_report_with_given_parameters_on_one_frame(capsys):
-    assert main([str(SAMPLES / "hertz_static.npz"), "--frame", "3", "--shear-ratio", "0.2",
+    assert main([str(SAMPLES / "hertz_static.npz"), "--report", "--frame", "3", "--shear-ratio", "0.2",
                  "--shear-direction", "90"]) == 0
     out = capsys.readouterr().out
     row = next(line.split() for line in out.splitlines() if re.match(r"\s+3\s", line))
@@ -56,12 +56,12 @@ def test_report_with_given_parameters_on_one_frame(capsys):
 def test_a_malformed_file_is_named_and_exits_2(tmp_path, capsys):
     bad = tmp_path / "broken.npz"
     bad.write_bytes(b"not a zip archive at all")
-    assert main([str(bad)]) == 2
+    assert main([str(bad), "--report"]) == 2
     err = capsys.readouterr().err
     assert "broken.npz" in err and "NPZ" in err
 
 
 def test_module_entry_point_runs():
     out = subprocess.run([sys.executable, "-m", "tactile_viewer", str(SAMPLES / "hertz_static.npz"),
-                          "--frame", "0"], capture_output=True, text=True, check=True)
+                          "--report", "--frame", "0"], capture_output=True, text=True, check=True)
     assert "median solve" in out.stdout

@@ -1,0 +1,151 @@
+"""Exports: reconstructed forces (CSV or NPZ) and the JSON sidecar of a screenshot. No Qt.
+
+Forces NPZ keys: ``forces (T, m, 3)`` N, ``frames (T,)`` indices into the
+recording, ``t (T,)`` s, ``shear_ratio (T,)``, ``shear_direction (T,)`` rad,
+``efficiency (T,)``, ``residual (T,)``, ``condition (T,)``, ``positions (m, 2)``
+m, ``nx``, ``ny``, ``pitch``, ``thickness``, ``kernel``, ``mode`` ("auto" or
+"manual"), ``source`` (the recording's path).
+
+Forces CSV: ``#`` header lines ``key=value`` (source, kernel, mode, nx, ny,
+pitch, thickness), then one row per frame and node:
+``frame, t, node, x, y, Fx, Fy, Fz, shear_ratio, shear_direction_deg``.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from solver import Reconstructor
+
+from .recording import Recording
+
+__all__ = ["ForceTable", "reconstruct_frames", "save_forces", "load_forces", "write_sidecar",
+           "ExportCancelled"]
+
+CSV_COLUMNS = ("frame", "t", "node", "x", "y", "Fx", "Fy", "Fz", "shear_ratio", "shear_direction_deg")
+
+
+class ExportCancelled(Exception):
+    """The progress callback asked to stop; nothing was written."""
+
+
+@dataclass(frozen=True)
+class ForceTable:
+    """Reconstructed forces of some frames of a recording (arrays as in the NPZ format)."""
+
+    forces: np.ndarray
+    frames: np.ndarray
+    t: np.ndarray
+    shear_ratio: np.ndarray
+    shear_direction: np.ndarray
+    efficiency: np.ndarray
+    residual: np.ndarray
+    condition: np.ndarray
+    positions: np.ndarray
+    shape: tuple
+    pitch: float
+    thickness: float
+    kernel: str
+    mode: str
+    source: str
+
+
+def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frames=None, *,
+                       shear_ratio=None, shear_direction=None, progress=None) -> ForceTable:
+    """Solve the given frames (default: all) with automatic or given parameters.
+
+    Parameters
+    ----------
+    progress : callable, optional
+        ``progress(done, total) -> bool``; returning False cancels
+        (:class:`ExportCancelled` is raised).
+    """
+    frames = np.arange(len(recording)) if frames is None else np.atleast_1d(np.asarray(frames, dtype=int))
+    if frames.size and (frames.min() < 0 or frames.max() >= len(recording)):
+        raise ValueError(f"frames must be in [0, {len(recording) - 1}], got {frames.tolist()}")
+    m = recording.grid.size
+    out = {k: np.zeros(frames.size) for k in ("shear_ratio", "shear_direction", "efficiency",
+                                               "residual", "condition")}
+    forces = np.zeros((frames.size, m, 3))
+    for i, k in enumerate(frames):
+        result = reconstructor.solve(recording.frames[k], shear_ratio=shear_ratio,
+                                     shear_direction=shear_direction)
+        forces[i] = result.forces
+        for name in out:
+            out[name][i] = getattr(result, name)
+        if progress is not None and progress(i + 1, frames.size) is False:
+            raise ExportCancelled(f"cancelled after {i + 1} of {frames.size} frames")
+    auto = shear_ratio is None and shear_direction is None
+    return ForceTable(forces=forces, frames=frames, t=recording.t[frames], positions=recording.grid.positions,
+                      shape=tuple(recording.grid.shape), pitch=recording.grid.pitch,
+                      thickness=recording.grid.thickness, kernel=reconstructor.kernel,
+                      mode="auto" if auto else "manual", source=recording.description, **out)
+
+
+def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
+    """Write a force table as ``.npz`` or ``.csv`` (see the module notes)."""
+    path = Path(path)
+    ny, nx = table.shape if len(table.shape) == 2 else (1, table.shape[0])
+    source = source or table.source
+    if path.suffix.lower() == ".npz":
+        np.savez_compressed(path, forces=table.forces, frames=table.frames, t=table.t,
+                            shear_ratio=table.shear_ratio, shear_direction=table.shear_direction,
+                            efficiency=table.efficiency, residual=table.residual,
+                            condition=table.condition, positions=table.positions, nx=nx, ny=ny,
+                            pitch=table.pitch, thickness=table.thickness, kernel=table.kernel,
+                            mode=table.mode, source=source)
+    elif path.suffix.lower() == ".csv":
+        T, m = table.forces.shape[:2]
+        rows = np.column_stack([
+            np.repeat(table.frames, m), np.repeat(table.t, m), np.tile(np.arange(m), T),
+            np.tile(table.positions[:, 0], T), np.tile(table.positions[:, 1], T),
+            table.forces.reshape(-1, 3), np.repeat(table.shear_ratio, m),
+            np.degrees(np.repeat(table.shear_direction, m)),
+        ])
+        buffer = io.StringIO()
+        for key, value in (("source", " ".join(source.split())), ("kernel", table.kernel),
+                           ("mode", table.mode), ("nx", nx), ("ny", ny), ("pitch", repr(table.pitch)),
+                           ("thickness", repr(table.thickness)), ("units", "m, N, degrees")):
+            buffer.write(f"# {key}={value}\n")
+        buffer.write(",".join(CSV_COLUMNS) + "\n")
+        np.savetxt(buffer, rows, delimiter=",", fmt=["%d", "%.6f", "%d"] + ["%.9g"] * 7)
+        path.write_text(buffer.getvalue(), encoding="utf-8")
+    else:
+        raise ValueError(f"{path}: unknown export type {path.suffix!r}, expected .npz or .csv")
+    return path
+
+
+def load_forces(path) -> dict:
+    """Read a force export back: ``forces (T, m, 3)``, ``frames``, ``t`` and the rest."""
+    path = Path(path)
+    if path.suffix.lower() == ".npz":
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    table = np.loadtxt(path, delimiter=",", skiprows=_header_lines(path), ndmin=2)
+    frames = np.unique(table[:, 0]).astype(int)
+    m = int(table[:, 2].max()) + 1
+    return {"frames": frames, "t": table[::m, 1], "forces": table[:, 5:8].reshape(frames.size, m, 3),
+            "shear_ratio": table[::m, 8], "shear_direction": np.radians(table[::m, 9])}
+
+
+def _header_lines(path) -> int:
+    # the comment lines and the column-name line after them
+    with open(path, encoding="utf-8") as f:
+        for count, line in enumerate(f, start=1):
+            if not line.startswith("#"):
+                return count
+    return 0
+
+
+def write_sidecar(image_path, **info) -> Path:
+    """Write ``<image>.json`` next to a screenshot, naming what it shows."""
+    path = Path(image_path).with_suffix(".json")
+    clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in info.items()}
+    path.write_text(json.dumps(clean, indent=2, default=str) + "\n", encoding="utf-8")
+    return path

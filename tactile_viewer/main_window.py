@@ -1,0 +1,532 @@
+"""The main window: controls, playback, status, exports; wires recording -> solver -> scene.
+
+Data flows one way: the widgets change the :class:`~tactile_viewer.model.ViewerModel`,
+the model solves and announces, the :class:`~tactile_viewer.scene.Scene` draws.
+Solves are coalesced (a slider drag re-solves only the latest value); slow work
+(factoring a large geometry, exporting a whole recording) runs in a worker
+thread behind a progress dialog.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from pathlib import Path
+
+os.environ.setdefault("QT_API", "pyqt6")
+
+from PyQt6 import QtCore, QtGui, QtWidgets  # noqa: E402
+from pyvistaqt import QtInteractor  # noqa: E402
+
+from . import export  # noqa: E402
+from .model import MAX_SHEAR_RATIO, ViewerModel  # noqa: E402
+from .recording import Recording, RecordingError, load  # noqa: E402
+from .scene import Scene  # noqa: E402
+
+__all__ = ["MainWindow"]
+
+MAP_CHOICES = (("normal pressure", "pressure"), ("sensor stress", "stress"), ("none", "none"))
+SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)
+
+
+class Task(QtCore.QThread):
+    """Runs ``fn(progress)`` in a worker thread; ``progress(done, total)`` returns False to cancel."""
+
+    progressed = QtCore.pyqtSignal(int, int)
+    succeeded = QtCore.pyqtSignal(object)
+    failed = QtCore.pyqtSignal(object)
+
+    def __init__(self, fn, parent=None):
+        super().__init__(parent)
+        self._fn = fn
+        self._cancelled = False
+
+    def cancel(self):
+        self._cancelled = True
+
+    def _progress(self, done, total):
+        self.progressed.emit(int(done), int(total))
+        return not self._cancelled
+
+    def run(self):
+        try:
+            result = self._fn(self._progress)
+        except Exception as exc:  # handed to the GUI thread, which shows it
+            self.failed.emit(exc)
+        else:
+            self.succeeded.emit(result)
+
+
+class MainWindow(QtWidgets.QMainWindow):
+    """The viewer window.
+
+    Signals
+    -------
+    ready
+        A recording is installed and its first frame drawn.
+    rendered
+        A frame was drawn (after every solve).
+    """
+
+    ready = QtCore.pyqtSignal()
+    rendered = QtCore.pyqtSignal()
+    task_finished = QtCore.pyqtSignal(object)
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self.setWindowTitle("tactile-viewer")
+        self.resize(1280, 820)
+        self.model = ViewerModel()
+        self._tasks: list[Task] = []
+        self._progress_dialog = None
+
+        central = QtWidgets.QFrame(self)
+        layout = QtWidgets.QVBoxLayout(central)
+        layout.setContentsMargins(0, 0, 0, 0)
+        self.plotter = QtInteractor(central, auto_update=False)
+        layout.addWidget(self.plotter.interactor)
+        self.setCentralWidget(central)
+        self.scene = Scene(self.plotter)
+
+        self._build_controls()
+        self._build_menus()
+        self.status = QtWidgets.QLabel("open a recording (File > Open)")
+        self.statusBar().addPermanentWidget(self.status, 1)
+
+        # Coalesce solve requests: many slider moves, one solve of the latest value.
+        self._solve_timer = QtCore.QTimer(self, singleShot=True, interval=0)
+        self._solve_timer.timeout.connect(self._solve_now)
+        self._play_timer = QtCore.QTimer(self, interval=15)
+        self._play_timer.timeout.connect(self._play_tick)
+        self._play_origin = (0.0, 0.0)  # (wall clock, recording time) when playback started
+
+        self.model.recording_changed.connect(self._on_recording)
+        self.model.frame_changed.connect(self._on_frame)
+        self.model.parameters_changed.connect(self._sync_parameters)
+        self.model.display_changed.connect(self._sync_display)
+        self.model.solved.connect(self._on_solved)
+        self._set_enabled(False)
+
+    # -- widgets -----------------------------------------------------------------------
+
+    def _build_controls(self):
+        panel = QtWidgets.QWidget()
+        form = QtWidgets.QVBoxLayout(panel)
+
+        params = QtWidgets.QGroupBox("Parameters")
+        grid = QtWidgets.QGridLayout(params)
+        self.auto_box = QtWidgets.QCheckBox("Auto (efficiency maximum)")
+        self.auto_box.setChecked(True)
+        self.auto_box.toggled.connect(self._auto_toggled)
+        grid.addWidget(self.auto_box, 0, 0, 1, 3)
+        self.ratio_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
+        self.ratio_slider.setRange(0, round(MAX_SHEAR_RATIO * 100))
+        self.ratio_spin = QtWidgets.QDoubleSpinBox(decimals=2, singleStep=0.01, maximum=MAX_SHEAR_RATIO)
+        self.direction_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
+        self.direction_slider.setRange(-180, 180)
+        self.direction_spin = QtWidgets.QDoubleSpinBox(decimals=1, singleStep=1.0, minimum=-180.0,
+                                                       maximum=180.0, wrapping=True, suffix=" deg")
+        grid.addWidget(QtWidgets.QLabel("shear ratio"), 1, 0)
+        grid.addWidget(self.ratio_slider, 1, 1)
+        grid.addWidget(self.ratio_spin, 1, 2)
+        grid.addWidget(QtWidgets.QLabel("direction"), 2, 0)
+        grid.addWidget(self.direction_slider, 2, 1)
+        grid.addWidget(self.direction_spin, 2, 2)
+        self.ratio_slider.valueChanged.connect(lambda v: self._manual(shear_ratio=v / 100))
+        self.ratio_spin.valueChanged.connect(lambda v: self._manual(shear_ratio=v))
+        self.direction_slider.valueChanged.connect(lambda v: self._manual(shear_direction=math.radians(v)))
+        self.direction_spin.valueChanged.connect(lambda v: self._manual(shear_direction=math.radians(v)))
+        self.kernel_box = QtWidgets.QComboBox()
+        self.kernel_box.addItems(["cell", "point"])
+        self.kernel_box.currentTextChanged.connect(self._kernel_changed)
+        grid.addWidget(QtWidgets.QLabel("kernel"), 3, 0)
+        grid.addWidget(self.kernel_box, 3, 1, 1, 2)
+        form.addWidget(params)
+
+        shown = QtWidgets.QGroupBox("Display")
+        grid = QtWidgets.QGridLayout(shown)
+        self.map_box = QtWidgets.QComboBox()
+        for label, _ in MAP_CHOICES:
+            self.map_box.addItem(label)
+        self.map_box.currentIndexChanged.connect(lambda i: self.model.set_display(map=MAP_CHOICES[i][1]))
+        self.arrows_box = QtWidgets.QCheckBox("force arrows")
+        self.arrows_box.setChecked(True)
+        self.arrows_box.toggled.connect(lambda on: self.model.set_display(arrows=on))
+        self.resultant_box = QtWidgets.QCheckBox("resultant")
+        self.resultant_box.setChecked(True)
+        self.resultant_box.toggled.connect(lambda on: self.model.set_display(resultant=on))
+        self.scale_spin = QtWidgets.QDoubleSpinBox(decimals=1, maximum=1e6, singleStep=5.0, suffix=" mm/N")
+        self.scale_spin.valueChanged.connect(lambda v: self.model.set_display(arrow_scale=v / 1e3))
+        self.threshold_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=1.0, suffix=" mN")
+        self.threshold_spin.valueChanged.connect(lambda v: self.model.set_display(threshold=v / 1e3))
+        self.range_box = QtWidgets.QCheckBox("automatic colour range")
+        self.range_box.setChecked(True)
+        self.range_box.toggled.connect(lambda on: self.model.set_display(auto_range=on))
+        self.range_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=1.0, suffix=" kPa")
+        self.range_spin.valueChanged.connect(lambda v: self.model.set_display(range_max=v * 1e3))
+        top = QtWidgets.QPushButton("Top")
+        top.clicked.connect(lambda: self._camera("top"))
+        iso = QtWidgets.QPushButton("Iso")
+        iso.clicked.connect(lambda: self._camera("iso"))
+        grid.addWidget(QtWidgets.QLabel("map"), 0, 0)
+        grid.addWidget(self.map_box, 0, 1, 1, 2)
+        grid.addWidget(self.arrows_box, 1, 0, 1, 2)
+        grid.addWidget(self.resultant_box, 1, 2)
+        grid.addWidget(QtWidgets.QLabel("arrow scale"), 2, 0)
+        grid.addWidget(self.scale_spin, 2, 1, 1, 2)
+        grid.addWidget(QtWidgets.QLabel("hide below"), 3, 0)
+        grid.addWidget(self.threshold_spin, 3, 1, 1, 2)
+        grid.addWidget(self.range_box, 4, 0, 1, 3)
+        grid.addWidget(QtWidgets.QLabel("range max"), 5, 0)
+        grid.addWidget(self.range_spin, 5, 1, 1, 2)
+        grid.addWidget(QtWidgets.QLabel("camera"), 6, 0)
+        grid.addWidget(top, 6, 1)
+        grid.addWidget(iso, 6, 2)
+        form.addWidget(shown)
+
+        playback = QtWidgets.QGroupBox("Playback")
+        grid = QtWidgets.QGridLayout(playback)
+        self.play_button = QtWidgets.QPushButton("Play")
+        self.play_button.setCheckable(True)
+        self.play_button.toggled.connect(self._play_toggled)
+        back = QtWidgets.QPushButton("<")
+        back.clicked.connect(lambda: self.step(-1))
+        forward = QtWidgets.QPushButton(">")
+        forward.clicked.connect(lambda: self.step(1))
+        self.frame_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
+        self.frame_slider.valueChanged.connect(self._frame_slider_moved)
+        self.speed_box = QtWidgets.QComboBox()
+        self.speed_box.addItems([f"{s:g}x" for s in SPEEDS])
+        self.speed_box.setCurrentIndex(SPEEDS.index(1.0))
+        self.speed_box.currentIndexChanged.connect(lambda _: self._restart_clock())
+        self.time_label = QtWidgets.QLabel("-")
+        grid.addWidget(back, 0, 0)
+        grid.addWidget(self.play_button, 0, 1)
+        grid.addWidget(forward, 0, 2)
+        grid.addWidget(self.speed_box, 0, 3)
+        grid.addWidget(self.frame_slider, 1, 0, 1, 4)
+        grid.addWidget(self.time_label, 2, 0, 1, 4)
+        form.addWidget(playback)
+        form.addStretch(1)
+
+        dock = QtWidgets.QDockWidget("Controls", self)
+        dock.setFeatures(QtWidgets.QDockWidget.DockWidgetFeature.NoDockWidgetFeatures)
+        dock.setWidget(panel)
+        self.addDockWidget(QtCore.Qt.DockWidgetArea.RightDockWidgetArea, dock)
+        self._controls = panel
+
+    def _build_menus(self):
+        menu = self.menuBar().addMenu("&File")
+        action = menu.addAction("&Open recording...", self.open_dialog)
+        action.setShortcut(QtGui.QKeySequence.StandardKey.Open)
+        self._exports = [
+            menu.addAction("Export &screenshot...", self.screenshot_dialog),
+            menu.addAction("Export forces of this &frame...", lambda: self.forces_dialog(whole=False)),
+            menu.addAction("Export forces of the whole &recording...",
+                           lambda: self.forces_dialog(whole=True)),
+        ]
+        menu.addSeparator()
+        menu.addAction("&Quit", self.close).setShortcut(QtGui.QKeySequence.StandardKey.Quit)
+        view = self.menuBar().addMenu("&View")
+        view.addAction("&Top", lambda: self._camera("top"))
+        view.addAction("&Iso", lambda: self._camera("iso"))
+
+    def _set_enabled(self, on: bool):
+        self._controls.setEnabled(on)
+        for action in self._exports:
+            action.setEnabled(on)
+
+    # -- opening ----------------------------------------------------------------------------
+
+    def open_dialog(self):
+        path, _ = QtWidgets.QFileDialog.getOpenFileName(
+            self, "Open recording", str(Path.cwd()), "Recordings (*.npz *.csv);;All files (*)")
+        if path:
+            self.open(path)
+
+    def open(self, path) -> bool:
+        """Load a recording; on failure show the error and keep what was shown."""
+        try:
+            recording = load(path)
+        except RecordingError as exc:
+            self._error("Cannot open recording", str(exc))
+            return False
+        self._install(recording, self.model.kernel, path)
+        return True
+
+    def show_recording(self, recording: Recording, path=None):
+        """Show an in-memory recording (the live view and the tests use this)."""
+        self._install(recording, self.model.kernel, path)
+
+    def _install(self, recording, kernel, path):
+        # Factoring is the slow part for large grids: do it in a worker thread.
+        def work(progress):
+            return ViewerModel.build(recording, kernel)
+
+        def done(reconstructor):
+            self.set_playing(False)
+            self.model.install(recording, reconstructor, path)
+
+        ny, nx = recording.grid.shape[0], recording.grid.shape[-1]
+        self._run(work, done, f"Factoring the {nx}x{ny} geometry...",
+                  determinate=False)
+
+    def _kernel_changed(self, kernel):
+        if self.model.recording is None or kernel == self.model.kernel:
+            return
+        frame = self.model.frame
+        recording, path = self.model.recording, self.model.path
+
+        def work(progress):
+            return ViewerModel.build(recording, kernel)
+
+        def done(reconstructor):
+            self.model.install(recording, reconstructor, path)
+            self.model.set_frame(frame)
+
+        self._run(work, done, f"Factoring for the {kernel} kernel...", determinate=False)
+
+    def _on_recording(self):
+        recording = self.model.recording
+        self.scene.set_grid(recording.grid)
+        self.frame_slider.blockSignals(True)
+        self.frame_slider.setRange(0, len(recording) - 1)
+        self.frame_slider.setValue(0)
+        self.frame_slider.blockSignals(False)
+        self.kernel_box.blockSignals(True)
+        self.kernel_box.setCurrentText(self.model.kernel)
+        self.kernel_box.blockSignals(False)
+        name = self.model.path.name if self.model.path else "recording"
+        self.setWindowTitle(f"tactile-viewer - {name}")
+        self._set_enabled(True)
+        self._solve_now()
+        self.ready.emit()
+
+    # -- parameters ---------------------------------------------------------------------------
+
+    def _manual(self, **changes):
+        if self.model.recording is None:
+            return
+        self.model.set_parameters(**changes)
+        self.request_solve()
+
+    def _auto_toggled(self, on):
+        self.model.set_auto(on)
+        self.request_solve()
+
+    def _sync_parameters(self):
+        # model -> widgets, without echoing back
+        widgets = (self.auto_box, self.ratio_slider, self.ratio_spin, self.direction_slider,
+                   self.direction_spin)
+        for w in widgets:
+            w.blockSignals(True)
+        degrees = math.degrees(self.model.shear_direction)
+        self.auto_box.setChecked(self.model.auto)
+        self.ratio_slider.setValue(round(self.model.shear_ratio * 100))
+        self.ratio_spin.setValue(self.model.shear_ratio)
+        self.direction_slider.setValue(round(degrees))
+        self.direction_spin.setValue(degrees)
+        for w in widgets:
+            w.blockSignals(False)
+
+    def _sync_display(self):
+        d = self.model.display
+        widgets = (self.map_box, self.arrows_box, self.resultant_box, self.scale_spin, self.threshold_spin,
+                   self.range_box, self.range_spin)
+        for w in widgets:
+            w.blockSignals(True)
+        self.map_box.setCurrentIndex([key for _, key in MAP_CHOICES].index(d.map))
+        self.arrows_box.setChecked(d.arrows)
+        self.resultant_box.setChecked(d.resultant)
+        self.scale_spin.setValue(d.arrow_scale * 1e3)
+        self.threshold_spin.setValue(d.threshold * 1e3)
+        self.range_box.setChecked(d.auto_range)
+        self.range_spin.setValue(d.range_max / 1e3)
+        self.range_spin.setEnabled(not d.auto_range)
+        for w in widgets:
+            w.blockSignals(False)
+        if self.model.last is not None:
+            last = self.model.last
+            self.scene.update(last.stress, last.result, d)
+            self.rendered.emit()
+
+    def _camera(self, preset):
+        if self.scene.grid is not None:
+            self.scene.camera(preset)
+            self.plotter.render()
+
+    # -- solving -------------------------------------------------------------------------------
+
+    def request_solve(self):
+        """Ask for a re-solve of the current state; repeated requests before it runs merge into one."""
+        if self.model.recording is not None and not self._solve_timer.isActive():
+            self._solve_timer.start()
+
+    def _solve_now(self):
+        self.model.solve()
+
+    def _on_solved(self, solved):
+        self.scene.update(solved.stress, solved.result, self.model.display)
+        r = solved.result
+        total = r.total_force
+        shear = "auto" if solved.auto else "manual"
+        self.status.setText(
+            f"frame {solved.frame + 1}/{len(self.model.recording)}  t {solved.time:.3f} s  |  "
+            f"solve {solved.solve_ms:.2f} ms  |  {shear}: mu {r.shear_ratio:.2f}, "
+            f"theta {math.degrees(r.shear_direction):+.0f} deg  |  efficiency {r.efficiency:.3f}  "
+            f"residual {r.residual:.1e}  condition {r.condition:.3g}"
+            f"{' (damped)' if r.regularized else ''}  |  "
+            f"Fz {total[2] * 1e3:.1f} mN  Ft {math.hypot(total[0], total[1]) * 1e3:.1f} mN")
+        self.time_label.setText(f"frame {solved.frame + 1} of {len(self.model.recording)},  "
+                                f"t = {solved.time:.3f} s")
+        self.rendered.emit()
+
+    # -- playback ------------------------------------------------------------------------------
+
+    def _on_frame(self, index):
+        self.frame_slider.blockSignals(True)
+        self.frame_slider.setValue(index)
+        self.frame_slider.blockSignals(False)
+        self.request_solve()
+
+    def _frame_slider_moved(self, value):
+        self.model.set_frame(value)
+        self._restart_clock()
+
+    def step(self, delta: int):
+        if self.model.recording is None:
+            return
+        self.model.set_frame(min(max(self.model.frame + delta, 0), len(self.model.recording) - 1))
+        self._restart_clock()
+
+    @property
+    def speed(self) -> float:
+        return SPEEDS[self.speed_box.currentIndex()]
+
+    def set_playing(self, on: bool):
+        self.play_button.setChecked(on)
+
+    def _play_toggled(self, on):
+        self.play_button.setText("Pause" if on else "Play")
+        if on and self.model.recording is not None:
+            if self.model.frame == len(self.model.recording) - 1:
+                self.model.set_frame(0)
+            self._restart_clock()
+            self._play_timer.start()
+        else:
+            self._play_timer.stop()
+
+    def _restart_clock(self):
+        if self.model.recording is not None:
+            self._play_origin = (time.perf_counter(), float(self.model.recording.t[self.model.frame]))
+
+    def _play_tick(self):
+        # Show the frame whose time has come: slow rendering skips frames
+        # rather than slowing the recording down.
+        recording = self.model.recording
+        wall, start = self._play_origin
+        now = start + (time.perf_counter() - wall) * self.speed
+        index = int(min(max(recording.t.searchsorted(now, side="right") - 1, 0), len(recording) - 1))
+        if index != self.model.frame:
+            self.model.set_frame(index)
+        if index == len(recording) - 1:
+            self.set_playing(False)
+
+    # -- exports ---------------------------------------------------------------------------------
+
+    def screenshot_dialog(self):
+        dialog = QtWidgets.QDialog(self)
+        dialog.setWindowTitle("Export screenshot")
+        form = QtWidgets.QFormLayout(dialog)
+        scale = QtWidgets.QComboBox()
+        scale.addItems(["1x", "2x", "4x"])
+        transparent = QtWidgets.QCheckBox("transparent background")
+        form.addRow("size", scale)
+        form.addRow(transparent)
+        buttons = QtWidgets.QDialogButtonBox(QtWidgets.QDialogButtonBox.StandardButton.Ok
+                                             | QtWidgets.QDialogButtonBox.StandardButton.Cancel)
+        buttons.accepted.connect(dialog.accept)
+        buttons.rejected.connect(dialog.reject)
+        form.addRow(buttons)
+        if dialog.exec() != QtWidgets.QDialog.DialogCode.Accepted:
+            return
+        path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Save screenshot", "screenshot.png",
+                                                        "PNG (*.png)")
+        if path:
+            self.export_screenshot(path, scale=int(scale.currentText()[0]),
+                                   transparent=transparent.isChecked())
+
+    def export_screenshot(self, path, *, scale: int = 1, transparent: bool = False) -> Path:
+        """Save the scene as PNG plus a JSON sidecar naming the recording, frame and parameters."""
+        path = Path(path).with_suffix(".png")
+        self.scene.screenshot(path, scale=scale, transparent=transparent)
+        export.write_sidecar(path, **self.model.describe(), scale=scale, transparent=transparent)
+        self.statusBar().showMessage(f"saved {path}", 5000)
+        return path
+
+    def forces_dialog(self, *, whole: bool):
+        path, _ = QtWidgets.QFileDialog.getSaveFileName(
+            self, "Export forces", "forces.npz", "NumPy archive (*.npz);;CSV (*.csv)")
+        if path:
+            self.export_forces(path, whole=whole)
+
+    def export_forces(self, path, *, whole: bool):
+        """Write reconstructed forces of this frame or all frames (in a worker, with progress)."""
+        model = self.model
+        recording, reconstructor = model.recording, model.reconstructor
+        frames = None if whole else [model.frame]
+        given = {} if model.auto else dict(shear_ratio=model.shear_ratio,
+                                           shear_direction=model.shear_direction)
+        source = str(model.path) if model.path else recording.description
+
+        def work(progress):
+            table = export.reconstruct_frames(recording, reconstructor, frames, progress=progress, **given)
+            return export.save_forces(table, path, source=source)
+
+        def done(written):
+            self.statusBar().showMessage(f"saved {written}", 5000)
+
+        self._run(work, done, "Exporting forces...", determinate=True)
+
+    # -- background work ---------------------------------------------------------------------------
+
+    def _run(self, work, done, label, *, determinate):
+        task = Task(work, self)
+        dialog = QtWidgets.QProgressDialog(label, "Cancel", 0, 0 if not determinate else 100, self)
+        dialog.setWindowModality(QtCore.Qt.WindowModality.WindowModal)
+        dialog.setMinimumDuration(400)
+        dialog.setAutoClose(False)
+        dialog.setAutoReset(False)
+        dialog.canceled.connect(task.cancel)
+        if determinate:
+            task.progressed.connect(lambda d, t: (dialog.setMaximum(t), dialog.setValue(d)))
+
+        def finish(outcome, ok):
+            dialog.close()
+            dialog.deleteLater()
+            self._tasks.remove(task)
+            if ok:
+                done(outcome)
+            elif not isinstance(outcome, export.ExportCancelled):
+                self._error("Failed", f"{label.rstrip('.')}: {outcome}")
+            self.task_finished.emit(outcome)
+
+        task.succeeded.connect(lambda result: finish(result, True))
+        task.failed.connect(lambda exc: finish(exc, False))
+        task.finished.connect(task.deleteLater)
+        self._tasks.append(task)
+        task.start()
+        return task
+
+    def _error(self, title, message):
+        QtWidgets.QMessageBox.critical(self, title, message)
+
+    def closeEvent(self, event):
+        self._play_timer.stop()
+        self._solve_timer.stop()
+        for task in list(self._tasks):
+            task.cancel()
+            task.wait()
+        self.plotter.close()
+        super().closeEvent(event)

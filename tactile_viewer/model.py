@@ -1,0 +1,225 @@
+"""The viewer's state in plain Python: what is open, which frame, which parameters.
+
+No Qt and no pyvista here (napari's split): the window and the scene only
+follow this model's signals. The model calls the solver; it never draws.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from solver import Reconstruction, Reconstructor
+
+from .recording import Recording
+
+__all__ = ["Signal", "Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO"]
+
+MAX_SHEAR_RATIO = 1.5  # the slider's end; the automatic search uses the same bound
+MAPS = ("pressure", "stress", "none")
+
+
+class Signal:
+    """A minimal callback list: ``connect(fn)``, ``disconnect(fn)``, ``emit(*args)``."""
+
+    def __init__(self):
+        self._slots = []
+
+    def connect(self, slot):
+        self._slots.append(slot)
+
+    def disconnect(self, slot):
+        self._slots.remove(slot)
+
+    def emit(self, *args):
+        for slot in list(self._slots):
+            slot(*args)
+
+
+@dataclass(frozen=True)
+class Display:
+    """What the scene shows.
+
+    Attributes
+    ----------
+    map : {"pressure", "stress", "none"}
+        Reconstructed normal pressure (``Fz / pitch^2``) or measured sensor stress.
+    arrows, resultant : bool
+        Per-node force arrows; the resultant at the contact centroid.
+    arrow_scale : float
+        Arrow length per newton, metres per newton.
+    resultant_scale : float
+        Length of the resultant's arrow per newton, metres per newton.
+    threshold : float
+        Arrows of nodes with ``|F|`` below this many newtons are hidden.
+    auto_range : bool
+        Colour range follows each frame; otherwise ``0 .. range_max``.
+    range_max : float
+        Upper end of the fixed colour range, pascals.
+    """
+
+    map: str = "pressure"
+    arrows: bool = True
+    resultant: bool = True
+    arrow_scale: float = 0.01
+    resultant_scale: float = 0.01
+    threshold: float = 0.0
+    auto_range: bool = True
+    range_max: float = 50e3
+
+    def __post_init__(self):
+        if self.map not in MAPS:
+            raise ValueError(f"map must be one of {MAPS}, got {self.map!r}")
+        for name in ("arrow_scale", "resultant_scale", "threshold", "range_max"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Solved:
+    """One reconstructed frame and how it was made."""
+
+    frame: int
+    time: float
+    stress: np.ndarray
+    result: Reconstruction
+    solve_ms: float
+    auto: bool
+
+
+class ViewerModel:
+    """State of one viewer window.
+
+    Signals
+    -------
+    recording_changed()
+        A recording (and its reconstructor) was installed.
+    frame_changed(int)
+    parameters_changed()
+        Auto flag, shear ratio, shear direction or kernel changed.
+    display_changed()
+    solved(Solved)
+        A frame was reconstructed.
+    """
+
+    def __init__(self):
+        self.recording: Recording | None = None
+        self.path: Path | None = None
+        self.reconstructor: Reconstructor | None = None
+        self.kernel = "cell"
+        self.frame = 0
+        self.auto = True
+        self.shear_ratio = 0.0
+        self.shear_direction = 0.0  # radians
+        self.display = Display()
+        self.last: Solved | None = None
+        self.recording_changed = Signal()
+        self.frame_changed = Signal()
+        self.parameters_changed = Signal()
+        self.display_changed = Signal()
+        self.solved = Signal()
+
+    # -- building -----------------------------------------------------------------
+
+    @staticmethod
+    def build(recording: Recording, kernel: str) -> Reconstructor:
+        """The reconstructor for a recording's geometry (slow for large grids: run it off the GUI thread)."""
+        return Reconstructor(recording.grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO)
+
+    def install(self, recording: Recording, reconstructor: Reconstructor, path=None):
+        """Show a recording with its ready reconstructor; starts at frame 0."""
+        if reconstructor.grid is not recording.grid and not (
+                reconstructor.grid.shape == recording.grid.shape
+                and np.array_equal(reconstructor.grid.positions, recording.grid.positions)
+                and reconstructor.grid.thickness == recording.grid.thickness):
+            raise ValueError("reconstructor was built for another geometry than the recording's")
+        self.recording = recording
+        self.reconstructor = reconstructor
+        self.kernel = reconstructor.kernel
+        self.path = Path(path) if path is not None else None
+        self.frame = 0
+        self.last = None
+        # readable default arrow lengths: the largest node force of the first
+        # frame spans about three pitches, its total a third of the skin
+        first = reconstructor.solve_normal(recording.frames[0]).forces[:, 2]
+        peak = float(np.abs(first).max()) or 1.0
+        total = abs(float(first.sum())) or peak
+        width = float(np.ptp(recording.grid.positions[:, 0])) + recording.grid.pitch
+        self.display = replace(self.display, arrow_scale=3 * recording.grid.pitch / peak,
+                               resultant_scale=width / 3 / total,
+                               range_max=max(float(np.abs(recording.frames).max()), 1.0))
+        self.recording_changed.emit()
+        self.display_changed.emit()
+
+    # -- state changes ---------------------------------------------------------------
+
+    def set_frame(self, index: int):
+        if self.recording is None:
+            return
+        index = int(index)
+        if not 0 <= index < len(self.recording):
+            raise ValueError(f"frame must be in [0, {len(self.recording) - 1}], got {index}")
+        if index != self.frame:
+            self.frame = index
+            self.frame_changed.emit(index)
+
+    def set_auto(self, auto: bool):
+        if bool(auto) != self.auto:
+            self.auto = bool(auto)
+            self.parameters_changed.emit()
+
+    def set_parameters(self, *, shear_ratio: float | None = None, shear_direction: float | None = None):
+        """Manual parameters (a slider was touched): switches Auto off."""
+        if shear_ratio is not None:
+            if not (math.isfinite(shear_ratio) and 0 <= shear_ratio <= MAX_SHEAR_RATIO):
+                raise ValueError(f"shear_ratio must be in [0, {MAX_SHEAR_RATIO}], got {shear_ratio!r}")
+            self.shear_ratio = float(shear_ratio)
+        if shear_direction is not None:
+            if not math.isfinite(shear_direction):
+                raise ValueError(f"shear_direction must be finite radians, got {shear_direction!r}")
+            self.shear_direction = math.remainder(float(shear_direction), 2 * math.pi)
+        self.auto = False
+        self.parameters_changed.emit()
+
+    def set_display(self, **changes):
+        self.display = replace(self.display, **changes)
+        self.display_changed.emit()
+
+    def describe(self) -> dict:
+        """What the last solve shows, for screenshot sidecars."""
+        last = self.last
+        r = last.result
+        return dict(recording=str(self.path) if self.path else None, frame=last.frame, t=last.time,
+                    kernel=self.kernel, mode="auto" if last.auto else "manual",
+                    shear_ratio=r.shear_ratio, shear_direction_deg=math.degrees(r.shear_direction),
+                    efficiency=r.efficiency, residual=r.residual, condition=r.condition,
+                    display=dict(self.display.__dict__))
+
+    # -- the work ------------------------------------------------------------------------
+
+    def solve(self) -> Solved | None:
+        """Reconstruct the current frame with the current parameters and announce it."""
+        if self.recording is None:
+            return None
+        stress = self.recording.frames[self.frame]
+        start = time.perf_counter()
+        if self.auto:
+            result = self.reconstructor.solve(stress)
+        else:
+            result = self.reconstructor.solve(stress, shear_ratio=self.shear_ratio,
+                                              shear_direction=self.shear_direction)
+        elapsed = 1e3 * (time.perf_counter() - start)
+        if self.auto:
+            # Auto moves the sliders to what the efficiency maximum found.
+            self.shear_ratio = result.shear_ratio
+            self.shear_direction = result.shear_direction
+            self.parameters_changed.emit()
+        time_s = float(self.recording.t[self.frame])
+        self.last = Solved(self.frame, time_s, stress, result, elapsed, self.auto)
+        self.solved.emit(self.last)
+        return self.last

@@ -1,0 +1,217 @@
+"""The 3-D scene: skin, elastomer, pressure map, force arrows, colour bars. No physics here.
+
+Works on any pyvista plotter: the window's ``pyvistaqt.QtInteractor`` or an
+off-screen ``pyvista.Plotter`` for batch screenshots. Display units are
+millimetres (coordinates), kilopascals (maps) and millinewtons (arrows);
+the surface is drawn at ``z = 0`` with the elastomer below it, so a force
+pressing into the skin points down and its arrow ends on the surface.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyvista as pv
+
+from solver import Reconstruction, SensorGrid
+
+from .model import Display
+
+__all__ = ["Scene"]
+
+MM = 1e3  # metres -> millimetres
+MAP_TITLES = {"pressure": "pressure kPa", "stress": "stress kPa", "none": ""}
+
+
+class Scene:
+    """Draws a grid and its reconstructions into a pyvista plotter.
+
+    Parameters
+    ----------
+    plotter : pyvista.Plotter
+        Any plotter (``QtInteractor`` included); the scene adds to it and
+        never closes it.
+    smooth : bool, optional
+        Multisample anti-aliasing (for batch figures; about three times the
+        render time under software rendering). Default False.
+    """
+
+    def __init__(self, plotter, *, smooth=False):
+        self.plotter = plotter
+        self.grid: SensorGrid | None = None
+        self.arrows = pv.PolyData()       # the per-node glyphs (for tests and exports)
+        self.arrow_nodes = np.zeros(0, dtype=int)  # which node each drawn arrow belongs to
+        self._actors = {}
+        self._map = None
+        self._bars = {}
+        # one headlight instead of pyvista's five-light kit, and no multisampling:
+        # software rendering (Xvfb, llvmpipe) is fill-rate bound and these two
+        # cost about 70 of every 100 ms per frame there
+        plotter.remove_all_lights()
+        plotter.add_light(pv.Light(light_type="headlight"))
+        plotter.ren_win.SetMultiSamples(8 if smooth else 0)
+        plotter.set_background("white")
+        self._arrow_geom = pv.Arrow(tip_length=0.3, tip_radius=0.12, shaft_radius=0.05,
+                                    tip_resolution=12, shaft_resolution=12)
+
+    # -- building ----------------------------------------------------------------
+
+    def set_grid(self, grid: SensorGrid):
+        """Build the static parts for a grid (regular or not) and an empty map and arrow set."""
+        for actor in self._actors.values():
+            self.plotter.remove_actor(actor, render=False)
+        for title in list(self.plotter.scalar_bars.keys()):
+            self.plotter.remove_scalar_bar(title, render=False)
+        self._actors, self._bars = {}, {}
+        self.grid = grid
+        p, h = grid.pitch * MM, grid.thickness * MM
+        x0, y0 = grid.positions.min(axis=0) * MM - p / 2
+        x1, y1 = grid.positions.max(axis=0) * MM + p / 2
+        # elastomer layer to scale, the rigid hull under it, the sensors at depth h
+        self._actors["layer"] = self.plotter.add_mesh(
+            pv.Box((x0, x1, y0, y1, -h, 0.0)), color="#9ecae1", show_edges=False,
+            name="layer", pickable=False)
+        self._actors["hull"] = self.plotter.add_mesh(
+            pv.Box((x0, x1, y0, y1, -h - 0.6 * p, -h)), color="#8c8c8c", name="hull", pickable=False)
+        sensors = np.column_stack([grid.positions * MM, np.full(grid.size, -h)])
+        self._actors["sensors"] = self.plotter.add_mesh(
+            pv.PolyData(sensors), color="#252525", point_size=6, render_points_as_spheres=True,
+            name="sensors", pickable=False)
+        # the map: one pitch-sized square per node, just above the surface
+        # (a regular grid tiles the skin; an irregular layout shows its taxels)
+        self._map = _squares(grid.positions * MM, p, 0.002 * p)
+        self._map.cell_data["kPa"] = np.zeros(grid.size)
+        self._actors["map"] = self.plotter.add_mesh(
+            self._map, scalars="kPa", cmap="viridis", clim=(0.0, 1.0), show_scalar_bar=False,
+            name="map", pickable=False, lighting=False)  # unlit: colours match the bar
+        self._bars["map"] = self.plotter.add_scalar_bar(
+            title=MAP_TITLES["pressure"], mapper=self._actors["map"].mapper, vertical=True,
+            position_x=0.86, position_y=0.1, height=0.8, width=0.06, color="black", n_labels=5,
+            fmt="%.3g")
+        # placeholders until the first frame (pyvista refuses empty meshes)
+        self.arrows = pv.Arrow()
+        self.arrows.point_data["mN"] = np.zeros(self.arrows.n_points)
+        self._actors["arrows"] = self.plotter.add_mesh(
+            self.arrows, scalars="mN", cmap="plasma", clim=(0.0, 1.0), show_scalar_bar=False,
+            name="arrows", pickable=False)
+        self._bars["arrows"] = self.plotter.add_scalar_bar(
+            title="force mN", mapper=self._actors["arrows"].mapper, vertical=True,
+            position_x=0.02, position_y=0.1, height=0.8, width=0.08, color="black", n_labels=5,
+            fmt="%.3g")
+        # a unit arrow along +x, placed each frame by the actor's matrix
+        self._actors["resultant"] = self.plotter.add_mesh(
+            pv.Arrow(start=(0, 0, 0), direction=(1, 0, 0), scale=1.0, tip_length=0.2, tip_radius=0.06,
+                     shaft_radius=0.025), color="#d62728", name="resultant", pickable=False)
+        for name in ("arrows", "resultant"):
+            self._actors[name].SetVisibility(False)
+        self._bars["arrows"].SetVisibility(False)
+        self.camera("iso")
+
+    # -- per frame -------------------------------------------------------------------
+
+    def update(self, stress: np.ndarray, result: Reconstruction, display: Display, *, render=True):
+        """Show one reconstructed frame.
+
+        Parameters
+        ----------
+        stress : (m,) ndarray
+            Measured sensor stress, pascals.
+        result : Reconstruction
+        display : Display
+        """
+        if self.grid is None:
+            raise RuntimeError("set_grid must come before update")
+        grid = self.grid
+        forces = result.forces
+        # the map
+        if display.map == "stress":
+            values = np.asarray(stress, dtype=float)
+        else:
+            values = forces[:, 2] / grid.pitch**2
+        self._map.cell_data["kPa"] = values / 1e3
+        if display.auto_range:
+            high = max(float(values.max()) / 1e3, 1e-9)
+            low = min(float(values.min()) / 1e3, 0.0)
+        else:
+            low, high = 0.0, display.range_max / 1e3
+        self._actors["map"].mapper.scalar_range = (low, high)
+        self._actors["map"].SetVisibility(display.map != "none")
+        # the layer turns translucent (showing the sensors) only when no map
+        # covers it: blending costs about 10 ms a frame in software rendering
+        self._actors["layer"].GetProperty().SetOpacity(1.0 if display.map != "none" else 0.3)
+        self._bars["map"].SetVisibility(display.map != "none")
+        self._bars["map"].SetTitle(MAP_TITLES[display.map])
+
+        # the arrows: tip on the surface, pointing where the force pushes
+        magnitude = np.linalg.norm(forces, axis=1)
+        shown = np.flatnonzero((magnitude > display.threshold) & (magnitude > 0)) if display.arrows \
+            else np.zeros(0, dtype=int)
+        scale = display.arrow_scale * MM
+        vectors = np.column_stack([forces[:, 0], forces[:, 1], -forces[:, 2]])[shown] * scale
+        tips = np.column_stack([grid.positions * MM, np.zeros(grid.size)])[shown]
+        if shown.size:
+            seeds = pv.PolyData(tips - vectors)
+            seeds.point_data["vectors"] = vectors
+            seeds.point_data["mN"] = magnitude[shown] * 1e3
+            glyphs = seeds.glyph(orient="vectors", scale="vectors", factor=1.0, geom=self._arrow_geom)
+            self.arrows.copy_from(glyphs)
+            self._actors["arrows"].mapper.scalar_range = (0.0, max(float(magnitude[shown].max()) * 1e3, 1e-9))
+        else:
+            self.arrows.copy_from(pv.PolyData())
+        self.arrow_nodes = shown
+        self._actors["arrows"].SetVisibility(bool(shown.size))
+        self._bars["arrows"].SetVisibility(bool(shown.size))
+
+        # the resultant at the centroid of the compressive load
+        total = forces.sum(axis=0)
+        push = np.clip(forces[:, 2], 0, None)
+        if display.resultant and push.sum() > 0 and np.linalg.norm(total) > 0:
+            centroid = np.append(grid.positions.T @ push / push.sum() * MM, 0.0)
+            vector = np.array([total[0], total[1], -total[2]]) * display.resultant_scale * MM
+            self._actors["resultant"].user_matrix = _placement(centroid - vector, vector)
+            self._actors["resultant"].SetVisibility(True)
+        else:
+            self._actors["resultant"].SetVisibility(False)
+        if render:
+            self.plotter.render()
+
+    # -- view --------------------------------------------------------------------------------
+
+    def camera(self, preset: str):
+        """``"top"`` (looking down on the surface) or ``"iso"``."""
+        if preset == "top":
+            self.plotter.view_xy()
+        elif preset == "iso":
+            self.plotter.view_isometric()
+            self.plotter.camera.elevation = 10
+        else:
+            raise ValueError(f"camera preset must be 'top' or 'iso', got {preset!r}")
+        self.plotter.reset_camera()
+
+    def screenshot(self, path, *, scale: int = 1, transparent: bool = False) -> np.ndarray:
+        """Save a PNG of the scene (``scale`` times the window size) and return the image."""
+        if scale not in (1, 2, 3, 4):
+            raise ValueError(f"scale must be 1, 2, 3 or 4, got {scale!r}")
+        return self.plotter.screenshot(str(path), transparent_background=transparent, scale=scale,
+                                       return_img=True)
+
+
+def _placement(start: np.ndarray, vector: np.ndarray) -> np.ndarray:
+    """4x4 matrix taking the unit arrow along +x to ``start .. start + vector``."""
+    length = float(np.linalg.norm(vector))
+    along = vector / length
+    # any unit vector across `along`, then the third completing a right-handed frame
+    helper = np.array([0.0, 0.0, 1.0]) if abs(along[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    across = np.cross(along, helper)
+    across /= np.linalg.norm(across)
+    matrix = np.eye(4)
+    matrix[:3, :3] = length * np.column_stack([along, across, np.cross(along, across)])
+    matrix[:3, 3] = start
+    return matrix
+
+
+def _squares(centres: np.ndarray, side: float, z: float) -> pv.PolyData:
+    """One axis-aligned square (a quad cell) of ``side`` around each centre, at height ``z``."""
+    corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * side / 2
+    points = (centres[:, None, :] + corners[None, :, :]).reshape(-1, 2)
+    faces = np.column_stack([np.full(len(centres), 4), np.arange(4 * len(centres)).reshape(-1, 4)])
+    return pv.PolyData(np.column_stack([points, np.full(len(points), z)]), faces=faces.ravel())

@@ -1,0 +1,185 @@
+"""The real window under Xvfb: samples, sliders, Auto, errors, exports, playback, closing."""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import pyvista as pv
+
+from tactile_viewer.export import load_forces, reconstruct_frames
+from tactile_viewer.recording import load
+
+SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
+
+NAMES = ["hertz_static.npz", "hertz_shear_turning.npz", "flat_punch_shear.npz", "two_contacts.npz"]
+
+
+def arrow_points(window):
+    return np.array(window.scene.arrows.points, copy=True)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_window_opens_on_each_sample(window, qtbot, name):
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        assert window.open(SAMPLES / name)
+    assert window.model.last is not None and window.model.last.frame == 0
+    assert window.scene.arrows.n_points > 0
+    assert name in window.windowTitle()
+    assert "frame 1/" in window.status.text() and "efficiency" in window.status.text()
+
+
+def test_moving_either_slider_changes_the_arrows(opened, qtbot):
+    before = arrow_points(opened)
+    with qtbot.waitSignal(opened.rendered, timeout=5000):
+        opened.ratio_slider.setValue(80)
+    assert not opened.model.auto and not opened.auto_box.isChecked()
+    assert opened.model.shear_ratio == pytest.approx(0.8)
+    assert opened.ratio_spin.value() == pytest.approx(0.8)
+    after_ratio = arrow_points(opened)
+    assert after_ratio.shape != before.shape or not np.allclose(after_ratio, before)
+    with qtbot.waitSignal(opened.rendered, timeout=5000):
+        opened.direction_slider.setValue(-90)
+    assert opened.model.last.result.shear_direction == pytest.approx(-math.pi / 2)
+    after_direction = arrow_points(opened)
+    assert after_direction.shape != after_ratio.shape or not np.allclose(after_direction, after_ratio)
+
+
+def test_a_slider_drag_solves_only_the_latest_value(opened, qtbot):
+    solved = []
+    opened.model.solved.connect(solved.append)
+    for value in range(10, 60, 5):  # ten moves before the event loop runs
+        opened.ratio_slider.setValue(value)
+    with qtbot.waitSignal(opened.rendered, timeout=5000):
+        pass
+    assert len(solved) == 1 and solved[0].result.shear_ratio == pytest.approx(0.55)
+
+
+def test_auto_moves_the_sliders_to_the_maximum(opened, qtbot):
+    with qtbot.waitSignal(opened.rendered, timeout=5000):
+        opened.ratio_slider.setValue(0)
+    assert opened.ratio_slider.value() == 0
+    with qtbot.waitSignal(opened.rendered, timeout=5000):
+        opened.auto_box.setChecked(True)
+    found = opened.model.last.result
+    assert found.shear_detected and found.shear_ratio > 0.2  # the sample has 0.4
+    assert opened.ratio_slider.value() == round(found.shear_ratio * 100)
+    assert opened.direction_slider.value() == round(math.degrees(found.shear_direction))
+
+
+def test_a_malformed_file_shows_the_error_and_keeps_the_state(opened, tmp_path):
+    bad = tmp_path / "broken.npz"
+    bad.write_bytes(b"definitely not an archive")
+    shown = opened.model.recording
+    assert not opened.open(bad)
+    assert opened.model.recording is shown
+    assert opened.errors and "broken.npz" in opened.errors[0][1]
+    mismatched = tmp_path / "short.csv"
+    mismatched.write_text("# nx=4\n# ny=4\n# pitch=0.002\n# thickness=0.002\n0.0, 1, 2, 3\n")
+    assert not opened.open(mismatched)
+    assert "frames must have 16 values" in opened.errors[1][1]
+    assert opened.model.recording is shown and opened.scene.arrows.n_points > 0
+
+
+def read_png(path):
+    image = pv.read(path)
+    name = image.point_data.keys()[0]
+    dims = image.dimensions
+    return np.asarray(image.point_data[name]).reshape(dims[1], dims[0], -1)
+
+
+@pytest.mark.parametrize("scale", [1, 2])
+def test_screenshot_export_has_the_size_asked_and_is_not_blank(opened, tmp_path, scale):
+    path = opened.export_screenshot(tmp_path / "shot.png", scale=scale)
+    pixels = read_png(path)
+    width, height = opened.plotter.window_size
+    assert pixels.shape[:2] == (height * scale, width * scale)
+    assert pixels[..., :3].std() > 10  # not one flat colour
+    sidecar = json.loads(path.with_suffix(".json").read_text())
+    assert sidecar["frame"] == 0 and sidecar["recording"].endswith("hertz_shear_turning.npz")
+    assert sidecar["scale"] == scale and sidecar["mode"] == "auto"
+
+
+def test_screenshot_honours_the_transparent_option(opened, tmp_path):
+    solid = read_png(opened.export_screenshot(tmp_path / "solid.png"))
+    clear = read_png(opened.export_screenshot(tmp_path / "clear.png", transparent=True))
+    assert clear.shape[2] == 4 and clear[0, 0, 3] == 0  # the corner is background
+    assert solid.shape[2] == 3 or solid[0, 0, 3] == 255
+
+
+def test_force_export_round_trips(opened, qtbot, tmp_path):
+    recording = opened.model.recording
+    for suffix in (".npz", ".csv"):
+        path = tmp_path / f"all{suffix}"
+        with qtbot.waitSignal(opened.task_finished, timeout=30000):
+            opened.export_forces(path, whole=True)
+        back = load_forces(path)
+        expected = reconstruct_frames(recording, opened.model.reconstructor)
+        assert back["forces"].shape == (len(recording), recording.grid.size, 3)
+        np.testing.assert_allclose(back["forces"], expected.forces, rtol=1e-6, atol=1e-12)
+        np.testing.assert_allclose(back["shear_ratio"], expected.shear_ratio, rtol=1e-6, atol=1e-9)
+    with qtbot.waitSignal(opened.task_finished, timeout=30000):
+        opened.export_forces(tmp_path / "one.npz", whole=False)
+    one = load_forces(tmp_path / "one.npz")
+    np.testing.assert_allclose(one["forces"][0], opened.model.last.result.forces, rtol=1e-9, atol=1e-15)
+
+
+def test_playback_advances(opened, qtbot):
+    frames = []
+    opened.model.frame_changed.connect(frames.append)
+    opened.speed_box.setCurrentIndex(2)  # 1x: 60 frames over 2 s
+    opened.set_playing(True)
+    qtbot.waitUntil(lambda: len(frames) >= 5, timeout=10000)
+    opened.set_playing(False)
+    assert frames == sorted(frames) and frames[-1] > 4
+    assert opened.frame_slider.value() == opened.model.frame
+
+
+def test_step_and_kernel_switch(opened, qtbot):
+    with qtbot.waitSignal(opened.rendered, timeout=5000):
+        opened.step(3)
+    assert opened.model.frame == 3
+    with qtbot.waitSignal(opened.ready, timeout=20000):
+        opened.kernel_box.setCurrentText("point")
+    assert opened.model.kernel == "point" and opened.model.reconstructor.kernel == "point"
+
+
+def test_display_toggles(opened, qtbot):
+    with qtbot.waitSignal(opened.rendered, timeout=5000):
+        opened.threshold_spin.setValue(1e5)  # hide every arrow
+    assert opened.scene.arrows.n_points == 0
+    with qtbot.waitSignal(opened.rendered, timeout=5000):
+        opened.map_box.setCurrentIndex(1)
+    assert opened.model.display.map == "stress"
+    np.testing.assert_allclose(opened.scene._map.cell_data["kPa"], opened.model.last.stress / 1e3)
+
+
+def test_closing_the_window_leaks_no_plotter(qtbot, no_plotter_leak):
+    from tactile_viewer.main_window import MainWindow
+
+    win = MainWindow()
+    qtbot.addWidget(win)
+    win.show()
+    with qtbot.waitSignal(win.ready, timeout=20000):
+        win.show_recording(load(SAMPLES / "hertz_static.npz"))
+    win.close()
+
+
+def test_an_irregular_layout_is_drawn_taxel_by_taxel(window, qtbot):
+    from solver import SensorGrid, loads
+    from tactile_viewer.recording import Recording
+
+    # a 6x6 grid with every other row shifted by half a pitch (a staggered skin)
+    pitch = 2e-3
+    ix, iy = np.meshgrid(np.arange(6), np.arange(6))
+    positions = np.column_stack([(ix + 0.5 * (iy % 2)).ravel(), iy.ravel()]) * pitch
+    grid = SensorGrid(positions - positions.mean(axis=0), pitch, pitch, (36,))
+    contact = loads.simulate(grid, loads.hertz((0.0, 0.0), 3e-3, 1.0, shear_ratio=0.3))
+    recording = Recording(grid, np.stack([contact.stress] * 3), [0.0, 0.1, 0.2], description="staggered")
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        window.show_recording(recording)
+    assert window.scene._map.n_cells == 36
+    centres = window.scene._map.cell_centers().points[:, :2] / 1e3
+    np.testing.assert_allclose(centres, grid.positions, atol=1e-12)
+    assert window.scene.arrows.n_points > 0
