@@ -1,9 +1,13 @@
 # make test : set up everything on a fresh machine, then run the whole suite.
-# make run  : set up, then reconstruct the bundled sample and print the result.
+# make run  : set up, then open the viewer on a bundled sample (headless: print the
+#             reconstruction and render a screenshot instead).
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
+SAMPLE := sample_data/hertz_shear_turning.npz
+# a display for the viewer benchmark: the user's own, or a virtual one
+XRUN   := $(if $(DISPLAY)$(WAYLAND_DISPLAY),,xvfb-run -a -s "-screen 0 1920x1080x24")
 
 # Debian packages for Xvfb and Qt's xcb platform plugin (GUI tests run in Xvfb).
 DEBS := xvfb xauth libxkbcommon-x11-0 libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 \
@@ -33,13 +37,20 @@ test: system-deps $(STAMP)
 	$(PY) -m pytest
 
 run: $(STAMP)
-	$(PY) -m tactile_viewer --report sample_data/hertz_shear_turning.npz
+	@if [ -n "$$DISPLAY$$WAYLAND_DISPLAY" ]; then \
+	  $(PY) -m tactile_viewer $(SAMPLE); \
+	else \
+	  echo "no display: printing the reconstruction and rendering one frame instead of opening the window"; \
+	  $(PY) -m tactile_viewer $(SAMPLE) --report && \
+	  $(PY) -m tactile_viewer $(SAMPLE) --frame 30 --screenshot sample_frame30.png; \
+	fi
 
 lint: $(STAMP)
 	$(PY) -m ruff check solver tactile_viewer tests
 
-bench: $(STAMP)
+bench: system-deps $(STAMP)
 	$(PY) -m solver.bench
+	$(XRUN) $(PY) -m tactile_viewer.bench
 
 clean:
 	rm -rf $(VENV) .pytest_cache

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from solver import Reconstructor
+from solver.arrays import read_only
 
 from .recording import Recording
 
@@ -54,6 +55,11 @@ class ForceTable:
     kernel: str
     mode: str
     source: str
+
+    def __post_init__(self):
+        for name in ("forces", "frames", "t", "shear_ratio", "shear_direction", "efficiency", "residual",
+                     "condition", "positions"):
+            object.__setattr__(self, name, read_only(getattr(self, name), int if name == "frames" else float))
 
 
 def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frames=None, *,
@@ -94,12 +100,13 @@ def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
     ny, nx = table.shape if len(table.shape) == 2 else (1, table.shape[0])
     source = source or table.source
     if path.suffix.lower() == ".npz":
-        np.savez_compressed(path, forces=table.forces, frames=table.frames, t=table.t,
-                            shear_ratio=table.shear_ratio, shear_direction=table.shear_direction,
-                            efficiency=table.efficiency, residual=table.residual,
-                            condition=table.condition, positions=table.positions, nx=nx, ny=ny,
-                            pitch=table.pitch, thickness=table.thickness, kernel=table.kernel,
-                            mode=table.mode, source=source)
+        with open(path, "wb") as handle:  # a handle: np.savez would turn "x.NPZ" into "x.NPZ.npz"
+            np.savez_compressed(handle, forces=table.forces, frames=table.frames, t=table.t,
+                                shear_ratio=table.shear_ratio, shear_direction=table.shear_direction,
+                                efficiency=table.efficiency, residual=table.residual,
+                                condition=table.condition, positions=table.positions, nx=nx, ny=ny,
+                                pitch=table.pitch, thickness=table.thickness, kernel=table.kernel,
+                                mode=table.mode, source=source)
     elif path.suffix.lower() == ".csv":
         T, m = table.forces.shape[:2]
         rows = np.column_stack([

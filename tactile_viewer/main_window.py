@@ -28,6 +28,7 @@ __all__ = ["MainWindow"]
 
 MAP_CHOICES = (("normal pressure", "pressure"), ("sensor stress", "stress"), ("none", "none"))
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)
+SOLVE_EVENT = QtCore.QEvent.Type(QtCore.QEvent.registerEventType())
 
 
 class Task(QtCore.QThread):
@@ -66,7 +67,8 @@ class MainWindow(QtWidgets.QMainWindow):
     ready
         A recording is installed and its first frame drawn.
     rendered
-        A frame was drawn (after every solve).
+        A frame is on screen (emitted when the scene widget's repaint after a
+        solve or a display change has been swapped to the window).
     """
 
     ready = QtCore.pyqtSignal()
@@ -88,6 +90,8 @@ class MainWindow(QtWidgets.QMainWindow):
         layout.addWidget(self.plotter.interactor)
         self.setCentralWidget(central)
         self.scene = Scene(self.plotter)
+        self._drawing = False
+        self.plotter.interactor.frameSwapped.connect(self._frame_swapped)
 
         self._build_controls()
         self._build_menus()
@@ -95,8 +99,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.statusBar().addPermanentWidget(self.status, 1)
 
         # Coalesce solve requests: many slider moves, one solve of the latest value.
-        self._solve_timer = QtCore.QTimer(self, singleShot=True, interval=0)
-        self._solve_timer.timeout.connect(self._solve_now)
+        self._solve_pending = False
         self._play_timer = QtCore.QTimer(self, interval=15)
         self._play_timer.timeout.connect(self._play_tick)
         self._play_origin = (0.0, 0.0)  # (wall clock, recording time) when playback started
@@ -200,13 +203,15 @@ class MainWindow(QtWidgets.QMainWindow):
         self.speed_box.addItems([f"{s:g}x" for s in SPEEDS])
         self.speed_box.setCurrentIndex(SPEEDS.index(1.0))
         self.speed_box.currentIndexChanged.connect(lambda _: self._restart_clock())
+        self.loop_box = QtWidgets.QCheckBox("loop")
         self.time_label = QtWidgets.QLabel("-")
         grid.addWidget(back, 0, 0)
         grid.addWidget(self.play_button, 0, 1)
         grid.addWidget(forward, 0, 2)
         grid.addWidget(self.speed_box, 0, 3)
-        grid.addWidget(self.frame_slider, 1, 0, 1, 4)
-        grid.addWidget(self.time_label, 2, 0, 1, 4)
+        grid.addWidget(self.loop_box, 0, 4)
+        grid.addWidget(self.frame_slider, 1, 0, 1, 5)
+        grid.addWidget(self.time_label, 2, 0, 1, 5)
         form.addWidget(playback)
         form.addStretch(1)
 
@@ -348,8 +353,8 @@ class MainWindow(QtWidgets.QMainWindow):
             w.blockSignals(False)
         if self.model.last is not None:
             last = self.model.last
-            self.scene.update(last.stress, last.result, d)
-            self.rendered.emit()
+            self.scene.update(last.stress, last.result, d, render=False)
+            self._draw()
 
     def _camera(self, preset):
         if self.scene.grid is not None:
@@ -360,14 +365,26 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def request_solve(self):
         """Ask for a re-solve of the current state; repeated requests before it runs merge into one."""
-        if self.model.recording is not None and not self._solve_timer.isActive():
-            self._solve_timer.start()
+        if self.model.recording is not None and not self._solve_pending:
+            self._solve_pending = True
+            # A posted event, not a zero timer: it runs before Qt's repaint
+            # (posted at low priority), so the moved slider and the new frame
+            # reach the screen in one window update instead of two.
+            QtCore.QCoreApplication.postEvent(self, QtCore.QEvent(SOLVE_EVENT))
+
+    def event(self, event):
+        if event.type() == SOLVE_EVENT:
+            if self._solve_pending:
+                self._solve_now()
+            return True
+        return super().event(event)
 
     def _solve_now(self):
+        self._solve_pending = False
         self.model.solve()
 
     def _on_solved(self, solved):
-        self.scene.update(solved.stress, solved.result, self.model.display)
+        self.scene.update(solved.stress, solved.result, self.model.display, render=False)
         r = solved.result
         total = r.total_force
         shear = "auto" if solved.auto else "manual"
@@ -380,7 +397,18 @@ class MainWindow(QtWidgets.QMainWindow):
             f"Fz {total[2] * 1e3:.1f} mN  Ft {math.hypot(total[0], total[1]) * 1e3:.1f} mN")
         self.time_label.setText(f"frame {solved.frame + 1} of {len(self.model.recording)},  "
                                 f"t = {solved.time:.3f} s")
-        self.rendered.emit()
+        self._draw()
+
+    def _draw(self):
+        # Ask Qt to repaint the scene widget rather than rendering here: its
+        # paint always renders, so an explicit render would draw every frame twice.
+        self._drawing = True
+        self.plotter.interactor.update()
+
+    def _frame_swapped(self):
+        if self._drawing:
+            self._drawing = False
+            self.rendered.emit()
 
     # -- playback ------------------------------------------------------------------------------
 
@@ -425,12 +453,19 @@ class MainWindow(QtWidgets.QMainWindow):
         # Show the frame whose time has come: slow rendering skips frames
         # rather than slowing the recording down.
         recording = self.model.recording
+        t = recording.t
         wall, start = self._play_origin
         now = start + (time.perf_counter() - wall) * self.speed
-        index = int(min(max(recording.t.searchsorted(now, side="right") - 1, 0), len(recording) - 1))
+        looping = self.loop_box.isChecked() and len(recording) > 1
+        if looping and now > t[-1]:
+            # the recording repeats with one mean frame interval after its last frame
+            period = (t[-1] - t[0]) * len(recording) / (len(recording) - 1)
+            if period > 0:
+                now = t[0] + (now - t[0]) % period
+        index = int(min(max(t.searchsorted(now, side="right") - 1, 0), len(recording) - 1))
         if index != self.model.frame:
             self.model.set_frame(index)
-        if index == len(recording) - 1:
+        if index == len(recording) - 1 and not looping:
             self.set_playing(False)
 
     # -- exports ---------------------------------------------------------------------------------
@@ -524,7 +559,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def closeEvent(self, event):
         self._play_timer.stop()
-        self._solve_timer.stop()
+        self._solve_pending = False
         for task in list(self._tasks):
             task.cancel()
             task.wait()

@@ -183,3 +183,14 @@ def test_an_irregular_layout_is_drawn_taxel_by_taxel(window, qtbot):
     centres = window.scene._map.cell_centers().points[:, :2] / 1e3
     np.testing.assert_allclose(centres, grid.positions, atol=1e-12)
     assert window.scene.arrows.n_points > 0
+
+
+def test_looped_playback_wraps_to_the_start(opened, qtbot):
+    frames = []
+    opened.model.frame_changed.connect(frames.append)
+    opened.loop_box.setChecked(True)
+    opened.speed_box.setCurrentIndex(4)  # 4x: the 2 s sample lasts 0.5 s
+    opened.set_playing(True)
+    qtbot.waitUntil(lambda: any(b < a for a, b in zip(frames, frames[1:], strict=False)), timeout=10000)
+    assert opened.play_button.isChecked()  # still playing after the wrap
+    opened.set_playing(False)

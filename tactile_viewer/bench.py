@@ -1,0 +1,130 @@
+"""Viewer benchmark: ``python -m tactile_viewer.bench`` (``make bench`` runs it under Xvfb).
+
+Measures, in the real window (``QtInteractor``, whatever OpenGL the display offers):
+
+- slider to rendered frame: time from moving the shear-ratio or shear-direction
+  slider to the end of the render that shows the re-solved frame (manual
+  parameters), and from stepping a frame to its render (automatic parameters);
+- playback frame rate: distinct frames drawn per second of wall clock while
+  playing a looped recording at 1x (the recording's own 30 fps is the ceiling)
+  and at 4x (120 recording frames per second: the display's own ceiling).
+
+It needs a display: under a headless machine run it through ``xvfb-run -a``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from solver.bench import machine
+
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "hertz_shear_turning.npz"
+
+
+def _wait(app, signal, timeout=10.0):
+    """Process events until ``signal`` fires once; returns the time it fired."""
+    fired = []
+    slot = lambda *_: fired.append(time.perf_counter())  # noqa: E731
+    signal.connect(slot)
+    deadline = time.perf_counter() + timeout
+    try:
+        while not fired:
+            app.processEvents()
+            if time.perf_counter() > deadline:
+                raise TimeoutError(f"no {signal} within {timeout} s")
+    finally:
+        signal.disconnect(slot)
+    return fired[0]
+
+
+def latencies(window, app, action, count):
+    """Median-ready list of ms from ``action(k)`` to the render that shows it."""
+    times = []
+    for k in range(count):
+        start = time.perf_counter()
+        action(k)
+        times.append(1e3 * (_wait(app, window.rendered) - start))
+    return times
+
+
+def playback_rate(window, app, speed_index, seconds):
+    """Distinct frames drawn per wall-clock second while playing (looped)."""
+    drawn = []
+    slot = lambda solved: drawn.append(solved.frame)  # noqa: E731
+    window.model.solved.connect(slot)
+    window.loop_box.setChecked(True)
+    window.speed_box.setCurrentIndex(speed_index)
+    window.set_playing(True)
+    start = time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        app.processEvents()
+    elapsed = time.perf_counter() - start
+    window.set_playing(False)
+    window.model.solved.disconnect(slot)
+    return len(drawn) / elapsed
+
+
+def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
+    out = sys.stdout if out is None else out
+    os.environ.setdefault("QT_API", "pyqt6")
+    from PyQt6 import QtWidgets
+
+    from .main_window import SPEEDS, MainWindow
+
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise SystemExit("tactile_viewer.bench needs a display: run it as `xvfb-run -a python -m "
+                         "tactile_viewer.bench` on a headless machine")
+    app = QtWidgets.QApplication.instance() or QtWidgets.QApplication(sys.argv[:1])
+    window = MainWindow()
+    window.resize(*size)
+    window.show()
+    window.open(path)
+    _wait(app, window.ready, timeout=60)
+    for _ in range(20):  # let the layout settle before timing
+        app.processEvents()
+    renderer = next((line.split(":", 1)[1].strip() for line in window.plotter.ren_win.ReportCapabilities()
+                     .splitlines() if line.startswith("OpenGL renderer string")), "unknown")
+    width, height = window.plotter.window_size
+    recording = window.model.recording
+    print(f"machine: {machine()}", file=out)
+    print(f"OpenGL: {renderer}; scene {width}x{height} px; {Path(path).name}: "
+          f"{recording.grid.shape[1]}x{recording.grid.shape[0]} grid, {len(recording)} frames", file=out)
+
+    ratio = latencies(window, app, lambda k: window.ratio_slider.setValue(10 + (k * 37) % 130), count)
+    direction = latencies(window, app, lambda k: window.direction_slider.setValue(-170 + (k * 47) % 340),
+                          count)
+    window.auto_box.setChecked(True)
+    _wait(app, window.rendered)
+    stepped = latencies(window, app, lambda k: window.step(1 if (k // 10) % 2 == 0 else -1), count)
+    print(f"{'slider to rendered frame':<42} {'median ms':>9} {'p90 ms':>7}", file=out)
+    rows = (("shear ratio slider (manual)", ratio), ("shear direction slider (manual)", direction),
+            ("frame step (auto parameters)", stepped))
+    for label, times in rows:
+        print(f"  {label:<40} {np.median(times):9.1f} {np.percentile(times, 90):7.1f}", file=out)
+    print(f"playback over {seconds:g} s, looped", file=out)
+    for speed in (1.0, 4.0):
+        rate = playback_rate(window, app, SPEEDS.index(speed), seconds)
+        print(f"  {speed:g}x ({30 * speed:g} recording frames/s): {rate:5.1f} frames drawn per second",
+              file=out)
+    window.close()
+    app.processEvents()
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m tactile_viewer.bench",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("recording", nargs="?", default=str(SAMPLE))
+    parser.add_argument("--count", type=int, default=40, help="slider moves per measurement")
+    parser.add_argument("--seconds", type=float, default=5.0, help="playback time per speed")
+    args = parser.parse_args(argv)
+    run(args.recording, count=args.count, seconds=args.seconds)
+
+
+if __name__ == "__main__":
+    main()
