@@ -136,7 +136,8 @@ class ViewerModel:
         if reconstructor.grid is not recording.grid and not (
                 reconstructor.grid.shape == recording.grid.shape
                 and np.array_equal(reconstructor.grid.positions, recording.grid.positions)
-                and reconstructor.grid.thickness == recording.grid.thickness):
+                and reconstructor.grid.thickness == recording.grid.thickness
+                and reconstructor.grid.pitch == recording.grid.pitch):
             raise ValueError("reconstructor was built for another geometry than the recording's")
         self.recording = recording
         self.reconstructor = reconstructor
@@ -144,15 +145,17 @@ class ViewerModel:
         self.path = Path(path) if path is not None else None
         self.frame = 0
         self.last = None
-        # readable default arrow lengths: the largest node force of the first
-        # frame spans about three pitches, its total a third of the skin
-        first = reconstructor.solve_normal(recording.frames[0]).forces[:, 2]
+        # readable default arrow lengths: on the recording's most loaded frame the
+        # largest node force spans about three pitches, the total a third of the skin
+        loaded = int(np.argmax(np.abs(recording.frames).sum(axis=1)))
+        first = reconstructor.solve_normal(recording.frames[loaded]).forces[:, 2]
         peak = float(np.abs(first).max()) or 1.0
         total = abs(float(first.sum())) or peak
         width = float(np.ptp(recording.grid.positions[:, 0])) + recording.grid.pitch
         self.display = replace(self.display, arrow_scale=3 * recording.grid.pitch / peak,
                                resultant_scale=width / 3 / total,
-                               range_max=max(float(np.abs(recording.frames).max()), 1.0))
+                               range_max=max(float(np.abs(recording.frames).max()),
+                                             peak / recording.grid.pitch**2, 1.0))
         self.recording_changed.emit()
         self.display_changed.emit()
 
@@ -174,21 +177,29 @@ class ViewerModel:
             self.parameters_changed.emit()
 
     def set_parameters(self, *, shear_ratio: float | None = None, shear_direction: float | None = None):
-        """Manual parameters (a slider was touched): switches Auto off."""
+        """Manual parameters (a slider was touched): switches Auto off.
+
+        Both values are checked before either is stored; ``parameters_changed``
+        fires only when something changed.
+        """
+        ratio, direction = self.shear_ratio, self.shear_direction
         if shear_ratio is not None:
             if not (math.isfinite(shear_ratio) and 0 <= shear_ratio <= MAX_SHEAR_RATIO):
                 raise ValueError(f"shear_ratio must be in [0, {MAX_SHEAR_RATIO}], got {shear_ratio!r}")
-            self.shear_ratio = float(shear_ratio)
+            ratio = float(shear_ratio)
         if shear_direction is not None:
             if not math.isfinite(shear_direction):
                 raise ValueError(f"shear_direction must be finite radians, got {shear_direction!r}")
-            self.shear_direction = math.remainder(float(shear_direction), 2 * math.pi)
-        self.auto = False
-        self.parameters_changed.emit()
+            direction = math.remainder(float(shear_direction), 2 * math.pi)
+        if (ratio, direction, False) != (self.shear_ratio, self.shear_direction, self.auto):
+            self.shear_ratio, self.shear_direction, self.auto = ratio, direction, False
+            self.parameters_changed.emit()
 
     def set_display(self, **changes):
-        self.display = replace(self.display, **changes)
-        self.display_changed.emit()
+        display = replace(self.display, **changes)
+        if display != self.display:
+            self.display = display
+            self.display_changed.emit()
 
     def describe(self) -> dict:
         """What the last solve shows, for screenshot sidecars."""

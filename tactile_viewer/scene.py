@@ -105,6 +105,7 @@ class Scene:
             position_x=0.86, position_y=0.1, height=0.8, width=0.06, color="black", n_labels=5,
             fmt="%.3g")
         # placeholders until the first frame (pyvista refuses empty meshes)
+        self.arrow_nodes = np.zeros(0, dtype=int)
         self.arrows = pv.Arrow()
         self.arrows.point_data["mN"] = np.zeros(self.arrows.n_points)
         self._actors["arrows"] = self.plotter.add_mesh(
@@ -119,6 +120,7 @@ class Scene:
             pv.Arrow(start=(0, 0, 0), direction=(1, 0, 0), scale=1.0, tip_length=0.2, tip_radius=0.06,
                      shaft_radius=0.025), color="#d62728", name="resultant", pickable=False,
             **SHADED)
+        self.arrows.copy_from(pv.PolyData())  # drawn empty until the first frame
         for name in ("arrows", "resultant"):
             self._actors[name].SetVisibility(False)
         self._bars["arrows"].SetVisibility(False)

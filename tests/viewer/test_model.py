@@ -1,0 +1,385 @@
+"""The viewer model in plain Python (no Qt): installing, signals, parameters, solving, describing, Display."""
+
+import math
+import subprocess
+import sys
+from dataclasses import FrozenInstanceError, replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from solver import Reconstructor, SensorGrid, loads
+from tactile_viewer.model import MAX_SHEAR_RATIO, Display, Signal, ViewerModel
+from tactile_viewer.recording import Recording
+
+ROOT = Path(__file__).resolve().parents[2]
+PITCH, THICKNESS = 2e-3, 2e-3
+SIGNALS = ("recording_changed", "frame_changed", "parameters_changed", "display_changed", "solved")
+
+
+@pytest.fixture(scope="module")
+def recording():
+    """Four frames of a sheared Hertz contact sliding along x on a 6x5 skin, with their truth."""
+    grid = SensorGrid.regular(6, 5, PITCH, THICKNESS)
+    rng = np.random.default_rng(7)  # fixed seed: the sensor noise of all four frames
+    frames = [loads.simulate(grid, loads.hertz((x, 0.3e-3), 3e-3, 1.0 + x / 1e-2, shear_ratio=0.4,
+                                               shear_direction=0.5), noise=0.01, rng=rng)
+              for x in (-2e-3, -0.5e-3, 1e-3, 2.5e-3)]
+    return Recording(grid, [f.stress for f in frames], [0.0, 0.05, 0.1, 0.15],
+                     truth_forces=[f.forces for f in frames], description="sliding contact")
+
+
+@pytest.fixture(scope="module")
+def reconstructor(recording):
+    return ViewerModel.build(recording, "cell")
+
+
+@pytest.fixture
+def model(recording, reconstructor):
+    model = ViewerModel()
+    model.install(recording, reconstructor, path="takes/sliding.npz")
+    return model
+
+
+def listen(model):
+    """Every signal of the model as (name, args) in the order they fire."""
+    events = []
+    for name in SIGNALS:
+        getattr(model, name).connect(lambda *args, name=name: events.append((name, args)))
+    return events
+
+
+def names(events):
+    return [name for name, _ in events]
+
+
+# -- Signal --------------------------------------------------------------------------------------
+
+def test_signal_calls_its_slots_in_order_and_forgets_disconnected_ones():
+    signal, calls = Signal(), []
+    first, second = (lambda *a: calls.append(("first", a))), (lambda *a: calls.append(("second", a)))
+    signal.connect(first)
+    signal.connect(second)
+    signal.emit(1, "x")
+    signal.disconnect(first)
+    signal.emit(2)
+    assert calls == [("first", (1, "x")), ("second", (1, "x")), ("second", (2,))]
+
+
+def test_a_slot_may_disconnect_itself_while_the_signal_fires():
+    signal, calls = Signal(), []
+
+    def once(value):
+        calls.append(("once", value))
+        signal.disconnect(once)
+
+    signal.connect(once)
+    signal.connect(lambda value: calls.append(("always", value)))
+    signal.emit(1)
+    signal.emit(2)  # the self-removal must not have skipped the second slot on the first emit
+    assert calls == [("once", 1), ("always", 1), ("always", 2)]
+
+
+# -- installing ----------------------------------------------------------------------------------
+
+def test_install_announces_the_recording_then_its_display(recording, reconstructor):
+    model = ViewerModel()
+    events = listen(model)
+    model.install(recording, reconstructor, path="takes/sliding.npz")
+    # the window builds the scene on recording_changed, then reads the display it was given
+    assert events == [("recording_changed", ()), ("display_changed", ())]
+    assert model.recording is recording and model.reconstructor is reconstructor
+    assert model.kernel == "cell" and model.path == Path("takes/sliding.npz")
+    assert model.frame == 0 and model.last is None
+
+
+def test_install_scales_the_display_to_the_recording(model, recording, reconstructor):
+    # readable defaults, loosely (the exact rule is a heuristic): the largest normal-only node force
+    # of the recording draws an arrow of a few pitches, and the fixed colour range holds every frame
+    peak = max(np.abs(reconstructor.solve_normal(frame).forces[:, 2]).max() for frame in recording.frames)
+    assert 1 * PITCH <= model.display.arrow_scale * peak <= 8 * PITCH
+    assert model.display.range_max >= np.abs(recording.frames).max()
+    assert math.isfinite(model.display.resultant_scale) and model.display.resultant_scale > 0
+
+
+def test_reinstalling_starts_over_at_frame_zero(model, recording, reconstructor):
+    model.set_frame(3)
+    model.solve()
+    model.set_display(map="stress")
+    model.install(recording, reconstructor)
+    assert model.frame == 0 and model.last is None and model.path is None
+    assert model.display.map == "stress"  # the user's choices stay; only the scales follow the data
+
+
+def test_install_accepts_the_same_geometry_built_separately(recording, reconstructor):
+    twin = Recording(SensorGrid.regular(6, 5, PITCH, THICKNESS), recording.frames, recording.t)
+    assert twin.grid is not reconstructor.grid
+    model = ViewerModel()
+    model.install(twin, reconstructor)
+    assert model.recording is twin
+
+
+@pytest.mark.parametrize("other", [
+    SensorGrid.regular(5, 6, PITCH, THICKNESS),        # x and y swapped: same size, other shape
+    SensorGrid.regular(6, 5, PITCH, 3e-3),             # a thicker layer
+    SensorGrid.regular(6, 5, 2.5e-3, THICKNESS),       # another pitch (so other positions)
+], ids=["transposed", "thicker", "wider"])
+def test_install_rejects_a_reconstructor_for_another_geometry(model, recording, other):
+    events = listen(model)
+    shown = model.recording
+    with pytest.raises(ValueError, match="reconstructor was built for another geometry than the recording's"):
+        model.install(recording, Reconstructor(other))
+    assert model.recording is shown and events == []
+
+
+def test_install_rejects_a_reconstructor_for_another_pitch():
+    positions = SensorGrid.regular(4, 4, PITCH, THICKNESS).positions
+    grid = SensorGrid(positions, THICKNESS, PITCH, (16,))
+    other = SensorGrid(positions, THICKNESS, 1.5 * PITCH, (16,))
+    recording = Recording(grid, np.full((2, 16), 1e3), [0.0, 1.0])
+    assert not np.allclose(Reconstructor(grid).matrix, Reconstructor(other).matrix)  # really another geometry
+    with pytest.raises(ValueError, match="another geometry"):
+        ViewerModel().install(recording, Reconstructor(other))
+
+
+# -- frames --------------------------------------------------------------------------------------
+
+def test_set_frame_announces_only_a_change(model):
+    events = listen(model)
+    model.set_frame(np.int64(2))  # the slider and numpy both hand over integers of other types
+    model.set_frame(2)
+    model.set_frame(0)
+    assert events == [("frame_changed", (2,)), ("frame_changed", (0,))]
+    assert type(model.frame) is int
+
+
+@pytest.mark.parametrize("index", [-1, 4, 100])
+def test_set_frame_out_of_range_raises_and_keeps_the_frame(model, index):
+    model.set_frame(1)
+    events = listen(model)
+    with pytest.raises(ValueError, match=rf"frame must be in \[0, 3\], got {index}"):
+        model.set_frame(index)
+    assert model.frame == 1 and events == []
+
+
+def test_a_model_with_nothing_open_ignores_frames_and_solves():
+    model = ViewerModel()
+    events = listen(model)
+    model.set_frame(5)
+    assert model.solve() is None
+    assert model.frame == 0 and model.last is None and events == []
+
+
+# -- parameters ----------------------------------------------------------------------------------
+
+def test_set_auto_announces_only_a_change(model):
+    events = listen(model)
+    model.set_auto(True)  # already on after install
+    model.set_auto(False)
+    model.set_auto(0)
+    model.set_auto(True)
+    assert names(events) == ["parameters_changed", "parameters_changed"]
+    assert model.auto is True
+
+
+def test_set_parameters_switches_auto_off(model):
+    assert model.auto
+    events = listen(model)
+    model.set_parameters(shear_ratio=0.7)
+    assert events == [("parameters_changed", ())]
+    assert not model.auto and model.shear_ratio == 0.7 and model.shear_direction == 0.0
+    model.set_parameters(shear_direction=-1.0)
+    assert model.shear_ratio == 0.7 and model.shear_direction == -1.0  # each slider alone
+    assert names(events) == ["parameters_changed", "parameters_changed"]
+
+
+@pytest.mark.parametrize("direction",
+                         [3 * math.pi / 2, -3 * math.pi / 2, 2 * math.pi, 7.0, -20.0, math.pi, -math.pi])
+def test_set_parameters_wraps_the_direction(model, direction):
+    model.set_parameters(shear_direction=direction)
+    wrapped = model.shear_direction
+    assert -math.pi <= wrapped <= math.pi
+    # the same direction on the circle
+    assert math.cos(wrapped) == pytest.approx(math.cos(direction), abs=1e-12)
+    assert math.sin(wrapped) == pytest.approx(math.sin(direction), abs=1e-12)
+
+
+@pytest.mark.parametrize("ratio", [0.0, MAX_SHEAR_RATIO])
+def test_set_parameters_accepts_both_ends_of_the_ratio(model, ratio):
+    model.set_parameters(shear_ratio=ratio)
+    assert model.shear_ratio == ratio
+
+
+@pytest.mark.parametrize(("changes", "message"), [
+    (dict(shear_ratio=-0.1), r"shear_ratio must be in \[0, 1.5\], got -0.1"),
+    (dict(shear_ratio=MAX_SHEAR_RATIO + 1e-9), r"shear_ratio must be in \[0, 1.5\], got 1.500000001"),
+    (dict(shear_ratio=math.nan), r"shear_ratio must be in \[0, 1.5\], got nan"),
+    (dict(shear_ratio=math.inf), r"shear_ratio must be in \[0, 1.5\], got inf"),
+    (dict(shear_direction=math.nan), r"shear_direction must be finite radians, got nan"),
+    (dict(shear_direction=-math.inf), r"shear_direction must be finite radians, got -inf"),
+])
+def test_set_parameters_rejects_values_out_of_range(model, changes, message):
+    model.set_parameters(shear_ratio=0.3, shear_direction=0.2)
+    model.set_auto(True)
+    events = listen(model)
+    with pytest.raises(ValueError, match=message):
+        model.set_parameters(**changes)
+    # nothing changed and nothing was announced; Auto stays on
+    assert (model.shear_ratio, model.shear_direction, model.auto) == (0.3, 0.2, True) and events == []
+
+
+def test_a_rejected_set_parameters_changes_nothing(model):
+    model.set_parameters(shear_ratio=0.3, shear_direction=0.2)
+    with pytest.raises(ValueError, match="shear_direction must be finite radians"):
+        model.set_parameters(shear_ratio=0.9, shear_direction=math.nan)
+    assert model.shear_ratio == 0.3
+
+
+def test_repeating_the_manual_parameters_announces_nothing(model):
+    model.set_parameters(shear_ratio=0.3, shear_direction=0.2)
+    events = listen(model)
+    model.set_parameters(shear_ratio=0.3, shear_direction=0.2)
+    assert events == []
+
+
+# -- display -------------------------------------------------------------------------------------
+
+def test_set_display_replaces_the_display_and_announces_it(model):
+    events = listen(model)
+    before = model.display
+    model.set_display(map="stress", threshold=1e-3)
+    assert events == [("display_changed", ())]
+    assert model.display == replace(before, map="stress", threshold=1e-3)
+    assert before.map == "pressure"  # the old Display object is untouched (frozen)
+
+
+def test_setting_the_same_display_announces_nothing(model):
+    events = listen(model)
+    model.set_display(map=model.display.map, arrows=model.display.arrows)
+    assert events == []
+
+
+def test_set_display_rejects_a_bad_value_and_keeps_the_display(model):
+    events = listen(model)
+    before = model.display
+    with pytest.raises(ValueError, match=r"map must be one of \('pressure', 'stress', 'none'\), got 'heat'"):
+        model.set_display(map="heat")
+    with pytest.raises(ValueError, match=r"threshold must be finite and >= 0, got -1"):
+        model.set_display(threshold=-1)
+    assert model.display is before and events == []
+
+
+@pytest.mark.parametrize("name", ["arrow_scale", "resultant_scale", "threshold", "range_max"])
+@pytest.mark.parametrize("value", [-1e-6, math.nan, math.inf, -math.inf])
+def test_display_rejects_negative_and_non_finite_scales(name, value):
+    with pytest.raises(ValueError, match=rf"{name} must be finite and >= 0, got {value!r}"):
+        Display(**{name: value})
+    with pytest.raises(ValueError, match=rf"{name} must be finite and >= 0"):
+        replace(Display(), **{name: value})  # replace() runs the same checks
+
+
+@pytest.mark.parametrize("kind", ["Pressure", "", "heat", None])
+def test_display_rejects_unknown_maps(kind):
+    with pytest.raises(ValueError, match=r"map must be one of \('pressure', 'stress', 'none'\)"):
+        Display(map=kind)
+
+
+def test_display_accepts_zero_and_every_map():
+    for kind in ("pressure", "stress", "none"):
+        assert Display(map=kind).map == kind
+    zero = Display(arrow_scale=0.0, resultant_scale=0.0, threshold=0.0, range_max=0.0)
+    assert zero.threshold == 0.0
+    with pytest.raises(FrozenInstanceError):
+        zero.threshold = 1.0
+
+
+# -- solving -------------------------------------------------------------------------------------
+
+def test_auto_solve_moves_the_parameters_to_what_it_found(model, recording, reconstructor):
+    model.set_frame(1)
+    events = listen(model)
+    solved = model.solve()
+    # the parameters are announced first, so the sliders sit right when the frame is drawn
+    assert names(events) == ["parameters_changed", "solved"] and events[1][1] == (solved,)
+    expected = reconstructor.solve(recording.frames[1])
+    np.testing.assert_array_equal(solved.result.forces, expected.forces)
+    assert model.auto and solved.auto
+    assert model.shear_ratio == expected.shear_ratio and model.shear_direction == expected.shear_direction
+    assert expected.shear_ratio > 0.2  # found the simulated shear (0.4), so copying it is visible
+    assert model.last is solved
+
+
+def test_manual_solve_is_the_reconstructors_solve_exactly(model, recording, reconstructor):
+    model.set_frame(2)
+    model.set_parameters(shear_ratio=0.7, shear_direction=-2.0)
+    events = listen(model)
+    solved = model.solve()
+    assert events == [("solved", (solved,))]  # a manual solve leaves the parameters alone
+    expected = reconstructor.solve(recording.frames[2], shear_ratio=0.7, shear_direction=-2.0)
+    np.testing.assert_array_equal(solved.result.forces, expected.forces)
+    assert solved.result.shear_ratio == pytest.approx(0.7)
+    assert solved.result.shear_direction == pytest.approx(-2.0)
+    assert (model.shear_ratio, model.shear_direction, model.auto, solved.auto) == (0.7, -2.0, False, False)
+
+
+def test_solved_carries_the_frame_its_time_and_its_stress(model, recording):
+    model.set_frame(3)
+    solved = model.solve()
+    assert solved.frame == 3 and solved.time == recording.t[3] == 0.15
+    np.testing.assert_array_equal(solved.stress, recording.frames[3])
+    assert solved.solve_ms >= 0 and math.isfinite(solved.solve_ms)
+
+
+def test_manual_solve_on_an_all_zero_frame(recording, reconstructor):
+    # a skin at rest: nothing to reconstruct, nothing to raise
+    zero = Recording(recording.grid, np.zeros((2, recording.grid.size)), [0.0, 1.0])
+    model = ViewerModel()
+    model.install(zero, reconstructor)
+    model.set_parameters(shear_ratio=0.5, shear_direction=1.0)
+    assert not np.any(model.solve().result.forces)
+    model.set_auto(True)
+    assert not np.any(model.solve().result.forces)
+
+
+# -- describe ------------------------------------------------------------------------------------
+
+def test_describe_carries_frame_mode_and_parameters(model, recording):
+    model.set_frame(2)
+    model.set_parameters(shear_ratio=0.7, shear_direction=-math.pi / 2)
+    model.solve()
+    info = model.describe()
+    assert info["recording"] == str(Path("takes/sliding.npz"))
+    assert info["frame"] == 2 and info["t"] == recording.t[2] and info["kernel"] == "cell"
+    assert info["mode"] == "manual"
+    assert info["shear_ratio"] == pytest.approx(0.7)
+    assert info["shear_direction_deg"] == pytest.approx(-90.0)
+    assert info["residual"] == model.last.result.residual and math.isfinite(info["condition"])
+    assert info["display"] == dict(model.display.__dict__)
+    # it describes the last solve, not settings changed since (the screenshot shows that solve)
+    model.set_auto(True)
+    model.set_frame(0)
+    assert model.describe()["mode"] == "manual" and model.describe()["frame"] == 2
+    model.solve()
+    info = model.describe()
+    assert info["mode"] == "auto" and info["shear_ratio"] == model.shear_ratio
+    assert info["shear_direction_deg"] == pytest.approx(math.degrees(model.shear_direction))
+
+
+def test_describe_without_a_path(recording, reconstructor):
+    model = ViewerModel()
+    model.install(recording, reconstructor)
+    model.solve()
+    assert model.describe()["recording"] is None  # an in-memory recording
+
+
+# -- isolation -----------------------------------------------------------------------------------
+
+def test_the_model_imports_neither_qt_nor_pyvista():
+    # the command line and batch tools use the model without a display: a fresh interpreter shows
+    # what importing it drags in (this test process has Qt loaded already)
+    code = ("import sys, tactile_viewer.model; "
+            "loaded = sorted(m for m in sys.modules if m.startswith(('PyQt6', 'PyQt5', 'PySide', 'pyvista', "
+            "'vtk', 'qtpy'))); assert not loaded, loaded")
+    run = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
