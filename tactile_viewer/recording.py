@@ -2,10 +2,14 @@
 
 NPZ keys: ``frames (T, m)`` pascals, ``t (T,)`` seconds, ``nx``, ``ny``,
 ``pitch``, ``thickness`` (metres), optional ``positions (m, 2)``, optional
-``truth_forces (T, m, 3)`` newtons, ``units``, ``description``.
+``truth_forces (T, m, 3)`` newtons, optional ``seq (T,)`` sequence numbers of
+live frames, ``units``, ``description``. A live recording that was never
+closed (a crash) holds its frames in chunks ``chunkNNNNNN_frames``,
+``chunkNNNNNN_t``, ``chunkNNNNNN_seq``; they load as one recording.
 
 CSV: ``#`` header lines of ``key=value`` (nx, ny, pitch, thickness, units,
-description), then one frame per row: ``t, v0, v1, ...``.
+description, optional ``columns=seq,t``), then one frame per row:
+``t, v0, v1, ...`` (or ``seq, t, v0, v1, ...``).
 
 No Qt here: the command line, the tests and the solver tools use it too.
 """
@@ -47,6 +51,8 @@ class Recording:
     truth_forces : (T, m, 3) ndarray or None
         Known nodal forces (simulated recordings), newtons.
     description : str
+    seq : (T,) ndarray of int or None
+        Sequence numbers of frames received live (gaps are lost frames).
     """
 
     grid: SensorGrid
@@ -54,6 +60,7 @@ class Recording:
     t: np.ndarray
     truth_forces: np.ndarray | None = None
     description: str = ""
+    seq: np.ndarray | None = None
 
     def __post_init__(self):
         frames = np.array(self.frames, dtype=float)
@@ -72,6 +79,11 @@ class Recording:
                 raise ValueError(f"truth_forces must have shape ({frames.shape[0]}, "
                                  f"{self.grid.size}, 3), got {truth.shape}")
             object.__setattr__(self, "truth_forces", read_only(truth))
+        if self.seq is not None:
+            seq = np.array(self.seq)
+            if seq.shape != (frames.shape[0],) or not np.all(seq == np.round(seq)):
+                raise ValueError(f"seq must be {frames.shape[0]} whole numbers, got shape {seq.shape}")
+            object.__setattr__(self, "seq", read_only(seq, np.int64))
 
     def __len__(self) -> int:
         return self.frames.shape[0]
@@ -153,18 +165,30 @@ def _load_npz(path) -> Recording:
     if not isinstance(data, np.lib.npyio.NpzFile):
         raise RecordingError(f"{path}: not an NPZ archive (a single array, as .npy writes)")
     with data:
-        if "frames" not in data:
+        arrays = _joined_chunks(data) if "frames" not in data else {k: data[k] for k in ("frames", "t", "seq")
+                                                                    if k in data}
+        if "frames" not in arrays:
             raise RecordingError(f"{path}: missing 'frames'")
         grid = _grid(data, path, data["positions"] if "positions" in data else None)
         units = str(data["units"]) if "units" in data else "Pa"
-        frames = _checked_frames(np.asarray(data["frames"], dtype=float), grid, path) * _scale(units, path)
-        t = np.asarray(data["t"], dtype=float) if "t" in data else np.arange(len(frames), dtype=float)
+        frames = _checked_frames(np.asarray(arrays["frames"], dtype=float), grid, path) * _scale(units, path)
+        t = np.asarray(arrays["t"], dtype=float) if "t" in arrays else np.arange(len(frames), dtype=float)
+        seq = arrays.get("seq")
         truth = np.asarray(data["truth_forces"], dtype=float) if "truth_forces" in data else None
         description = str(data["description"]) if "description" in data else ""
     try:
-        return Recording(grid, frames, t, truth, description)
+        return Recording(grid, frames, t, truth, description, seq)
     except ValueError as exc:
         raise RecordingError(f"{path}: {exc}") from None
+
+
+def _joined_chunks(data) -> dict:
+    # a live recording cut off before it was closed: its chunks in order
+    names = sorted({name.split("_", 1)[0] for name in data.files if name.startswith("chunk")})
+    if not names:
+        return {}
+    return {key: np.concatenate([data[f"{name}_{key}"] for name in names]) for key in ("frames", "t", "seq")
+            if all(f"{name}_{key}" in data for name in names)}
 
 
 def _load_csv(path) -> Recording:
@@ -190,9 +214,14 @@ def _load_csv(path) -> Recording:
     if not rows:
         raise RecordingError(f"{path}: no frames")
     table = np.asarray(rows, dtype=float)
-    frames = _checked_frames(table[:, 1:], grid, path) * _scale(meta.get("units", "Pa"), path)
+    columns = meta.get("columns", "t")
+    if columns not in ("t", "seq,t"):
+        raise RecordingError(f"{path}: columns must be 't' or 'seq,t', got {columns!r}")
+    first = 2 if columns == "seq,t" else 1
+    frames = _checked_frames(table[:, first:], grid, path) * _scale(meta.get("units", "Pa"), path)
+    seq = table[:, 0] if first == 2 else None
     try:
-        return Recording(grid, frames, table[:, 0], None, meta.get("description", ""))
+        return Recording(grid, frames, table[:, first - 1], None, meta.get("description", ""), seq)
     except ValueError as exc:
         raise RecordingError(f"{path}: {exc}") from None
 
@@ -204,6 +233,8 @@ def save(recording: Recording, path) -> Path:
     ny, nx = grid.shape
     if path.suffix.lower() == ".npz":
         extra = {} if recording.truth_forces is None else {"truth_forces": recording.truth_forces}
+        if recording.seq is not None:
+            extra["seq"] = recording.seq
         # through a handle: np.savez would append ".npz" to a name ending ".NPZ"
         with open(path, "wb") as handle:
             np.savez_compressed(handle, frames=recording.frames, t=recording.t, nx=nx, ny=ny,
@@ -215,7 +246,11 @@ def save(recording: Recording, path) -> Path:
         buffer.write("# units=Pa\n")
         if recording.description:
             buffer.write(f"# description={' '.join(recording.description.split())}\n")
-        np.savetxt(buffer, np.column_stack([recording.t, recording.frames]), delimiter=",", fmt="%.9g")
+        columns = [recording.t, recording.frames]
+        if recording.seq is not None:
+            buffer.write("# columns=seq,t\n")
+            columns.insert(0, recording.seq)
+        np.savetxt(buffer, np.column_stack(columns), delimiter=",", fmt="%.9g")
         path.write_text(buffer.getvalue(), encoding="utf-8")
     else:
         raise RecordingError(f"{path}: unknown recording type {path.suffix!r}, expected .npz or .csv")
