@@ -71,7 +71,7 @@ def screenshot(path, out, *, frame=0, kernel="cell", shear_ratio=None, shear_dir
 
     recording = load(path)
     model = ViewerModel()
-    model.install(recording, ViewerModel.build(recording, kernel), path)
+    model.install(recording, ViewerModel.build(recording.grid, kernel), path)
     model.set_frame(_frame_index(frame, recording))
     if shear_ratio is not None or shear_direction_deg is not None:
         model.set_parameters(shear_ratio=shear_ratio if shear_ratio is not None else model.shear_ratio,

@@ -20,9 +20,11 @@ from PyQt6 import QtCore, QtGui, QtWidgets  # noqa: E402
 from pyvistaqt import QtInteractor  # noqa: E402
 
 from . import export  # noqa: E402
+from .connect_dialog import ConnectDialog  # noqa: E402
 from .model import MAX_SHEAR_RATIO, ViewerModel  # noqa: E402
 from .recording import Recording, RecordingError, load  # noqa: E402
 from .scene import Scene  # noqa: E402
+from .sources import LayoutError, SensorLayout, SerialReader, load_layout  # noqa: E402
 
 __all__ = ["MainWindow"]
 
@@ -74,6 +76,7 @@ class MainWindow(QtWidgets.QMainWindow):
     ready = QtCore.pyqtSignal()
     rendered = QtCore.pyqtSignal()
     task_finished = QtCore.pyqtSignal(object)
+    live_frame_arrived = QtCore.pyqtSignal()  # emitted from the reader thread, queued to ours
 
     def __init__(self, parent=None):
         super().__init__(parent)
@@ -86,6 +89,11 @@ class MainWindow(QtWidgets.QMainWindow):
         central = QtWidgets.QFrame(self)
         layout = QtWidgets.QVBoxLayout(central)
         layout.setContentsMargins(0, 0, 0, 0)
+        self.banner = QtWidgets.QLabel("NO DATA", central)
+        self.banner.setAlignment(QtCore.Qt.AlignmentFlag.AlignCenter)
+        self.banner.setStyleSheet("background: #b00020; color: white; font-weight: bold; padding: 4px")
+        self.banner.hide()
+        layout.addWidget(self.banner)
         self.plotter = QtInteractor(central, auto_update=False)
         layout.addWidget(self.plotter.interactor)
         self.setCentralWidget(central)
@@ -95,8 +103,12 @@ class MainWindow(QtWidgets.QMainWindow):
 
         self._build_controls()
         self._build_menus()
-        self.status = QtWidgets.QLabel("open a recording (File > Open)")
+        self.status = QtWidgets.QLabel("open a recording (File > Open) or connect a board (Live > Connect)")
         self.statusBar().addPermanentWidget(self.status, 1)
+        self.reader: SerialReader | None = None
+        self.live_frame_arrived.connect(self._take_live_frame)
+        self._live_timer = QtCore.QTimer(self, interval=250)
+        self._live_timer.timeout.connect(self._update_live_status)
 
         # Coalesce solve requests: many slider moves, one solve of the latest value.
         self._solve_pending = False
@@ -213,6 +225,22 @@ class MainWindow(QtWidgets.QMainWindow):
         grid.addWidget(self.frame_slider, 1, 0, 1, 5)
         grid.addWidget(self.time_label, 2, 0, 1, 5)
         form.addWidget(playback)
+        self._playback = playback
+
+        self._live_box = QtWidgets.QGroupBox("Live")
+        box = QtWidgets.QVBoxLayout(self._live_box)
+        self.live_status = QtWidgets.QLabel("")
+        self.live_status.setWordWrap(True)
+        box.addWidget(self.live_status)
+        buttons = QtWidgets.QHBoxLayout()
+        for label, slot in (("Tare", lambda: self.tare(50)), ("Record...", self.record_dialog),
+                            ("Stop recording", self.stop_recording), ("Disconnect", self.disconnect_live)):
+            button = QtWidgets.QPushButton(label)
+            button.clicked.connect(slot)
+            buttons.addWidget(button)
+        box.addLayout(buttons)
+        self._live_box.hide()
+        form.addWidget(self._live_box)
         form.addStretch(1)
 
         dock = QtWidgets.QDockWidget("Controls", self)
@@ -233,14 +261,30 @@ class MainWindow(QtWidgets.QMainWindow):
         ]
         menu.addSeparator()
         menu.addAction("&Quit", self.close).setShortcut(QtGui.QKeySequence.StandardKey.Quit)
+        live = self.menuBar().addMenu("&Live")
+        live.addAction("&Connect...", self.connect_dialog)
+        self._live_actions = [
+            live.addAction("&Disconnect", self.disconnect_live),
+            live.addAction("&Tare (average 50 frames)", lambda: self.tare(50)),
+            live.addAction("&Record...", self.record_dialog),
+            live.addAction("&Stop recording", self.stop_recording),
+        ]
         view = self.menuBar().addMenu("&View")
         view.addAction("&Top", lambda: self._camera("top"))
         view.addAction("&Iso", lambda: self._camera("iso"))
 
     def _set_enabled(self, on: bool):
+        live = self.model.live
         self._controls.setEnabled(on)
+        self._playback.setEnabled(on and not live)
         for action in self._exports:
             action.setEnabled(on)
+        self._exports[2].setEnabled(on and not live)  # a live source has no "whole recording"
+        self._live_box.setVisible(live)
+        for action in self._live_actions:
+            action.setEnabled(live)
+        recording = self.reader is not None and self.reader.recorder is not None
+        self._live_actions[3].setEnabled(live and recording)
 
     # -- opening ----------------------------------------------------------------------------
 
@@ -267,10 +311,11 @@ class MainWindow(QtWidgets.QMainWindow):
     def _install(self, recording, kernel, path):
         # Factoring is the slow part for large grids: do it in a worker thread.
         def work(progress):
-            return ViewerModel.build(recording, kernel)
+            return ViewerModel.build(recording.grid, kernel)
 
         def done(reconstructor):
             self.set_playing(False)
+            self._stop_reader()
             self.model.install(recording, reconstructor, path)
 
         ny, nx = recording.grid.shape[0], recording.grid.shape[-1]
@@ -278,13 +323,19 @@ class MainWindow(QtWidgets.QMainWindow):
                   determinate=False)
 
     def _kernel_changed(self, kernel):
-        if self.model.recording is None or kernel == self.model.kernel:
+        if not self.model.is_open or kernel == self.model.kernel:
+            return
+        if self.model.live:
+            grid, label = self.model.grid, self.model.live_label
+            self._run(lambda progress: ViewerModel.build(grid, kernel),
+                      lambda reconstructor: self.model.install_live(reconstructor, label),
+                      f"Factoring for the {kernel} kernel...", determinate=False)
             return
         frame = self.model.frame
         recording, path = self.model.recording, self.model.path
 
         def work(progress):
-            return ViewerModel.build(recording, kernel)
+            return ViewerModel.build(recording.grid, kernel)
 
         def done(reconstructor):
             self.model.install(recording, reconstructor, path)
@@ -293,17 +344,21 @@ class MainWindow(QtWidgets.QMainWindow):
         self._run(work, done, f"Factoring for the {kernel} kernel...", determinate=False)
 
     def _on_recording(self):
-        recording = self.model.recording
-        self.scene.set_grid(recording.grid)
-        self.frame_slider.blockSignals(True)
-        self.frame_slider.setRange(0, len(recording) - 1)
-        self.frame_slider.setValue(0)
-        self.frame_slider.blockSignals(False)
+        self.scene.set_grid(self.model.grid)
         self.kernel_box.blockSignals(True)
         self.kernel_box.setCurrentText(self.model.kernel)
         self.kernel_box.blockSignals(False)
-        name = self.model.path.name if self.model.path else "recording"
-        self.setWindowTitle(f"tactile-viewer - {name}")
+        if self.model.live:
+            self.setWindowTitle(f"tactile-viewer - live: {self.model.live_label}")
+            self.time_label.setText("live")
+        else:
+            recording = self.model.recording
+            self.frame_slider.blockSignals(True)
+            self.frame_slider.setRange(0, len(recording) - 1)
+            self.frame_slider.setValue(0)
+            self.frame_slider.blockSignals(False)
+            name = self.model.path.name if self.model.path else "recording"
+            self.setWindowTitle(f"tactile-viewer - {name}")
         self._set_enabled(True)
         self._solve_now()
         self.ready.emit()
@@ -311,7 +366,7 @@ class MainWindow(QtWidgets.QMainWindow):
     # -- parameters ---------------------------------------------------------------------------
 
     def _manual(self, **changes):
-        if self.model.recording is None:
+        if not self.model.is_open:
             return
         self.model.set_parameters(**changes)
         self.request_solve()
@@ -365,7 +420,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def request_solve(self):
         """Ask for a re-solve of the current state; repeated requests before it runs merge into one."""
-        if self.model.recording is not None and not self._solve_pending:
+        if self.model.is_open and not self._solve_pending:
             self._solve_pending = True
             # A posted event, not a zero timer: it runs before Qt's repaint
             # (posted at low priority), so the moved slider and the new frame
@@ -388,15 +443,18 @@ class MainWindow(QtWidgets.QMainWindow):
         r = solved.result
         total = r.total_force
         shear = "auto" if solved.auto else "manual"
+        where = (f"seq {solved.frame}" if solved.frame >= 0 else "live") if self.model.live \
+            else f"frame {solved.frame + 1}/{len(self.model.recording)}"
         self.status.setText(
-            f"frame {solved.frame + 1}/{len(self.model.recording)}  t {solved.time:.3f} s  |  "
+            f"{where}  t {solved.time:.3f} s  |  "
             f"solve {solved.solve_ms:.2f} ms  |  {shear}: mu {r.shear_ratio:.2f}, "
             f"theta {math.degrees(r.shear_direction):+.0f} deg  |  efficiency {r.efficiency:.3f}  "
             f"residual {r.residual:.1e}  condition {r.condition:.3g}"
             f"{' (damped)' if r.regularized else ''}  |  "
             f"Fz {total[2] * 1e3:.1f} mN  Ft {math.hypot(total[0], total[1]) * 1e3:.1f} mN")
-        self.time_label.setText(f"frame {solved.frame + 1} of {len(self.model.recording)},  "
-                                f"t = {solved.time:.3f} s")
+        if not self.model.live:
+            self.time_label.setText(f"frame {solved.frame + 1} of {len(self.model.recording)},  "
+                                    f"t = {solved.time:.3f} s")
         self._draw()
 
     def _draw(self):
@@ -557,7 +615,127 @@ class MainWindow(QtWidgets.QMainWindow):
     def _error(self, title, message):
         QtWidgets.QMessageBox.critical(self, title, message)
 
+    # -- live ------------------------------------------------------------------------------------
+
+    def connect_dialog(self):
+        dialog = ConnectDialog(self)
+        if dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted:
+            chosen = dialog.connection()
+            self.connect_live(chosen.url, chosen.layout, fmt=chosen.fmt, baudrate=chosen.baudrate)
+
+    def connect_live(self, url: str, layout, *, fmt: str = "binary", baudrate: int = 115200) -> bool:
+        """Show frames from a serial URL; ``layout`` is a SensorLayout or its JSON path.
+
+        Errors (bad layout, port that cannot be opened) are shown and change nothing.
+        """
+        try:
+            if not isinstance(layout, SensorLayout):
+                layout = load_layout(layout)
+            reader = SerialReader(url, layout, fmt=fmt, baudrate=baudrate,
+                                  on_frame=self.live_frame_arrived.emit)
+            reader.start()
+        except (LayoutError, ValueError, OSError) as exc:  # pyserial's SerialException is an OSError
+            self._error("Cannot connect", f"{url}: {exc}")
+            return False
+        kernel, grid = self.model.kernel, layout.grid
+
+        def done(reconstructor):
+            self.set_playing(False)
+            self._stop_reader()
+            self.reader = reader
+            self.model.install_live(reconstructor, f"{url} ({fmt})")
+            self._live_timer.start()
+            self._set_enabled(True)
+            self._take_live_frame()  # frames that arrived while factoring announced themselves already
+
+        def work(progress):
+            return ViewerModel.build(grid, kernel)
+
+        task = self._run(work, done, f"Factoring the {grid.size}-taxel geometry...", determinate=False)
+        task.failed.connect(lambda _: reader.stop())
+        return True
+
+    def disconnect_live(self):
+        """Stop reading (and recording); the last frame stays on screen."""
+        self._stop_reader()
+        self._set_enabled(self.model.is_open)
+
+    def _stop_reader(self):
+        reader, self.reader = self.reader, None
+        if reader is not None:
+            written = reader.stop_recording()
+            reader.stop()
+            if written is not None:
+                self.statusBar().showMessage(f"recording saved: {written}", 10000)
+        self._live_timer.stop()
+        self.banner.hide()
+        self.live_status.setText("")
+
+    def tare(self, frames: int = 50):
+        """Average the next ``frames`` frames as the zero of every taxel."""
+        if self.reader is not None:
+            self.reader.calibration.tare(frames)
+            self.statusBar().showMessage(f"taring: averaging the next {frames} frames", 3000)
+
+    def record_dialog(self):
+        path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Record live frames", "live.npz",
+                                                        "NumPy archive (*.npz);;CSV (*.csv)")
+        if path:
+            self.start_recording(path)
+
+    def start_recording(self, path) -> bool:
+        """Record every received frame (not only the displayed ones) to NPZ or CSV."""
+        if self.reader is None:
+            return False
+        self.stop_recording()
+        try:
+            self.reader.start_recording(path)
+        except (ValueError, OSError) as exc:
+            self._error("Cannot record", f"{path}: {exc}")
+            return False
+        self._set_enabled(True)
+        return True
+
+    def stop_recording(self) -> Path | None:
+        written = self.reader.stop_recording() if self.reader is not None else None
+        if written is not None:
+            self.statusBar().showMessage(f"recording saved: {written}", 10000)
+        self._set_enabled(self.model.is_open)
+        return written
+
+    def _take_live_frame(self):
+        frame = self.reader.take_latest() if self.reader is not None else None
+        if frame is not None and self.model.live:
+            self.model.show_live(frame)
+            self.request_solve()
+
+    def _update_live_status(self):
+        reader = self.reader
+        if reader is None:
+            return
+        stats = reader.stats
+        silence = stats.silence(reader.now())
+        self.banner.setVisible(silence > 1.0)
+        if silence > 1.0:
+            since = "no frame received yet" if silence == math.inf else f"no frame for {silence:.1f} s"
+            state = reader.state + (f": {reader.error}" if reader.error else "")
+            self.banner.setText(f"NO DATA: {since} ({state})")
+        rejected = reader.rejected()
+        parts = [f"{reader.url} ({reader.fmt}): {reader.state}", f"{stats.rate(reader.now()):.0f} fps",
+                 f"received {stats.received}", f"lost {stats.lost}"]
+        if rejected or reader.decoder.skipped_bytes:
+            parts.append("rejected " + (", ".join(f"{k} {v}" for k, v in sorted(rejected.items())) or "0")
+                         + f"; skipped {reader.decoder.skipped_bytes} B")
+        if reader.reconnects:
+            parts.append(f"reconnected {reader.reconnects}x")
+        if reader.calibration.taring:
+            parts.append("taring")
+        if reader.recorder is not None:
+            parts.append(f"recording {reader.recorder.path.name} ({reader.recorder.written} frames saved)")
+        self.live_status.setText("\n".join(parts))
+
     def closeEvent(self, event):
+        self._stop_reader()
         self._play_timer.stop()
         self._solve_pending = False
         for task in list(self._tasks):

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver import Reconstruction, Reconstructor
+from solver import Reconstruction, Reconstructor, SensorGrid
 
 from .recording import Recording
 
@@ -82,7 +82,11 @@ class Display:
 
 @dataclass(frozen=True)
 class Solved:
-    """One reconstructed frame and how it was made."""
+    """One reconstructed frame and how it was made.
+
+    ``frame`` is the index in the recording, or for a live source the frame's
+    sequence number (-1 for text frames, which carry none); ``time`` seconds.
+    """
 
     frame: int
     time: float
@@ -109,6 +113,9 @@ class ViewerModel:
 
     def __init__(self):
         self.recording: Recording | None = None
+        self.live = False  # showing a live source instead of a recording
+        self.live_frame = None
+        self.live_label = ""
         self.path: Path | None = None
         self.reconstructor: Reconstructor | None = None
         self.kernel = "cell"
@@ -127,9 +134,43 @@ class ViewerModel:
     # -- building -----------------------------------------------------------------
 
     @staticmethod
-    def build(recording: Recording, kernel: str) -> Reconstructor:
-        """The reconstructor for a recording's geometry (slow for large grids: run it off the GUI thread)."""
-        return Reconstructor(recording.grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO)
+    def build(grid: SensorGrid, kernel: str) -> Reconstructor:
+        """The reconstructor for a geometry (slow for large grids: run it off the GUI thread)."""
+        return Reconstructor(grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO)
+
+    @property
+    def is_open(self) -> bool:
+        """A recording or a live source is shown."""
+        return self.recording is not None or self.live
+
+    @property
+    def grid(self) -> SensorGrid | None:
+        return self.reconstructor.grid if self.is_open else None
+
+    def install_live(self, reconstructor: Reconstructor, label: str):
+        """Show a live source on ``reconstructor.grid``; frames come through :meth:`show_live`."""
+        self.recording, self.path, self.live, self.live_label = None, None, True, label
+        self.live_frame = None
+        self.reconstructor = reconstructor
+        self.kernel = reconstructor.kernel
+        self.frame = 0
+        self.last = None
+        # nominal arrow lengths until the user sets them: 50 mN per node spans
+        # three pitches, a 1 N total a third of the skin
+        grid = reconstructor.grid
+        width = float(np.ptp(grid.positions[:, 0])) + grid.pitch
+        self.display = replace(self.display, arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3)
+        self.recording_changed.emit()
+        self.display_changed.emit()
+
+    def show_live(self, frame):
+        """The newest live frame (a :class:`~tactile_viewer.sources.LiveFrame`); solve to show it."""
+        if not self.live:
+            raise RuntimeError("show_live needs install_live first")
+        if frame.stress.shape != (self.reconstructor.grid.size,):
+            raise ValueError(f"live frame must have {self.reconstructor.grid.size} values, "
+                             f"got shape {frame.stress.shape}")
+        self.live_frame = frame
 
     def install(self, recording: Recording, reconstructor: Reconstructor, path=None):
         """Show a recording with its ready reconstructor; starts at frame 0."""
@@ -140,6 +181,7 @@ class ViewerModel:
                 and reconstructor.grid.pitch == recording.grid.pitch):
             raise ValueError("reconstructor was built for another geometry than the recording's")
         self.recording = recording
+        self.live, self.live_frame, self.live_label = False, None, ""
         self.reconstructor = reconstructor
         self.kernel = reconstructor.kernel
         self.path = Path(path) if path is not None else None
@@ -205,7 +247,8 @@ class ViewerModel:
         """What the last solve shows, for screenshot sidecars."""
         last = self.last
         r = last.result
-        return dict(recording=str(self.path) if self.path else None, frame=last.frame, t=last.time,
+        source = self.live_label if self.live else (str(self.path) if self.path else None)
+        return dict(recording=source, frame=last.frame, t=last.time,
                     kernel=self.kernel, mode="auto" if last.auto else "manual",
                     shear_ratio=r.shear_ratio, shear_direction_deg=math.degrees(r.shear_direction),
                     efficiency=r.efficiency, residual=r.residual, condition=r.condition,
@@ -215,9 +258,16 @@ class ViewerModel:
 
     def solve(self) -> Solved | None:
         """Reconstruct the current frame with the current parameters and announce it."""
-        if self.recording is None:
+        if self.live:
+            if self.live_frame is None:
+                return None
+            stress, time_s = self.live_frame.stress, self.live_frame.t
+            index = self.live_frame.seq if self.live_frame.seq is not None else -1
+        elif self.recording is not None:
+            stress, index = self.recording.frames[self.frame], self.frame
+            time_s = float(self.recording.t[self.frame])
+        else:
             return None
-        stress = self.recording.frames[self.frame]
         start = time.perf_counter()
         if self.auto:
             result = self.reconstructor.solve(stress)
@@ -230,7 +280,6 @@ class ViewerModel:
             self.shear_ratio = result.shear_ratio
             self.shear_direction = result.shear_direction
             self.parameters_changed.emit()
-        time_s = float(self.recording.t[self.frame])
-        self.last = Solved(self.frame, time_s, stress, result, elapsed, self.auto)
+        self.last = Solved(index, time_s, stress, result, elapsed, self.auto)
         self.solved.emit(self.last)
         return self.last

@@ -105,7 +105,8 @@ def load_layout(path) -> SensorLayout:
             raise ValueError(f"nx and ny must be whole numbers, got {nx!r} and {ny!r}")
         grid = SensorGrid.regular(nx, ny, float(spec["pitch"]), float(spec["thickness"]))
         if "positions" in spec:
-            grid = SensorGrid(np.asarray(spec["positions"], dtype=float), grid.thickness, grid.pitch, (ny, nx))
+            positions = np.asarray(spec["positions"], dtype=float)
+            grid = SensorGrid(positions, grid.thickness, grid.pitch, (ny, nx))
         return SensorLayout(grid, spec.get("units", "Pa"), spec.get("gain", 1.0), spec.get("offset", 0.0))
     except (ValueError, TypeError) as exc:
         raise LayoutError(f"{path}: {exc}") from None
@@ -380,7 +381,8 @@ class SerialReader:
         port = self._open()  # the first failure goes to the caller, later ones are retried
         self.state = "connected"
         self._origin = time.perf_counter()
-        self._thread = threading.Thread(target=self._run, args=(port,), name=f"serial {self.url}", daemon=True)
+        self._thread = threading.Thread(target=self._run, args=(port,), name=f"serial {self.url}",
+                                        daemon=True)
         self._thread.start()
 
     def stop(self) -> None:

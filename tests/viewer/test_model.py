@@ -32,7 +32,7 @@ def recording():
 
 @pytest.fixture(scope="module")
 def reconstructor(recording):
-    return ViewerModel.build(recording, "cell")
+    return ViewerModel.build(recording.grid, "cell")
 
 
 @pytest.fixture

@@ -1,0 +1,133 @@
+"""The Connect dialog of the live mode: port or URL, baud rate, format, sensor layout; remembered."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from PyQt6 import QtCore, QtWidgets
+
+from .protocol import FORMATS
+
+__all__ = ["Connection", "ConnectDialog", "settings"]
+
+BAUD_RATES = ("9600", "57600", "115200", "230400", "460800", "921600", "1000000", "2000000")
+
+
+@dataclass(frozen=True)
+class Connection:
+    """What to connect to: ``url`` (a device path or pyserial URL), ``layout`` (JSON path)."""
+
+    url: str
+    baudrate: int
+    fmt: str
+    layout: str
+
+
+def settings() -> QtCore.QSettings:
+    """Where the dialog remembers its last values (an INI file in the user's config folder)."""
+    return QtCore.QSettings(QtCore.QSettings.Format.IniFormat, QtCore.QSettings.Scope.UserScope,
+                            "tactile-viewer", "live")
+
+
+def available_ports() -> list[tuple[str, str]]:
+    """``(device, description)`` of the serial ports present."""
+    from serial.tools import list_ports
+
+    return [(p.device, p.description or "") for p in sorted(list_ports.comports(), key=lambda p: p.device)]
+
+
+class ConnectDialog(QtWidgets.QDialog):
+    """Choose a port (listed, or any URL typed in), baud rate, format and sensor layout file."""
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self.setWindowTitle("Connect to a sensor board")
+        form = QtWidgets.QFormLayout(self)
+        self.port_box = QtWidgets.QComboBox(editable=True)
+        for device, description in available_ports():
+            self.port_box.addItem(f"{device}", device)
+            self.port_box.setItemData(self.port_box.count() - 1, description,
+                                      QtCore.Qt.ItemDataRole.ToolTipRole)
+        self.port_box.lineEdit().setPlaceholderText("/dev/ttyACM0, loop://, socket://host:port")
+        refresh = QtWidgets.QPushButton("Refresh")
+        refresh.clicked.connect(self._refresh)
+        row = QtWidgets.QHBoxLayout()
+        row.addWidget(self.port_box, 1)
+        row.addWidget(refresh)
+        form.addRow("port or URL", row)
+        self.baud_box = QtWidgets.QComboBox(editable=True)
+        self.baud_box.addItems(BAUD_RATES)
+        form.addRow("baud rate", self.baud_box)
+        self.format_box = QtWidgets.QComboBox()
+        self.format_box.addItems(FORMATS)
+        form.addRow("format", self.format_box)
+        self.layout_edit = QtWidgets.QLineEdit()
+        browse = QtWidgets.QPushButton("Browse...")
+        browse.clicked.connect(self._browse)
+        row = QtWidgets.QHBoxLayout()
+        row.addWidget(self.layout_edit, 1)
+        row.addWidget(browse)
+        form.addRow("sensor layout", row)
+        self.message = QtWidgets.QLabel("")
+        self.message.setStyleSheet("color: #b00020")
+        form.addRow(self.message)
+        buttons = QtWidgets.QDialogButtonBox(QtWidgets.QDialogButtonBox.StandardButton.Ok
+                                             | QtWidgets.QDialogButtonBox.StandardButton.Cancel)
+        buttons.accepted.connect(self._accept)
+        buttons.rejected.connect(self.reject)
+        form.addRow(buttons)
+        self._restore()
+
+    def _refresh(self):
+        text = self.port_box.currentText()
+        self.port_box.clear()
+        for device, _ in available_ports():
+            self.port_box.addItem(device, device)
+        self.port_box.setEditText(text)
+
+    def _browse(self):
+        path, _ = QtWidgets.QFileDialog.getOpenFileName(self, "Sensor layout", self.layout_edit.text(),
+                                                        "Sensor layout (*.json);;All files (*)")
+        if path:
+            self.layout_edit.setText(path)
+
+    def _restore(self):
+        store = settings()
+        self.port_box.setEditText(store.value("url", "", str))
+        self.baud_box.setEditText(store.value("baudrate", "115200", str))
+        self.format_box.setCurrentText(store.value("format", "binary", str))
+        self.layout_edit.setText(store.value("layout", "", str))
+
+    def connection(self) -> Connection:
+        """The values entered; ValueError names what is missing or wrong."""
+        url = self.port_box.currentText().strip()
+        if not url:
+            raise ValueError("choose a port or type a URL")
+        try:
+            baudrate = int(self.baud_box.currentText())
+        except ValueError:
+            text = self.baud_box.currentText()
+            raise ValueError(f"baud rate must be a whole number, got {text!r}") from None
+        if baudrate <= 0:
+            raise ValueError(f"baud rate must be positive, got {baudrate}")
+        layout = self.layout_edit.text().strip()
+        if not layout:
+            raise ValueError("choose the sensor layout file (JSON) that describes the board")
+        if not Path(layout).is_file():
+            raise ValueError(f"sensor layout {layout} does not exist")
+        return Connection(url, baudrate, self.format_box.currentText(), layout)
+
+    def _accept(self):
+        try:
+            chosen = self.connection()
+        except ValueError as exc:
+            self.message.setText(str(exc))
+            return
+        store = settings()
+        store.setValue("url", chosen.url)
+        store.setValue("baudrate", str(chosen.baudrate))
+        store.setValue("format", chosen.fmt)
+        store.setValue("layout", chosen.layout)
+        store.sync()
+        self.accept()
