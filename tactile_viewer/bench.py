@@ -7,7 +7,11 @@ Measures, in the real window (``QtInteractor``, whatever OpenGL the display offe
   parameters), and from stepping a frame to its render (automatic parameters);
 - playback frame rate: distinct frames drawn per second of wall clock while
   playing a looped recording at 1x (the recording's own 30 fps is the ceiling)
-  and at 4x (120 recording frames per second: the display's own ceiling).
+  and at 4x (120 recording frames per second: the display's own ceiling);
+- serial decoder throughput (frames per second, 256 values, binary and text);
+- with ``--live SECONDS``: the window on ``tactile-sim`` at 1 kHz through a
+  pseudo-terminal, recording everything: frames lost in the recording, display
+  frame rate, CPU use of the viewer and of the simulator.
 
 It needs a display: under a headless machine run it through ``xvfb-run -a``.
 """
@@ -116,14 +120,103 @@ def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     app.processEvents()
 
 
+def decoder_throughput(count=256, frames=20000, chunk=4096, out=None):
+    """Frames per second each decoder turns bytes into frames (``count`` values, ``chunk``-byte reads)."""
+    from .protocol import encode_binary, encode_text, make_decoder
+
+    out = sys.stdout if out is None else out
+    rng = np.random.default_rng(0)  # fixed seed: the same stream every run
+    values = rng.uniform(0, 50, (200, count)).astype(np.float32)
+    rates = {}
+    for fmt, encode in (("binary", lambda k, v: encode_binary(k, v)), ("text", lambda k, v: encode_text(v))):
+        stream = b"".join(encode(k, values[k % len(values)]) for k in range(frames))
+        for size in (chunk, 16 * chunk):
+            decoder = make_decoder(fmt, count)
+            start = time.perf_counter()
+            decoded = sum(len(decoder.feed(stream[i:i + size])) for i in range(0, len(stream), size))
+            elapsed = time.perf_counter() - start
+            assert decoded == frames, (fmt, decoded)
+            rates[fmt, size] = frames / elapsed
+            print(f"  {fmt:6s} decoder, {count} values, {size // 1024:2d} KiB reads: {frames / elapsed:8.0f} "
+                  f"frames/s ({len(stream) / elapsed / 2**20:.0f} MiB/s)", file=out)
+    return rates
+
+
+def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
+    """The window on a simulated board through a pseudo-terminal: recording loss, display rate, CPU."""
+    import subprocess
+    import tempfile
+
+    from PyQt6 import QtWidgets
+
+    from .main_window import MainWindow
+    from .recording import load
+
+    out = sys.stdout if out is None else out
+    app = QtWidgets.QApplication.instance() or QtWidgets.QApplication(sys.argv[:1])
+    folder = Path(tempfile.mkdtemp(prefix="tactile-bench-"))
+    board = subprocess.Popen([sys.executable, "-m", "tactile_viewer.simulator", "--rate", f"{rate:g}", "--format",
+                              fmt, "--link", str(folder / "board"), "--layout", str(folder / "layout.json")],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    board.stdout.readline()
+    window = MainWindow()
+    window.resize(1280, 820)
+    window.show()
+    try:
+        if not window.connect_live(str(folder / "board"), folder / "layout.json", fmt=fmt):
+            raise SystemExit("could not connect to the simulated board")
+        deadline = time.perf_counter() + 30
+        while window.reader is None or window.reader.stats.received < 10:
+            app.processEvents()
+            if time.perf_counter() > deadline:
+                raise SystemExit("no frames from the simulated board")
+        drawn = []
+        window.model.solved.connect(lambda solved: drawn.append(solved.frame))
+        window.start_recording(folder / "live.npz")
+        received = window.reader.stats.received
+        cpu, start = time.process_time(), time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            app.processEvents()
+        elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
+        received = window.reader.stats.received - received
+        path = window.stop_recording()
+        board.terminate()
+        _, sim_report = board.communicate(timeout=10)
+        sim_cpu = os.times().children_user + os.times().children_system
+        recording = load(path)
+        gaps = int(np.sum(np.diff(recording.seq) - 1))
+        print(f"{seconds:g} s at {rate:g} Hz, {fmt}, {recording.grid.size} values per frame, pseudo-terminal:",
+              file=out)
+        print(f"  recorded {len(recording)} frames, sequence gaps {gaps}, repeats "
+              f"{int(np.sum(np.diff(recording.seq) <= 0))}; reader lost {window.reader.stats.lost}",
+              file=out)
+        print(f"  display: {len(drawn) / elapsed:.1f} frames drawn per second "
+              f"({received} received, {received / elapsed:.0f} per second)", file=out)
+        print(f"  CPU: viewer {100 * cpu / elapsed:.0f}% of one core (all threads), "
+              f"simulator {100 * sim_cpu / elapsed:.0f}%", file=out)
+        print(f"  simulator: {sim_report.strip()}", file=out)
+    finally:
+        window.close()
+        app.processEvents()
+        if board.poll() is None:
+            board.terminate()
+    return dict(recorded=len(recording), gaps=gaps, display_fps=len(drawn) / elapsed)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m tactile_viewer.bench",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("recording", nargs="?", default=str(SAMPLE))
     parser.add_argument("--count", type=int, default=40, help="slider moves per measurement")
     parser.add_argument("--seconds", type=float, default=5.0, help="playback time per speed")
+    parser.add_argument("--live", type=float, metavar="SECONDS", default=0.0,
+                        help="also run the live mode this long at 1 kHz through a pseudo-terminal")
     args = parser.parse_args(argv)
+    print("serial decoders")
+    decoder_throughput()
     run(args.recording, count=args.count, seconds=args.seconds)
+    if args.live:
+        live(args.live)
 
 
 if __name__ == "__main__":

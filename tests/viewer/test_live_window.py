@@ -1,0 +1,172 @@
+"""Live mode end to end: tactile-sim on a real pseudo-terminal, the window reading it."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from tactile_viewer.recording import load
+
+
+class Board:
+    """A tactile-sim subprocess behind a stable symlink, restartable at the same path."""
+
+    def __init__(self, folder):
+        self.link = folder / "board"
+        self.layout = folder / "layout.json"
+        self.process = None
+
+    def start(self, *options):
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "tactile_viewer.simulator", "--link", str(self.link), "--layout",
+             str(self.layout), *options], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.process.stdout.readline()  # the device path: the link and layout exist from here on
+        return self
+
+    def stop(self):
+        if self.process is not None and self.process.poll() is None:
+            self.process.terminate()
+            self.process.communicate(timeout=10)
+
+
+@pytest.fixture
+def board(tmp_path):
+    made = Board(tmp_path)
+    yield made
+    made.stop()
+
+
+@pytest.fixture
+def live(window, board, qtbot):
+    """The window connected to a 200 Hz binary board with some garbage on the line."""
+    board.start("--rate", "200", "--garbage", "0.1", "--seed", "5")
+    assert window.connect_live(str(board.link), board.layout, fmt="binary")
+    qtbot.waitUntil(lambda: window.model.live and window.model.last is not None, timeout=20000)
+    return window
+
+
+def test_the_window_shows_live_frames(live, qtbot):
+    first = live.model.last.frame
+    with qtbot.waitSignal(live.rendered, timeout=5000):
+        pass
+    assert live.model.last.frame > first  # sequence numbers move on
+    assert live.model.last.stress.max() > 1e3  # kPa on the wire, pascals on screen
+    assert live.status.text().startswith("seq ")
+    assert live.scene.arrows.n_points > 0
+    assert not live._playback.isEnabled() and live._live_box.isVisible()
+    qtbot.waitUntil(lambda: "fps" in live.live_status.text(), timeout=3000)
+    assert "lost 0" in live.live_status.text()
+
+
+def test_injected_garbage_is_counted_and_no_frame_is_lost(live, qtbot):
+    reader = live.reader
+    qtbot.waitUntil(lambda: reader.decoder.skipped_bytes > 0 and reader.stats.received > 200, timeout=10000)
+    assert reader.stats.lost == 0 and reader.stats.out_of_order == 0
+    qtbot.waitUntil(lambda: "skipped" in live.live_status.text(), timeout=3000)
+
+
+def test_a_disconnect_shows_no_data_and_a_reconnect_recovers(live, board, qtbot):
+    reader = live.reader
+    board.stop()
+    qtbot.waitUntil(lambda: live.banner.isVisible(), timeout=5000)
+    assert "NO DATA" in live.banner.text() and reader.state == "reconnecting"
+    before = reader.stats.received
+    board.start("--rate", "200")
+    qtbot.waitUntil(lambda: reader.reconnects == 1 and reader.stats.received > before + 50, timeout=15000)
+    qtbot.waitUntil(lambda: not live.banner.isVisible(), timeout=3000)
+    with qtbot.waitSignal(live.rendered, timeout=5000):
+        pass
+    assert reader.stats.lost == 0  # a restarted board's new numbering is not a gap
+
+
+def test_a_1khz_recording_has_every_frame(window, board, qtbot, tmp_path):
+    board.start("--rate", "1000", "--seed", "9")
+    assert window.connect_live(str(board.link), board.layout)
+    qtbot.waitUntil(lambda: window.reader is not None and window.reader.stats.received > 100, timeout=20000)
+    assert window.start_recording(tmp_path / "live.npz")
+    recorder = window.reader.recorder
+    qtbot.waitUntil(lambda: recorder.written >= 2000, timeout=20000)  # flushed every second
+    path = window.stop_recording()
+    recording = load(path)
+    assert len(recording) >= 2000
+    np.testing.assert_array_equal(np.diff(recording.seq), 1)  # no gap, no repeat
+    assert recording.grid.shape == (16, 16) and np.all(np.diff(recording.t) >= 0)
+    assert window.reader.stats.lost == 0
+
+
+def test_recording_to_csv_while_the_display_skips(window, board, qtbot, tmp_path):
+    board.start("--rate", "500", "--format", "text")
+    assert window.connect_live(str(board.link), board.layout, fmt="text")
+    qtbot.waitUntil(lambda: window.reader is not None and window.reader.stats.received > 50, timeout=20000)
+    drawn = []
+    window.model.solved.connect(drawn.append)
+    assert window.start_recording(tmp_path / "live.csv")
+    qtbot.waitUntil(lambda: window.reader.recorder.written >= 500, timeout=20000)
+    received_while = window.reader.stats.received
+    path = window.stop_recording()
+    recording = load(path)
+    assert len(recording) >= 500
+    np.testing.assert_array_equal(np.diff(recording.seq), 1)  # text frames are numbered on arrival
+    assert len(drawn) < received_while  # the display skipped frames; the recorder did not
+
+
+def test_a_port_that_cannot_be_opened_is_reported_and_changes_nothing(opened, tmp_path, board):
+    board.start("--rate", "50")
+    shown = opened.model.recording
+    assert not opened.connect_live(str(tmp_path / "no-such-device"), board.layout)
+    assert opened.errors and "no-such-device" in opened.errors[-1][1]
+    assert opened.model.recording is shown and not opened.model.live and opened.reader is None
+
+
+def test_a_bad_layout_is_reported(window, tmp_path, board):
+    board.start("--rate", "50")
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"nx": 4}')
+    assert not window.connect_live(str(board.link), bad)
+    assert "bad.json" in window.errors[-1][1] and "missing" in window.errors[-1][1]
+    assert window.reader is None
+
+
+def test_opening_a_recording_disconnects(live, qtbot):
+    from pathlib import Path
+
+    reader = live.reader
+    with qtbot.waitSignal(live.ready, timeout=20000):
+        live.open(Path(__file__).resolve().parents[2] / "sample_data" / "hertz_static.npz")
+    assert live.reader is None and reader.state == "stopped" and not live.model.live
+    assert live._playback.isEnabled() and not live._live_box.isVisible()
+
+
+def test_the_connect_dialog_remembers_and_checks(qtbot, tmp_path, monkeypatch):
+    from PyQt6 import QtCore
+
+    from tactile_viewer.connect_dialog import ConnectDialog
+
+    # keep the user's real settings out of it
+    QtCore.QSettings.setPath(QtCore.QSettings.Format.IniFormat, QtCore.QSettings.Scope.UserScope,
+                             str(tmp_path))
+    layout = tmp_path / "layout.json"
+    layout.write_text("{}")
+    dialog = ConnectDialog()
+    qtbot.addWidget(dialog)
+    dialog.port_box.setEditText("")
+    dialog._accept()
+    assert "choose a port" in dialog.message.text() and dialog.result() == 0
+    dialog.port_box.setEditText("socket://localhost:7777")
+    dialog.baud_box.setEditText("fast")
+    dialog._accept()
+    assert "baud rate must be a whole number, got 'fast'" in dialog.message.text()
+    dialog.baud_box.setEditText("921600")
+    dialog.layout_edit.setText(str(tmp_path / "missing.json"))
+    dialog._accept()
+    assert "does not exist" in dialog.message.text()
+    dialog.layout_edit.setText(str(layout))
+    dialog.format_box.setCurrentText("text")
+    dialog._accept()
+    assert dialog.result() == 1
+    again = ConnectDialog()
+    qtbot.addWidget(again)
+    chosen = again.connection()
+    assert (chosen.url, chosen.baudrate, chosen.fmt, chosen.layout) == (
+        "socket://localhost:7777", 921600, "text", str(layout))
