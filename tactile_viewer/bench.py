@@ -155,9 +155,9 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
     out = sys.stdout if out is None else out
     app = QtWidgets.QApplication.instance() or QtWidgets.QApplication(sys.argv[:1])
     folder = Path(tempfile.mkdtemp(prefix="tactile-bench-"))
-    board = subprocess.Popen([sys.executable, "-m", "tactile_viewer.simulator", "--rate", f"{rate:g}", "--format",
-                              fmt, "--link", str(folder / "board"), "--layout", str(folder / "layout.json")],
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    command = [sys.executable, "-m", "tactile_viewer.simulator", "--rate", f"{rate:g}", "--format", fmt,
+               "--link", str(folder / "board"), "--layout", str(folder / "layout.json")]
+    board = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     board.stdout.readline()
     window = MainWindow()
     window.resize(1280, 820)
@@ -185,8 +185,8 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
         sim_cpu = os.times().children_user + os.times().children_system
         recording = load(path)
         gaps = int(np.sum(np.diff(recording.seq) - 1))
-        print(f"{seconds:g} s at {rate:g} Hz, {fmt}, {recording.grid.size} values per frame, pseudo-terminal:",
-              file=out)
+        print(f"{seconds:g} s at {rate:g} Hz, {fmt}, {recording.grid.size} values per frame, "
+              "pseudo-terminal:", file=out)
         print(f"  recorded {len(recording)} frames, sequence gaps {gaps}, repeats "
               f"{int(np.sum(np.diff(recording.seq) <= 0))}; reader lost {window.reader.stats.lost}",
               file=out)
