@@ -127,6 +127,9 @@ class Reconstruction:
         better than a shear-free load (False when the parameters were given).
     region : (m,) ndarray of bool
         Nodes allowed to carry the template load (the contact region).
+    contacts : tuple of solver.region.Contact
+        Per-contact solutions when the skin was solved contact by contact
+        (:class:`solver.region.RegionSolver`); empty otherwise.
     """
 
     forces: np.ndarray
@@ -139,6 +142,7 @@ class Reconstruction:
     normal_only: bool
     shear_detected: bool
     region: np.ndarray
+    contacts: tuple = ()
 
     @property
     def total_force(self) -> np.ndarray:

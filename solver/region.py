@@ -1,0 +1,203 @@
+"""Model only what the scene requires: solve each contact on its own window of the skin.
+
+The half-space kernels depend only on the offset between a sensor and a node,
+so the stress matrix of any ``by x bx`` window of a regular grid is the same
+wherever the window sits. :class:`RegionSolver` therefore never forms the
+skin's full ``m x 3m`` matrix: per frame it finds the contacts in the data,
+cuts one window around each (the contact grown by the stress spread, a few
+layer thicknesses), and solves each window with a :class:`~solver.Reconstructor`
+built once per window shape and reused across frames. Cost follows the
+contacts, not the skin: a 128x128 skin (a dense matrix would take 6 GB)
+costs what its contact windows cost.
+
+Each contact gets its own shear ratio and direction (the paper covers one
+contact; several is our extension).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from .arrays import read_only
+from .geometry import SensorGrid
+from .inverse import Reconstruction, Reconstructor
+
+__all__ = ["Contact", "RegionSolver"]
+
+
+@dataclass(frozen=True)
+class Contact:
+    """One contact's window and its own solution.
+
+    Attributes
+    ----------
+    window : tuple of slice
+        ``(rows, columns)`` of the skin image the contact was solved on.
+    result : Reconstruction
+        The solution on the window (its forces are the window's nodes, row-major).
+    """
+
+    window: tuple
+    result: Reconstruction
+
+    @property
+    def total_force(self) -> np.ndarray:
+        """(3,) ndarray: the contact's resultant, newtons."""
+        return self.result.total_force
+
+
+class RegionSolver:
+    """Per-contact solves on windows of a regular skin.
+
+    Parameters
+    ----------
+    grid : SensorGrid
+        A regular grid (``grid.shape == (ny, nx)``).
+    kernel : {"cell", "point"}, optional
+    threshold : float, optional
+        Fraction of the frame's peak stress above which a sensor shows
+        contact. Default 0.05.
+    spread : float, optional
+        Pitches added around each contact for the stress spread, in layer
+        thicknesses: the window grows by ``ceil(spread * h / pitch) + 1``
+        rings. Default 2.
+    step : int, optional
+        Window sides are rounded up to a multiple of ``step`` nodes so that a
+        moving contact reuses a few factorizations. Default 4.
+    cache : int, optional
+        Window factorizations kept (least recently used dropped). Default 8.
+    **options
+        Passed to each window's :class:`~solver.Reconstructor`
+        (``max_condition``, ``max_shear_ratio``, ``efficiency`` ...).
+    """
+
+    def __init__(self, grid: SensorGrid, *, kernel: str = "cell", threshold: float = 0.05, spread: float = 2.0,
+                 step: int = 4, cache: int = 8, **options):
+        if not isinstance(grid, SensorGrid) or not grid.is_regular:
+            raise ValueError("grid must be a regular SensorGrid (RegionSolver cuts rectangular windows)")
+        if not 0 < threshold < 1:
+            raise ValueError(f"threshold must be in (0, 1), got {threshold!r}")
+        if not (math.isfinite(spread) and spread >= 0):
+            raise ValueError(f"spread must be finite and >= 0, got {spread!r}")
+        if isinstance(step, bool) or not isinstance(step, int) or step < 1:
+            raise ValueError(f"step must be a whole number >= 1, got {step!r}")
+        if isinstance(cache, bool) or not isinstance(cache, int) or cache < 1:
+            raise ValueError(f"cache must be a whole number >= 1, got {cache!r}")
+        self.grid = grid
+        self.kernel = kernel
+        self.threshold = float(threshold)
+        self.rings = math.ceil(spread * grid.thickness / grid.pitch) + 1
+        self.step = step
+        self._options = options
+        self._cache: OrderedDict = OrderedDict()
+        self._capacity = cache
+        self.factorizations = 0  # windows factored so far (the rest were reused)
+        Reconstructor(SensorGrid.regular(1, 1, grid.pitch, grid.thickness), kernel=kernel, **options)  # checks
+
+    def reconstructor(self, rows: int, columns: int) -> Reconstructor:
+        """The (cached) reconstructor of a ``rows x columns`` window."""
+        key = (rows, columns)
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        window = SensorGrid.regular(columns, rows, self.grid.pitch, self.grid.thickness)
+        made = Reconstructor(window, kernel=self.kernel, **self._options)
+        self.factorizations += 1
+        self._cache[key] = made
+        if len(self._cache) > self._capacity:
+            self._cache.popitem(last=False)
+        return made
+
+    def windows(self, stress: np.ndarray) -> list[tuple[slice, slice]]:
+        """The contact windows of a frame: one per contact, merged where they overlap."""
+        image = np.asarray(stress, dtype=float).reshape(self.grid.shape)
+        peak = image.max()
+        if not peak > 0:
+            return []
+        labels, count = ndimage.label(image > self.threshold * peak, structure=np.ones((3, 3)))
+        mass = ndimage.sum_labels(image, labels, index=np.arange(1, count + 1))
+        boxes = []
+        for index, box in enumerate(ndimage.find_objects(labels), start=1):
+            # isolated noise spikes carry a sliver of the load: not a contact
+            if mass[index - 1] >= 0.05 * mass.max():
+                boxes.append([box[0].start, box[0].stop, box[1].start, box[1].stop])
+        boxes = [self._grown(box) for box in boxes]
+        merged = True
+        while merged:  # windows that overlap become one: those contacts interact
+            merged = False
+            for i in range(len(boxes)):
+                for j in range(i + 1, len(boxes)):
+                    a, b = boxes[i], boxes[j]
+                    if a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3]:
+                        boxes[i] = self._grown([min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]),
+                                                max(a[3], b[3])], rings=0)
+                        del boxes[j]
+                        merged = True
+                        break
+                if merged:
+                    break
+        return [(slice(r0, r1), slice(c0, c1)) for r0, r1, c0, c1 in sorted(boxes)]
+
+    def _grown(self, box, rings=None):
+        rings = self.rings if rings is None else rings
+        ny, nx = self.grid.shape
+        out = []
+        for (start, stop), size in (((box[0], box[1]), ny), ((box[2], box[3]), nx)):
+            start, stop = start - rings, stop + rings
+            # round the side up to a multiple of step (fewer window shapes to factor)
+            side = min(size, -(-(stop - start) // self.step) * self.step)
+            centre = (start + stop) // 2
+            start = min(max(centre - side // 2, 0), size - side)
+            out += [start, start + side]
+        return out
+
+    def solve(self, stress, *, shear_ratio=None, shear_direction=None) -> Reconstruction:
+        """Solve every contact on its window (its own parameters when automatic).
+
+        Returns a :class:`~solver.Reconstruction` of the whole skin: forces are
+        zero outside the windows; ``shear_ratio``, ``shear_direction`` and
+        ``efficiency`` are the largest contact's; ``residual`` counts the data
+        outside the windows as unexplained; ``contacts`` holds each contact.
+        """
+        grid = self.grid
+        b = np.asarray(stress, dtype=float)
+        if b.size != grid.size or not np.all(np.isfinite(b)):
+            # the full checks (and their messages) are the reconstructor's
+            self.reconstructor(1, 1)._check_stress(np.full(1, np.nan) if b.size == grid.size else b)
+        image = b.reshape(grid.shape)
+        forces = np.zeros(grid.shape + (3,))
+        region = np.zeros(grid.shape, dtype=bool)
+        contacts = []
+        explained = np.zeros(grid.shape, dtype=bool)
+        unexplained = 0.0
+        for rows, columns in self.windows(image):
+            window = image[rows, columns]
+            solver = self.reconstructor(window.shape[0], window.shape[1])
+            result = solver.solve(window, shear_ratio=shear_ratio, shear_direction=shear_direction)
+            forces[rows, columns] += result.forces.reshape(window.shape + (3,))
+            region[rows, columns] |= result.region.reshape(window.shape)
+            explained[rows, columns] = True
+            unexplained += (result.residual * np.linalg.norm(window)) ** 2
+            contacts.append(Contact((rows, columns), result))
+        norm = float(np.linalg.norm(image))
+        unexplained += float(np.sum(image[~explained] ** 2))
+        if not contacts:
+            return Reconstruction(
+                forces=read_only(forces.reshape(-1, 3)), shear_ratio=0.0,
+                shear_direction=0.0 if shear_direction is None else math.remainder(shear_direction, 2 * math.pi),
+                efficiency=math.nan, residual=0.0 if norm == 0 else 1.0, condition=1.0, regularized=False,
+                normal_only=False, shear_detected=False, region=read_only(region.ravel(), bool))
+        main = max(contacts, key=lambda c: c.total_force[2]).result
+        return Reconstruction(
+            forces=read_only(forces.reshape(-1, 3)), shear_ratio=main.shear_ratio,
+            shear_direction=main.shear_direction, efficiency=main.efficiency,
+            residual=math.sqrt(unexplained) / norm if norm > 0 else 0.0,
+            condition=max(c.result.condition for c in contacts),
+            regularized=any(c.result.regularized for c in contacts), normal_only=False,
+            shear_detected=any(c.result.shear_detected for c in contacts),
+            region=read_only(region.ravel(), bool), contacts=tuple(contacts))
