@@ -76,8 +76,8 @@ class RegionSolver:
         (``max_condition``, ``max_shear_ratio``, ``efficiency`` ...).
     """
 
-    def __init__(self, grid: SensorGrid, *, kernel: str = "cell", threshold: float = 0.05, spread: float = 2.0,
-                 step: int = 4, cache: int = 8, **options):
+    def __init__(self, grid: SensorGrid, *, kernel: str = "cell", threshold: float = 0.05,
+                 spread: float = 2.0, step: int = 4, cache: int = 8, **options):
         if not isinstance(grid, SensorGrid) or not grid.is_regular:
             raise ValueError("grid must be a regular SensorGrid (RegionSolver cuts rectangular windows)")
         if not 0 < threshold < 1:
@@ -97,7 +97,8 @@ class RegionSolver:
         self._cache: OrderedDict = OrderedDict()
         self._capacity = cache
         self.factorizations = 0  # windows factored so far (the rest were reused)
-        Reconstructor(SensorGrid.regular(1, 1, grid.pitch, grid.thickness), kernel=kernel, **options)  # checks
+        # the options are checked now, on the smallest window, not at the first frame
+        Reconstructor(SensorGrid.regular(1, 1, grid.pitch, grid.thickness), kernel=kernel, **options)
 
     def reconstructor(self, rows: int, columns: int) -> Reconstructor:
         """The (cached) reconstructor of a ``rows x columns`` window."""
@@ -187,9 +188,9 @@ class RegionSolver:
         norm = float(np.linalg.norm(image))
         unexplained += float(np.sum(image[~explained] ** 2))
         if not contacts:
+            direction = 0.0 if shear_direction is None else math.remainder(shear_direction, 2 * math.pi)
             return Reconstruction(
-                forces=read_only(forces.reshape(-1, 3)), shear_ratio=0.0,
-                shear_direction=0.0 if shear_direction is None else math.remainder(shear_direction, 2 * math.pi),
+                forces=read_only(forces.reshape(-1, 3)), shear_ratio=0.0, shear_direction=direction,
                 efficiency=math.nan, residual=0.0 if norm == 0 else 1.0, condition=1.0, regularized=False,
                 normal_only=False, shear_detected=False, region=read_only(region.ravel(), bool))
         main = max(contacts, key=lambda c: c.total_force[2]).result
