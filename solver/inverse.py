@@ -16,7 +16,7 @@ maximizing an efficiency functional (:mod:`solver.efficiency`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
@@ -262,8 +262,13 @@ class Reconstructor:
             normal_only=True, shear_detected=False, region=read_only(fz > 0, bool))
 
     def solve(self, stress, *, shear_ratio: float | None = None,
-              shear_direction: float | None = None) -> Reconstruction:
+              shear_direction: float | None = None, constrained: bool = False) -> Reconstruction:
         """Three-component forces: the member of the exact solution family at ``(mu, theta)``.
+
+        When both parameters are chosen automatically and the data shows no
+        shear signature (the efficiency functional keeps no shear), the answer
+        is the normal-only solution, and the result says so
+        (``normal_only=True``, ``shear_detected=False``).
 
         Parameters
         ----------
@@ -273,6 +278,13 @@ class Reconstructor:
             ``mu >= 0``. None: chosen by maximizing the efficiency functional.
         shear_direction : float or None, optional
             ``theta`` in radians. None: chosen by maximizing the efficiency functional.
+        constrained : bool, optional
+            Return the compressive, friction-shaped load the efficiency
+            functional fitted at the chosen parameters (normal forces >= 0 on
+            the contact region, tangential = shear x normal) instead of the
+            exact solution closest to it. It does not satisfy ``C x = b``
+            exactly (the residual says how far); on the standard set it trades
+            normal-total accuracy for tangential accuracy. Default False.
 
         Returns
         -------
@@ -292,9 +304,15 @@ class Reconstructor:
         shear_x, shear_y = choice.shear_x, choice.shear_y
         g = choice.profile
         m = self.grid.size
+        automatic = shear_ratio is None and shear_direction is None
+        if automatic and not choice.shear_detected and not constrained:
+            # no shear signature: the normal-only path, and the result says so
+            normal = self.solve_normal(b)
+            return replace(normal, efficiency=choice.efficiency,
+                           region=read_only(frame.region, bool))
         # x = y + C+ (b - C y): the exact solution closest to the template y.
         template = np.concatenate([shear_x * g, shear_y * g, g])
-        x = template + self.apply_pinv(b - self.matrix @ template)
+        x = template if constrained else template + self.apply_pinv(b - self.matrix @ template)
         ratio = math.hypot(shear_x, shear_y)
         if ratio > 0:
             direction = math.atan2(shear_y, shear_x)
