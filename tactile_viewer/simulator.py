@@ -142,6 +142,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     if not 0 < args.rate <= 1000:
         parser.error(f"--rate must be in (0, 1000], got {args.rate:g}")
+    if not (math.isfinite(args.noise) and args.noise >= 0):
+        parser.error(f"--noise must be finite and >= 0, got {args.noise:g}")
     for name in ("garbage", "dropout"):
         if not 0 <= getattr(args, name) <= 1:
             parser.error(f"--{name} must be a probability in [0, 1], got {getattr(args, name):g}")
@@ -155,6 +157,9 @@ def main(argv=None) -> int:
     board = Board(layout, fmt=args.format, rate=args.rate, noise=args.noise, garbage=args.garbage,
                   dropout=args.dropout, seed=args.seed)
 
+    stopping = []
+    # installed before the device path is printed: whoever reads it may stop us at once
+    signal.signal(signal.SIGTERM, lambda *_: stopping.append(True))
     if args.url:
         import serial
 
@@ -165,8 +170,6 @@ def main(argv=None) -> int:
         master, slave, name = _open_pty(args.link)
         write = lambda data: _write_all(master, data, stall=1.0)  # noqa: E731
         print(name + (f" (link {args.link})" if args.link else ""), flush=True)
-    stopping = []
-    signal.signal(signal.SIGTERM, lambda *_: stopping.append(True))
     unsent = 0
     start = time.perf_counter()
     try:

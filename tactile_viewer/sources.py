@@ -103,6 +103,9 @@ def load_layout(path) -> SensorLayout:
         nx, ny = spec["nx"], spec["ny"]
         if not all(isinstance(n, int) and not isinstance(n, bool) for n in (nx, ny)):
             raise ValueError(f"nx and ny must be whole numbers, got {nx!r} and {ny!r}")
+        for key in ("pitch", "thickness"):
+            if isinstance(spec[key], bool) or not isinstance(spec[key], (int, float)):
+                raise ValueError(f"{key} must be a number of metres, got {spec[key]!r}")
         grid = SensorGrid.regular(nx, ny, float(spec["pitch"]), float(spec["thickness"]))
         if "positions" in spec:
             positions = np.asarray(spec["positions"], dtype=float)
@@ -119,7 +122,9 @@ def save_layout(layout: SensorLayout, path) -> Path:
     one = lambda a: float(a[0]) if np.all(a == a[0]) else a.tolist()  # noqa: E731
     spec = {"nx": nx, "ny": ny, "pitch": grid.pitch, "thickness": grid.thickness, "units": layout.units,
             "gain": one(layout.gain), "offset": one(layout.offset)}
-    if not grid.is_regular:
+    # is_regular ignores where the grid sits: keep positions unless they are exactly regular()'s
+    regular = SensorGrid.regular(nx, ny, grid.pitch, grid.thickness).positions
+    if grid.positions.shape != regular.shape or not np.allclose(grid.positions, regular, rtol=0, atol=1e-12):
         spec["positions"] = grid.positions.tolist()
     path.write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
     return path
@@ -137,7 +142,7 @@ class Calibration:
 
     def tare(self, frames: int = 50) -> None:
         """Average the next ``frames`` frames and subtract that baseline from then on."""
-        if not (isinstance(frames, int) and frames >= 1):
+        if isinstance(frames, bool) or not (isinstance(frames, int) and frames >= 1):
             raise ValueError(f"frames must be a positive integer, got {frames!r}")
         with self._lock:
             self._taring, self._tare_count = [], frames
@@ -237,6 +242,7 @@ class Recorder:
         self.description = description or "live recording"
         self.written = 0
         self._rows: list = []
+        self._closed = False
         self._chunks = 0
         self._last_flush: float | None = None
         self._lock = threading.Lock()
@@ -257,6 +263,8 @@ class Recorder:
     def add(self, seq: int, t: float, stress: np.ndarray) -> None:
         """Queue one frame (``t`` in seconds); flushes when ``flush_interval`` has passed."""
         with self._lock:
+            if self._closed:
+                return  # the reader took this recorder just before it was stopped: the frame is past the end
             self._rows.append((seq, t, stress))
             if self._last_flush is None:
                 self._last_flush = t
@@ -295,6 +303,7 @@ class Recorder:
         """
         with self._lock:
             self._flush()
+            self._closed = True
             if self.written == 0:
                 self.path.unlink(missing_ok=True)
                 return None
