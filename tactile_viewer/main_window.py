@@ -19,6 +19,8 @@ os.environ.setdefault("QT_API", "pyqt6")
 from PyQt6 import QtCore, QtGui, QtWidgets  # noqa: E402
 from pyvistaqt import QtInteractor  # noqa: E402
 
+from solver import tradeoff  # noqa: E402
+
 from . import export  # noqa: E402
 from .connect_dialog import ConnectDialog  # noqa: E402
 from .model import MAX_SHEAR_RATIO, ViewerModel  # noqa: E402
@@ -77,6 +79,7 @@ class MainWindow(QtWidgets.QMainWindow):
     rendered = QtCore.pyqtSignal()
     task_finished = QtCore.pyqtSignal(object)
     live_frame_arrived = QtCore.pyqtSignal()  # emitted from the reader thread, queued to ours
+    presets_measured = QtCore.pyqtSignal()
 
     def __init__(self, parent=None):
         super().__init__(parent)
@@ -84,6 +87,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.resize(1280, 820)
         self.model = ViewerModel()
         self._tasks: list[Task] = []
+        self._measured_for = None  # the geometry the quality presets were measured on
         self._progress_dialog = None
 
         central = QtWidgets.QFrame(self)
@@ -157,6 +161,13 @@ class MainWindow(QtWidgets.QMainWindow):
         self.kernel_box.currentTextChanged.connect(self._kernel_changed)
         grid.addWidget(QtWidgets.QLabel("kernel"), 3, 0)
         grid.addWidget(self.kernel_box, 3, 1, 1, 2)
+        self.quality_box = QtWidgets.QComboBox()
+        self.quality_box.addItem("standard (exact, efficiency maximum)", None)
+        self.quality_box.setToolTip("Presets from the measured speed/accuracy front of this geometry "
+                                    "(tactile-tradeoff): time per frame and median error")
+        self.quality_box.currentIndexChanged.connect(self._quality_changed)
+        grid.addWidget(QtWidgets.QLabel("quality"), 4, 0)
+        grid.addWidget(self.quality_box, 4, 1, 1, 2)
         form.addWidget(params)
 
         shown = QtWidgets.QGroupBox("Display")
@@ -311,7 +322,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def _install(self, recording, kernel, path):
         # Factoring is the slow part for large grids: do it in a worker thread.
         def work(progress):
-            return ViewerModel.build(recording.grid, kernel)
+            return ViewerModel.build(recording.grid, kernel, self.model.configuration)
 
         def done(reconstructor):
             self.set_playing(False)
@@ -325,23 +336,83 @@ class MainWindow(QtWidgets.QMainWindow):
     def _kernel_changed(self, kernel):
         if not self.model.is_open or kernel == self.model.kernel:
             return
-        if self.model.live:
-            grid, label = self.model.grid, self.model.live_label
-            self._run(lambda progress: ViewerModel.build(grid, kernel),
-                      lambda reconstructor: self.model.install_live(reconstructor, label),
-                      f"Factoring for the {kernel} kernel...", determinate=False)
-            return
-        frame = self.model.frame
-        recording, path = self.model.recording, self.model.path
+        self._rebuild(kernel, f"Factoring for the {kernel} kernel...")
+
+    def _rebuild(self, kernel, label):
+        # the same geometry with another kernel or quality: keep the frame shown
+        grid, configuration = self.model.grid, self.model.configuration
 
         def work(progress):
-            return ViewerModel.build(recording.grid, kernel)
+            return ViewerModel.build(grid, kernel, configuration)
 
-        def done(reconstructor):
-            self.model.install(recording, reconstructor, path)
+        if self.model.live:
+            live_label = self.model.live_label
+            self._run(work, lambda solver: self.model.install_live(solver, live_label), label,
+                      determinate=False)
+            return
+        frame, recording, path = self.model.frame, self.model.recording, self.model.path
+
+        def done(solver):
+            self.model.install(recording, solver, path)
             self.model.set_frame(frame)
 
-        self._run(work, done, f"Factoring for the {kernel} kernel...", determinate=False)
+        self._run(work, done, label, determinate=False)
+
+    def _quality_changed(self, index):
+        configuration = self.quality_box.itemData(index)
+        if configuration == self.model.configuration or not self.model.is_open:
+            self.model.configuration = configuration
+            return
+        self.model.configuration = configuration
+        self._rebuild(self.model.kernel, f"Setting up '{self.quality_box.currentText().split(':')[0]}'...")
+
+    def _measure_if_open(self):
+        if self.isVisible() and self.model.is_open:
+            self.measure_presets()
+
+    def measure_presets(self):
+        """Measure the speed/accuracy front for the shown geometry in the background; fill the
+        quality presets with their measured cost and error (emits ``presets_measured``)."""
+        grid = self.model.grid
+        key = (grid.shape, grid.pitch, grid.thickness)
+        if self._measured_for == (key, "done"):
+            self.presets_measured.emit()
+            return
+        if self._measured_for == (key, "measuring"):
+            return  # presets_measured comes when it is done
+        self._measured_for = (key, "measuring")
+
+        def work(progress):
+            def check(_):
+                if not progress(0, 0):  # the window closed: stop after this configuration
+                    raise export.ExportCancelled("presets not measured: the window closed")
+
+            cases = tradeoff.default_cases(grid, noises=(0.01,))
+            return tradeoff.presets(tradeoff.measure_all(grid, cases=cases, repeat=1, progress=check))
+
+        def done(chosen):
+            self.quality_box.blockSignals(True)
+            while self.quality_box.count() > 1:
+                self.quality_box.removeItem(1)
+            for label, m in chosen.items():
+                self.quality_box.addItem(f"{label}: {m.name}, {m.frame_ms:.2f} ms/frame, "
+                                         f"error {100 * tradeoff.error_of(m):.1f}% of |F|", m.configuration)
+            self.quality_box.blockSignals(False)
+            self._measured_for = (key, "done")
+            self.presets_measured.emit()
+
+        task = Task(work, self)
+        task.succeeded.connect(done)
+        def failed(exc):
+            self._measured_for = None
+            if not isinstance(exc, export.ExportCancelled):
+                self.statusBar().showMessage(f"could not measure presets: {exc}", 5000)
+
+        task.failed.connect(failed)
+        task.finished.connect(task.deleteLater)
+        task.finished.connect(lambda: self._tasks.remove(task) if task in self._tasks else None)
+        self._tasks.append(task)
+        task.start()
 
     def _on_recording(self):
         self.scene.set_grid(self.model.grid)
@@ -362,6 +433,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._set_enabled(True)
         self._solve_now()
         self.ready.emit()
+        # the quality presets of this geometry, measured in the background once things settle
+        QtCore.QTimer.singleShot(1000, self._measure_if_open)
 
     # -- parameters ---------------------------------------------------------------------------
 
@@ -442,13 +515,18 @@ class MainWindow(QtWidgets.QMainWindow):
         self.scene.update(solved.stress, solved.result, self.model.display, render=False)
         r = solved.result
         total = r.total_force
-        shear = "auto" if solved.auto else "manual"
+        if r.normal_only:
+            # the fast preset, or automatic parameters on data without a shear signature
+            shear = "normal only" + ("" if self.model.configuration is not None and not solved.auto
+                                     else " (no shear signature)" if solved.auto else "")
+        else:
+            shear = (f"{'auto' if solved.auto else 'manual'}: mu {r.shear_ratio:.2f}, "
+                     f"theta {math.degrees(r.shear_direction):+.0f} deg")
         where = (f"seq {solved.frame}" if solved.frame >= 0 else "live") if self.model.live \
             else f"frame {solved.frame + 1}/{len(self.model.recording)}"
         self.status.setText(
             f"{where}  t {solved.time:.3f} s  |  "
-            f"solve {solved.solve_ms:.2f} ms  |  {shear}: mu {r.shear_ratio:.2f}, "
-            f"theta {math.degrees(r.shear_direction):+.0f} deg  |  efficiency {r.efficiency:.3f}  "
+            f"solve {solved.solve_ms:.2f} ms  |  {shear}  |  efficiency {r.efficiency:.3f}  "
             f"residual {r.residual:.1e}  condition {r.condition:.3g}"
             f"{' (damped)' if r.regularized else ''}  |  "
             f"Fz {total[2] * 1e3:.1f} mN  Ft {math.hypot(total[0], total[1]) * 1e3:.1f} mN")
@@ -649,7 +727,7 @@ class MainWindow(QtWidgets.QMainWindow):
             self._take_live_frame()  # frames that arrived while factoring announced themselves already
 
         def work(progress):
-            return ViewerModel.build(grid, kernel)
+            return ViewerModel.build(grid, kernel, self.model.configuration)
 
         task = self._run(work, done, f"Factoring the {grid.size}-taxel geometry...", determinate=False)
         task.failed.connect(lambda _: reader.stop())

@@ -119,6 +119,7 @@ class ViewerModel:
         self.path: Path | None = None
         self.reconstructor: Reconstructor | None = None
         self.kernel = "cell"
+        self.configuration = None  # a solver.tradeoff.Configuration (quality preset), None: standard
         self.frame = 0
         self.auto = True
         self.shear_ratio = 0.0
@@ -134,9 +135,15 @@ class ViewerModel:
     # -- building -----------------------------------------------------------------
 
     @staticmethod
-    def build(grid: SensorGrid, kernel: str) -> Reconstructor:
-        """The reconstructor for a geometry (slow for large grids: run it off the GUI thread)."""
-        return Reconstructor(grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO)
+    def build(grid: SensorGrid, kernel: str, configuration=None):
+        """The solver for a geometry (slow for large grids: run it off the GUI thread).
+
+        ``configuration`` is a :class:`solver.tradeoff.Configuration` (a quality
+        preset); None is the standard exact solve. Its kernel is replaced by ``kernel``.
+        """
+        if configuration is None:
+            return Reconstructor(grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO)
+        return replace(configuration, kernel=kernel).build(grid)
 
     @property
     def is_open(self) -> bool:

@@ -194,3 +194,21 @@ def test_looped_playback_wraps_to_the_start(opened, qtbot):
     qtbot.waitUntil(lambda: any(b < a for a, b in zip(frames, frames[1:], strict=False)), timeout=10000)
     assert opened.play_button.isChecked()  # still playing after the wrap
     opened.set_playing(False)
+
+
+def test_quality_presets_are_measured_for_the_geometry_and_applied(opened, qtbot):
+    with qtbot.waitSignal(opened.presets_measured, timeout=60000):
+        opened.measure_presets()
+    labels = [opened.quality_box.itemText(k) for k in range(opened.quality_box.count())]
+    assert labels[0].startswith("standard") and [label.split(":")[0] for label in labels[1:]] == [
+        "fast", "balanced", "accurate"]
+    assert all("ms/frame" in label and "% of |F|" in label for label in labels[1:])
+    fast = opened.quality_box.itemData(1)
+    with qtbot.waitSignal(opened.ready, timeout=20000):
+        opened.quality_box.setCurrentIndex(1)
+    assert opened.model.configuration == fast
+    if fast.path == "normal":  # measured: the normal-only path is the front's fastest point
+        assert opened.model.last.result.normal_only
+    with qtbot.waitSignal(opened.ready, timeout=20000):
+        opened.quality_box.setCurrentIndex(0)
+    assert opened.model.configuration is None
