@@ -192,7 +192,9 @@ class Measurement:
     configuration: Configuration = field(repr=False, compare=False)
 
 
-def measure(configuration: Configuration, grid: SensorGrid, cases, *, repeat: int = 3) -> Measurement:
+def measure(
+    configuration: Configuration, grid: SensorGrid, cases, *, repeat: int = 3, memory: bool = True
+) -> Measurement:
     """Set-up time, median per-frame time (fastest of ``repeat`` runs per frame: the machine is
     shared), peak memory of set-up plus a few solves (traced separately: tracing slows numpy),
     and median errors."""
@@ -211,14 +213,16 @@ def measure(configuration: Configuration, grid: SensorGrid, cases, *, repeat: in
         times.append(best)
         rows.append((case.shear_ratio, result.shear_ratio, metrics.compare(result.forces, case.frame.forces)))
     del solver
-    tracemalloc.start()
-    try:
-        traced = configuration.build(grid)
-        for case in cases[:4]:
-            traced.solve(case.frame.stress)
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
+    peak = math.nan
+    if memory:
+        tracemalloc.start()
+        try:
+            traced = configuration.build(grid)
+            for case in cases[:4]:
+                traced.solve(case.frame.stress)
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
     # a normal-only answer has no shear direction to score
     sheared = [e.direction_deg for ratio, _, e in rows if ratio >= 0.2 and configuration.path != "normal"]
     free = [found for ratio, found, _ in rows if ratio == 0]
@@ -236,12 +240,20 @@ def measure(configuration: Configuration, grid: SensorGrid, cases, *, repeat: in
 
 
 def measure_all(
-    grid: SensorGrid, configurations=CONFIGURATIONS, cases=None, *, repeat: int = 3, progress=None
+    grid: SensorGrid, configurations=CONFIGURATIONS, cases=None, *, repeat: int = 3, progress=None,
+    memory: bool = True,
 ) -> list[Measurement]:
+    """:func:`measure` for each configuration; ``progress(measurement)`` after each.
+
+    ``memory=False`` skips the peak-memory pass: tracemalloc is process-wide and
+    starting or stopping it while other threads allocate through numpy has
+    crashed CPython 3.11 here (a worker thread of the viewer measuring presets
+    while the serial reader ran).
+    """
     cases = default_cases(grid) if cases is None else cases
     out = []
     for configuration in configurations:
-        out.append(measure(configuration, grid, cases, repeat=repeat))
+        out.append(measure(configuration, grid, cases, repeat=repeat, memory=memory))
         if progress is not None:
             progress(out[-1])
     return out

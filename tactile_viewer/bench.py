@@ -31,6 +31,17 @@ from solver.bench import machine
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "hertz_shear_turning.npz"
 
 
+_APP = []  # the one QApplication, kept alive between measurements (a second one cannot start)
+
+
+def _application():
+    from PyQt6 import QtWidgets
+
+    if not _APP:
+        _APP.append(QtWidgets.QApplication.instance() or QtWidgets.QApplication(sys.argv[:1]))
+    return _APP[0]
+
+
 def _wait(app, signal, timeout=10.0):
     """Process events until ``signal`` fires once; returns the time it fired."""
     fired = []
@@ -58,10 +69,11 @@ def latencies(window, app, action, count):
 
 
 def playback_rate(window, app, speed_index, seconds):
-    """Distinct frames drawn per wall-clock second while playing (looped)."""
+    """Frames put on screen per wall-clock second while playing (looped): ``rendered`` fires when a
+    solved frame's repaint is swapped to the window, so solves overtaken before a paint do not count."""
     drawn = []
-    slot = lambda solved: drawn.append(solved.frame)  # noqa: E731
-    window.model.solved.connect(slot)
+    slot = lambda: drawn.append(time.perf_counter())  # noqa: E731
+    window.rendered.connect(slot)
     window.loop_box.setChecked(True)
     window.speed_box.setCurrentIndex(speed_index)
     window.set_playing(True)
@@ -70,21 +82,20 @@ def playback_rate(window, app, speed_index, seconds):
         app.processEvents()
     elapsed = time.perf_counter() - start
     window.set_playing(False)
-    window.model.solved.disconnect(slot)
+    window.rendered.disconnect(slot)
     return len(drawn) / elapsed
 
 
 def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     out = sys.stdout if out is None else out
     os.environ.setdefault("QT_API", "pyqt6")
-    from PyQt6 import QtWidgets
 
     from .main_window import SPEEDS, MainWindow
 
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise SystemExit("tactile_viewer.bench needs a display: run it as `xvfb-run -a python -m "
                          "tactile_viewer.bench` on a headless machine")
-    app = QtWidgets.QApplication.instance() or QtWidgets.QApplication(sys.argv[:1])
+    app = _application()
     window = MainWindow()
     window.resize(*size)
     window.show()
@@ -147,13 +158,11 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
     import subprocess
     import tempfile
 
-    from PyQt6 import QtWidgets
-
     from .main_window import MainWindow
     from .recording import load
 
     out = sys.stdout if out is None else out
-    app = QtWidgets.QApplication.instance() or QtWidgets.QApplication(sys.argv[:1])
+    app = _application()
     folder = Path(tempfile.mkdtemp(prefix="tactile-bench-"))
     command = [sys.executable, "-m", "tactile_viewer.simulator", "--rate", f"{rate:g}", "--format", fmt,
                "--link", str(folder / "board"), "--layout", str(folder / "layout.json")]
@@ -170,8 +179,9 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
             app.processEvents()
             if time.perf_counter() > deadline:
                 raise SystemExit("no frames from the simulated board")
-        drawn = []
-        window.model.solved.connect(lambda solved: drawn.append(solved.frame))
+        drawn, solved = [], []
+        window.rendered.connect(lambda: drawn.append(time.perf_counter()))  # on screen, not just solved
+        window.model.solved.connect(lambda result: solved.append(result.frame))
         window.start_recording(folder / "live.npz")
         received = window.reader.stats.received
         cpu, start = time.process_time(), time.perf_counter()
@@ -190,8 +200,9 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
         print(f"  recorded {len(recording)} frames, sequence gaps {gaps}, repeats "
               f"{int(np.sum(np.diff(recording.seq) <= 0))}; reader lost {window.reader.stats.lost}",
               file=out)
-        print(f"  display: {len(drawn) / elapsed:.1f} frames drawn per second "
-              f"({received} received, {received / elapsed:.0f} per second)", file=out)
+        print(f"  display: {len(drawn) / elapsed:.1f} frames on screen per second, "
+              f"{len(solved) / elapsed:.1f} solved ({received} received, "
+              f"{received / elapsed:.0f} per second)", file=out)
         print(f"  CPU: viewer {100 * cpu / elapsed:.0f}% of one core (all threads), "
               f"simulator {100 * sim_cpu / elapsed:.0f}%", file=out)
         print(f"  simulator: {sim_report.strip()}", file=out)

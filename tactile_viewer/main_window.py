@@ -103,6 +103,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.setCentralWidget(central)
         self.scene = Scene(self.plotter)
         self._drawing = False
+        self._live_waiting = False  # a live frame arrived while the last one was being drawn
         self.plotter.interactor.frameSwapped.connect(self._frame_swapped)
 
         self._build_controls()
@@ -388,7 +389,9 @@ class MainWindow(QtWidgets.QMainWindow):
                     raise export.ExportCancelled("presets not measured: the window closed")
 
             cases = tradeoff.default_cases(grid, noises=(0.01,))
-            return tradeoff.presets(tradeoff.measure_all(grid, cases=cases, repeat=1, progress=check))
+            # no memory tracing here: tracemalloc is not safe beside the reader thread
+            measured = tradeoff.measure_all(grid, cases=cases, repeat=1, progress=check, memory=False)
+            return tradeoff.presets(measured)
 
         def done(chosen):
             self.quality_box.blockSignals(True)
@@ -545,6 +548,9 @@ class MainWindow(QtWidgets.QMainWindow):
         if self._drawing:
             self._drawing = False
             self.rendered.emit()
+        if self._live_waiting:
+            self._live_waiting = False
+            self._take_live_frame()
 
     # -- playback ------------------------------------------------------------------------------
 
@@ -782,6 +788,11 @@ class MainWindow(QtWidgets.QMainWindow):
         return written
 
     def _take_live_frame(self):
+        if self._drawing:
+            # the previous frame is not on screen yet: solving now would be overtaken
+            # before it is drawn; take the newest frame once it is
+            self._live_waiting = True
+            return
         frame = self.reader.take_latest() if self.reader is not None else None
         if frame is not None and self.model.live:
             self.model.show_live(frame)
@@ -806,6 +817,8 @@ class MainWindow(QtWidgets.QMainWindow):
                          + f"; skipped {reader.decoder.skipped_bytes} B")
         if reader.reconnects:
             parts.append(f"reconnected {reader.reconnects}x")
+        if reader.failures:
+            parts.append(f"{reader.failures} chunks failed: {reader.error}")
         if reader.calibration.taring:
             parts.append("taring")
         if reader.recorder is not None:

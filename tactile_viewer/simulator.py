@@ -112,13 +112,20 @@ def _open_pty(link: Path | None):
 
 
 def _write_all(fd: int, data: bytes, stall: float) -> bool:
-    """Write everything unless the reader stalls for ``stall`` seconds (then drop the rest)."""
+    """Write everything unless the reader stalls for ``stall`` seconds (then drop the rest).
+
+    ``fd`` is non-blocking, so a reader that stops reading never blocks the board (or its
+    SIGTERM) for longer than ``stall``.
+    """
     view = memoryview(data)
     while view:
         _, writable, _ = select.select([], [fd], [], stall)
         if not writable:
             return False
-        view = view[os.write(fd, view):]
+        try:
+            view = view[os.write(fd, view):]
+        except BlockingIOError:
+            continue
     return True
 
 
@@ -168,6 +175,7 @@ def main(argv=None) -> int:
         print(f"writing to {args.url}", flush=True)
     else:
         master, slave, name = _open_pty(args.link)
+        os.set_blocking(master, False)
         write = lambda data: _write_all(master, data, stall=1.0)  # noqa: E731
         print(name + (f" (link {args.link})" if args.link else ""), flush=True)
     unsent = 0

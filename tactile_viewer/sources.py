@@ -373,6 +373,7 @@ class SerialReader:
         self.state = "stopped"
         self.error = ""
         self.reconnects = 0
+        self.failures = 0  # chunks whose handling raised (shown in the live status)
         self.recorder: Recorder | None = None
         self._on_frame = on_frame
         self._reconnect_interval = reconnect_interval
@@ -452,7 +453,11 @@ class SerialReader:
                 port = None
                 continue
             if data:
-                self._handle(data)
+                try:
+                    self._handle(data)
+                except Exception as exc:  # a bug must not end the reading (or the recording)
+                    self.failures += 1
+                    self.error = f"internal error while decoding: {exc!r}"
             elif self.recorder is not None:
                 self.recorder.tick(self.now())
         if port is not None:

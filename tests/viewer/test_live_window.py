@@ -92,7 +92,7 @@ def test_a_1khz_recording_has_every_frame(window, board, qtbot, tmp_path):
     assert len(recording) >= 2000
     np.testing.assert_array_equal(np.diff(recording.seq), 1)  # no gap, no repeat
     assert recording.grid.shape == (16, 16) and np.all(np.diff(recording.t) >= 0)
-    assert window.reader.stats.lost == 0
+    assert window.reader.stats.lost == 0 and window.reader.failures == 0
 
 
 def test_recording_to_csv_while_the_display_skips(window, board, qtbot, tmp_path):
@@ -109,6 +109,7 @@ def test_recording_to_csv_while_the_display_skips(window, board, qtbot, tmp_path
     assert len(recording) >= 500
     np.testing.assert_array_equal(np.diff(recording.seq), 1)  # text frames are numbered on arrival
     assert len(drawn) < received_while  # the display skipped frames; the recorder did not
+    assert window.reader.failures == 0
 
 
 def test_a_port_that_cannot_be_opened_is_reported_and_changes_nothing(opened, tmp_path, board):
