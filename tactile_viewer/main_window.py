@@ -525,6 +525,10 @@ class MainWindow(QtWidgets.QMainWindow):
         else:
             shear = (f"{'auto' if solved.auto else 'manual'}: mu {r.shear_ratio:.2f}, "
                      f"theta {math.degrees(r.shear_direction):+.0f} deg")
+        if len(r.contacts) > 1:  # solved contact by contact: each has its own parameters
+            shear += "  (" + "; ".join(
+                f"contact {k + 1}: mu {c.result.shear_ratio:.2f}, theta "
+                f"{math.degrees(c.result.shear_direction):+.0f}" for k, c in enumerate(r.contacts)) + ")"
         where = (f"seq {solved.frame}" if solved.frame >= 0 else "live") if self.model.live \
             else f"frame {solved.frame + 1}/{len(self.model.recording)}"
         self.status.setText(

@@ -212,3 +212,22 @@ def test_quality_presets_are_measured_for_the_geometry_and_applied(opened, qtbot
     with qtbot.waitSignal(opened.ready, timeout=20000):
         opened.quality_box.setCurrentIndex(0)
     assert opened.model.configuration is None
+
+
+def test_separate_contacts_are_reported_each_with_its_parameters(window, qtbot):
+    from solver import SensorGrid, loads
+    from solver.tradeoff import Configuration
+    from tactile_viewer.recording import Recording
+
+    grid = SensorGrid.regular(40, 40, 2e-3, 2e-3)
+    contacts = [loads.hertz((-20e-3, -20e-3), 5e-3, 1.0, shear_ratio=0.4, shear_direction=0.5),
+                loads.hertz((20e-3, 20e-3), 5e-3, 1.0, shear_ratio=0.4, shear_direction=-2.0)]
+    stress = loads.simulate(grid, contacts).stress
+    window.model.configuration = Configuration("region of interest", path="region")
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        window.show_recording(Recording(grid, np.stack([stress, stress]), [0.0, 0.1]))
+    result = window.model.last.result
+    assert len(result.contacts) == 2
+    directions = sorted(round(math.degrees(c.result.shear_direction)) for c in result.contacts)
+    assert abs(directions[0] - math.degrees(-2.0)) < 10 and abs(directions[1] - math.degrees(0.5)) < 10
+    assert "contact 1: mu" in window.status.text() and "contact 2: mu" in window.status.text()

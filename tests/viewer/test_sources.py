@@ -491,3 +491,35 @@ def test_reader_start_fails_at_once_on_a_missing_device(tmp_path):
 def test_reader_rejects_an_unknown_format():
     with pytest.raises(ValueError, match=r"fmt must be one of .*'hex'"):
         SerialReader("loop://", SensorLayout(grid32()), fmt="hex")
+
+
+def test_reader_reads_a_socket_url_and_reconnects_to_it():
+    import socket
+
+    # a board behind TCP (pyserial's socket:// URL), dropped and reaccepted
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+    layout = SensorLayout(grid32(), "kPa")
+    accepted = []
+    thread = threading.Thread(target=lambda: accepted.append(server.accept()[0]), daemon=True)
+    thread.start()
+    reader = SerialReader(f"socket://127.0.0.1:{port}", layout, reconnect_interval=0.05)
+    try:
+        reader.start()
+        thread.join(5)
+        accepted[0].sendall(b"".join(encode_binary(s, values(s)) for s in range(5)))
+        wait_for(lambda: reader.stats.received == 5, what="five frames over TCP")
+        np.testing.assert_array_equal(reader.take_latest().stress, values(4) * 1000)
+        thread = threading.Thread(target=lambda: accepted.append(server.accept()[0]), daemon=True)
+        thread.start()
+        accepted[0].close()  # the board goes away ...
+        thread.join(5)  # ... and the reader is back as soon as the server takes it again
+        wait_for(lambda: reader.reconnects == 1 and reader.state == "connected", what="reconnection")
+        accepted[1].sendall(encode_binary(0, values(7)))
+        wait_for(lambda: reader.stats.received == 6, what="a frame after reconnecting")
+        assert reader.stats.lost == 0 and reader.failures == 0
+    finally:
+        reader.stop()
+        for connection in accepted:
+            connection.close()
+        server.close()
