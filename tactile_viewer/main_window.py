@@ -33,6 +33,7 @@ __all__ = ["MainWindow"]
 MAP_CHOICES = (("normal pressure", "pressure"), ("sensor stress", "stress"), ("none", "none"))
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)
 SOLVE_EVENT = QtCore.QEvent.Type(QtCore.QEvent.registerEventType())
+PRESET_LIMIT = 32 * 32  # skins whose quality presets are measured automatically
 
 
 class Task(QtCore.QThread):
@@ -368,7 +369,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self._rebuild(self.model.kernel, f"Setting up '{self.quality_box.currentText().split(':')[0]}'...")
 
     def _measure_if_open(self):
-        if self.isVisible() and self.model.is_open:
+        # measuring builds every configuration, full ones included: keep it to skins where
+        # that takes seconds (tactile-tradeoff measures larger ones from the command line)
+        if self.isVisible() and self.model.is_open and self.model.grid.size <= PRESET_LIMIT:
             self.measure_presets()
 
     def measure_presets(self):
