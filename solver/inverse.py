@@ -250,7 +250,7 @@ class Reconstructor:
         stress : (m,) or (ny, nx) ndarray
             Sensor stress, pascals, compression positive.
         """
-        b = self._check_stress(stress)
+        b = check_stress(stress, self.grid)
         m = self.grid.size
         fz = self._normal.solve(b)
         forces = np.zeros((m, 3))
@@ -290,7 +290,7 @@ class Reconstructor:
         -------
         Reconstruction
         """
-        b = self._check_stress(stress)
+        b = check_stress(stress, self.grid)
         for name, value in (("shear_ratio", shear_ratio), ("shear_direction", shear_direction)):
             if value is not None and not isinstance(value, (int, float, np.integer, np.floating)):
                 raise ValueError(f"{name} must be a real number (or None), got {type(value).__name__}")
@@ -375,27 +375,29 @@ class Reconstructor:
             return 0.0
         return float(np.linalg.norm(self.matrix @ x - b) / norm)
 
-    def _check_stress(self, stress) -> np.ndarray:
-        m = self.grid.size
-        if np.iscomplexobj(stress):
-            raise ValueError("stress must be real pascals, got complex values")
-        try:
-            b = np.asarray(stress, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"stress must be numeric, got {type(stress).__name__}") from None
-        if b.size != m or (b.ndim == 2 and b.shape != tuple(self.grid.shape)) or b.ndim > 2:
-            raise ValueError(
-                f"stress must have shape ({m},) or {tuple(self.grid.shape)} for this grid, got {b.shape}"
-            )
-        b = b.ravel()
-        bad = ~np.isfinite(b)
-        if bad.any():
-            kinds = sorted({"NaN" if np.isnan(v) else "inf" for v in b[bad]})
-            raise ValueError(
-                f"stress must be finite, got {' and '.join(kinds)} at taxel(s) "
-                f"{np.flatnonzero(bad)[:10].tolist()}"
-            )
-        return b
+
+def check_stress(stress, grid: SensorGrid) -> np.ndarray:
+    """``stress`` as a flat ``(m,)`` float array for ``grid``; ValueError says what is wrong with it."""
+    m = grid.size
+    if np.iscomplexobj(stress):
+        raise ValueError("stress must be real pascals, got complex values")
+    try:
+        b = np.asarray(stress, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"stress must be numeric, got {type(stress).__name__}") from None
+    if b.size != m or (b.ndim == 2 and b.shape != tuple(grid.shape)) or b.ndim > 2:
+        raise ValueError(
+            f"stress must have shape ({m},) or {tuple(grid.shape)} for this grid, got {b.shape}"
+        )
+    b = b.ravel()
+    bad = ~np.isfinite(b)
+    if bad.any():
+        kinds = sorted({"NaN" if np.isnan(v) else "inf" for v in b[bad]})
+        raise ValueError(
+            f"stress must be finite, got {' and '.join(kinds)} at taxel(s) "
+            f"{np.flatnonzero(bad)[:10].tolist()}"
+        )
+    return b
 
 
 def _within(tree: cKDTree, distance: float):

@@ -25,7 +25,7 @@ from scipy import ndimage
 
 from .arrays import read_only
 from .geometry import SensorGrid
-from .inverse import Reconstruction, Reconstructor
+from .inverse import Reconstruction, Reconstructor, check_stress
 
 __all__ = ["Contact", "RegionSolver"]
 
@@ -166,11 +166,7 @@ class RegionSolver:
         outside the windows as unexplained; ``contacts`` holds each contact.
         """
         grid = self.grid
-        b = np.asarray(stress, dtype=float)
-        if b.size != grid.size or not np.all(np.isfinite(b)):
-            # the full checks (and their messages) are the reconstructor's
-            self.reconstructor(1, 1)._check_stress(np.full(1, np.nan) if b.size == grid.size else b)
-        image = b.reshape(grid.shape)
+        image = check_stress(stress, grid).reshape(grid.shape)
         forces = np.zeros(grid.shape + (3,))
         region = np.zeros(grid.shape, dtype=bool)
         contacts = []

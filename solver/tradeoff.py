@@ -15,16 +15,18 @@ import csv
 import math
 import time
 import tracemalloc
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from . import loads, metrics
+from .arrays import read_only
 from .efficiency import ContactFit
 from .geometry import SensorGrid
 from .inverse import Reconstructor
 from .region import RegionSolver
+from .validation import SHAPES, standard_contact
 
 __all__ = [
     "Configuration",
@@ -121,10 +123,6 @@ class _Region:
 
 
 def _normal_only(result, forces):
-    from dataclasses import replace
-
-    from .arrays import read_only
-
     return replace(result, forces=read_only(forces), normal_only=True, shear_ratio=0.0)
 
 
@@ -157,21 +155,12 @@ def default_cases(grid: SensorGrid, *, noises=(0.003, 0.01), seed: int = 11) -> 
     pitch = grid.pitch
     cases = []
     for noise in noises:
-        for shape in ("hertz", "cone", "flat_punch", "ellipse"):
+        for shape in SHAPES:
             for ratio in (0.0, 0.2, 0.2, 0.4, 0.4):
                 direction = rng.uniform(-math.pi, math.pi)
                 centre = tuple(rng.uniform(-pitch, pitch, size=2))
-                kw = dict(shear_ratio=ratio, shear_direction=direction)
-                if shape == "hertz":
-                    contact = loads.hertz(centre, 2.5 * pitch, 1.0, **kw)
-                elif shape == "cone":
-                    contact = loads.cone(centre, 2.5 * pitch, 1.0, **kw)
-                elif shape == "flat_punch":
-                    contact = loads.flat_punch(centre, 2.0 * pitch, 1.0, **kw)
-                else:
-                    contact = loads.ellipse(
-                        centre, (3.0 * pitch, 1.8 * pitch), 1.0, angle=rng.uniform(0, math.pi), **kw
-                    )
+                contact = standard_contact(shape, centre, pitch, rng, shear_ratio=ratio,
+                                           shear_direction=direction)
                 frame = loads.simulate(grid, contact, noise=noise, rng=rng)
                 cases.append(Case(f"{shape} mu={ratio:g} noise={100 * noise:g}%", ratio, frame))
     return cases

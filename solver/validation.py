@@ -33,8 +33,25 @@ class Case:
     frame: loads.SimulatedFrame
 
 
+SHAPES = ("hertz", "cone", "flat_punch", "ellipse")
+
+
+def standard_contact(shape: str, center, pitch: float, rng, **shear) -> loads.Contact:
+    """One contact of the standard set, 1 N: Hertz and cone 2.5 pitches in radius, flat punch 2,
+    ellipse with semi-axes 3 and 1.8 pitches turned at random (drawn from ``rng``)."""
+    if shape == "hertz":
+        return loads.hertz(center, 2.5 * pitch, 1.0, **shear)
+    if shape == "cone":
+        return loads.cone(center, 2.5 * pitch, 1.0, **shear)
+    if shape == "flat_punch":
+        return loads.flat_punch(center, 2.0 * pitch, 1.0, **shear)
+    if shape == "ellipse":
+        return loads.ellipse(center, (3.0 * pitch, 1.8 * pitch), 1.0, angle=rng.uniform(0, math.pi), **shear)
+    raise ValueError(f"shape must be one of {SHAPES}, got {shape!r}")
+
+
 def standard_cases(*, n: int = 16, pitch: float = 2e-3, thickness_ratios=(0.5, 1.0, 1.5),
-                   shapes=("hertz", "cone", "flat_punch", "ellipse"), shear_ratios=(0.0, 0.2, 0.4),
+                   shapes=SHAPES, shear_ratios=(0.0, 0.2, 0.4),
                    noise: float = 0.01, seed: int = 7) -> list[Case]:
     """Every combination of shape, thickness and shear ratio on an ``n x n`` grid.
 
@@ -54,16 +71,7 @@ def standard_cases(*, n: int = 16, pitch: float = 2e-3, thickness_ratios=(0.5, 1
                 theta = math.remainder(index * GOLDEN_ANGLE + 0.3, 2 * math.pi)
                 index += 1
                 center = tuple(rng.uniform(-pitch, pitch, size=2))
-                kw = dict(shear_ratio=mu, shear_direction=theta)
-                if shape == "hertz":
-                    contact = loads.hertz(center, 2.5 * pitch, 1.0, **kw)
-                elif shape == "cone":
-                    contact = loads.cone(center, 2.5 * pitch, 1.0, **kw)
-                elif shape == "flat_punch":
-                    contact = loads.flat_punch(center, 2.0 * pitch, 1.0, **kw)
-                else:
-                    contact = loads.ellipse(center, (3.0 * pitch, 1.8 * pitch), 1.0,
-                                            angle=rng.uniform(0, math.pi), **kw)
+                contact = standard_contact(shape, center, pitch, rng, shear_ratio=mu, shear_direction=theta)
                 frame = loads.simulate(grid, contact, noise=noise, rng=rng)
                 name = f"{shape} h/p={ratio_h:g} mu={mu:g} th={math.degrees(theta):+.0f}"
                 cases.append(Case(name, shape, ratio_h, mu, theta, frame))

@@ -45,17 +45,9 @@ class ConnectDialog(QtWidgets.QDialog):
         self.setWindowTitle("Connect to a sensor board")
         form = QtWidgets.QFormLayout(self)
         self.port_box = QtWidgets.QComboBox(editable=True)
-        for device, description in available_ports():
-            self.port_box.addItem(f"{device}", device)
-            self.port_box.setItemData(self.port_box.count() - 1, description,
-                                      QtCore.Qt.ItemDataRole.ToolTipRole)
+        self._fill_ports()
         self.port_box.lineEdit().setPlaceholderText("/dev/ttyACM0, loop://, socket://host:port")
-        refresh = QtWidgets.QPushButton("Refresh")
-        refresh.clicked.connect(self._refresh)
-        row = QtWidgets.QHBoxLayout()
-        row.addWidget(self.port_box, 1)
-        row.addWidget(refresh)
-        form.addRow("port or URL", row)
+        form.addRow("port or URL", _with_button(self.port_box, "Refresh", self._refresh))
         self.baud_box = QtWidgets.QComboBox(editable=True)
         self.baud_box.addItems(BAUD_RATES)
         form.addRow("baud rate", self.baud_box)
@@ -63,12 +55,7 @@ class ConnectDialog(QtWidgets.QDialog):
         self.format_box.addItems(FORMATS)
         form.addRow("format", self.format_box)
         self.layout_edit = QtWidgets.QLineEdit()
-        browse = QtWidgets.QPushButton("Browse...")
-        browse.clicked.connect(self._browse)
-        row = QtWidgets.QHBoxLayout()
-        row.addWidget(self.layout_edit, 1)
-        row.addWidget(browse)
-        form.addRow("sensor layout", row)
+        form.addRow("sensor layout", _with_button(self.layout_edit, "Browse...", self._browse))
         self.message = QtWidgets.QLabel("")
         self.message.setStyleSheet("color: #b00020")
         form.addRow(self.message)
@@ -79,11 +66,16 @@ class ConnectDialog(QtWidgets.QDialog):
         form.addRow(buttons)
         self._restore()
 
+    def _fill_ports(self):
+        for device, description in available_ports():
+            self.port_box.addItem(device, device)
+            self.port_box.setItemData(self.port_box.count() - 1, description,
+                                      QtCore.Qt.ItemDataRole.ToolTipRole)
+
     def _refresh(self):
         text = self.port_box.currentText()
         self.port_box.clear()
-        for device, _ in available_ports():
-            self.port_box.addItem(device, device)
+        self._fill_ports()
         self.port_box.setEditText(text)
 
     def _browse(self):
@@ -131,3 +123,13 @@ class ConnectDialog(QtWidgets.QDialog):
         store.setValue("layout", chosen.layout)
         store.sync()
         self.accept()
+
+
+def _with_button(widget, label, slot) -> QtWidgets.QHBoxLayout:
+    """``widget`` stretched, with a push button ``label`` calling ``slot`` beside it."""
+    button = QtWidgets.QPushButton(label)
+    button.clicked.connect(slot)
+    row = QtWidgets.QHBoxLayout()
+    row.addWidget(widget, 1)
+    row.addWidget(button)
+    return row

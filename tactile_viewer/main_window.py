@@ -89,7 +89,6 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model = ViewerModel()
         self._tasks: list[Task] = []
         self._measured_for = None  # the geometry the quality presets were measured on
-        self._progress_dialog = None
 
         central = QtWidgets.QFrame(self)
         layout = QtWidgets.QVBoxLayout(central)

@@ -107,8 +107,6 @@ class Decoder:
     def reset(self) -> None:
         """Drop any partial frame (after a reconnection); the counters are kept."""
         self._buffer.clear()
-        if hasattr(self, "_overlong"):
-            self._overlong = False
 
     @property
     def pending(self) -> int:
@@ -144,6 +142,10 @@ class TextDecoder(Decoder):
         super().__init__(count)
         self.max_line = max_line if max_line is not None else max(4096, 32 * (count or 0))
         self._overlong = False  # inside a line already rejected as too long
+
+    def reset(self) -> None:
+        super().reset()
+        self._overlong = False
 
     def feed(self, data: bytes) -> list[Frame]:
         out: list[Frame] = []

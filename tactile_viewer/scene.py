@@ -73,6 +73,7 @@ class Scene:
             self.plotter.remove_scalar_bar(title, render=False)
         self._actors, self._bars = {}, {}
         self.grid = grid
+        self._surface = np.column_stack([grid.positions * MM, np.zeros(grid.size)])  # node tips, mm
         p, h = grid.pitch * MM, grid.thickness * MM
         x0, y0 = grid.positions.min(axis=0) * MM - p / 2
         x1, y1 = grid.positions.max(axis=0) * MM + p / 2
@@ -166,7 +167,7 @@ class Scene:
             else np.zeros(0, dtype=int)
         scale = display.arrow_scale * MM
         vectors = np.column_stack([forces[:, 0], forces[:, 1], -forces[:, 2]])[shown] * scale
-        tips = np.column_stack([grid.positions * MM, np.zeros(grid.size)])[shown]
+        tips = self._surface[shown]
         if shown.size:
             self.arrows.copy_from(self._glyphs(tips - vectors, vectors, magnitude[shown] * 1e3))
             self._actors["arrows"].mapper.scalar_range = (0.0, max(float(magnitude[shown].max()) * 1e3, 1e-9))

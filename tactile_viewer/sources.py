@@ -24,7 +24,7 @@ import numpy as np
 from solver import SensorGrid
 from solver.arrays import read_only
 
-from .protocol import FORMATS, Frame, make_decoder
+from .protocol import Frame, make_decoder
 from .recording import UNIT_SCALES
 
 __all__ = ["LayoutError", "SensorLayout", "load_layout", "save_layout", "Calibration", "LiveStats",
@@ -364,8 +364,6 @@ class SerialReader:
 
     def __init__(self, url: str, layout: SensorLayout, *, fmt: str = "binary", baudrate: int = 115200,
                  on_frame=None, reconnect_interval: float = 0.5):
-        if fmt not in FORMATS:
-            raise ValueError(f"fmt must be one of {FORMATS}, got {fmt!r}")
         self.url, self.layout, self.fmt, self.baudrate = url, layout, fmt, baudrate
         self.calibration = Calibration(layout)
         self.decoder = make_decoder(fmt, layout.count)

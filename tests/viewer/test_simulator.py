@@ -156,6 +156,15 @@ def run_sim(tmp_path, *options):
     return process, link, layout
 
 
+def read_link_until_exit(link, process):
+    """Open the board's link as a reader would and take everything until the board exits."""
+    port = serial.serial_for_url(str(link), timeout=0.05)
+    try:
+        return read_until_exit(port, process)
+    finally:
+        port.close()
+
+
 def read_until_exit(port, process, timeout=15.0):
     """Everything the board sends until it exits (its pseudo-terminal then reports an error)."""
     data = bytearray()
@@ -191,11 +200,7 @@ def test_cli_streams_through_a_linked_pseudo_terminal(tmp_path, processes):
     assert line.startswith("/dev/pts/") and line.endswith(f"(link {link})")
     device = line.split()[0]
     assert link.is_symlink() and os.path.realpath(link) == os.path.realpath(device)  # exists while running
-    port = serial.serial_for_url(str(link), timeout=0.05)
-    try:
-        data = read_until_exit(port, process)
-    finally:
-        port.close()
+    data = read_link_until_exit(link, process)
     assert process.wait(timeout=10) == 0
     assert not link.exists() and not link.is_symlink()  # removed at exit
     assert "sent 500 frames, dropped 0" in process.stderr.read()
@@ -220,11 +225,7 @@ def test_cli_text_format(tmp_path, processes):
                                          "--nx", "3", "--ny", "2", "--noise", "0")
     processes.append(process)
     process.stdout.readline()
-    port = serial.serial_for_url(str(link), timeout=0.05)
-    try:
-        data = read_until_exit(port, process)
-    finally:
-        port.close()
+    data = read_link_until_exit(link, process)
     assert process.wait(timeout=10) == 0
     layout = load_layout(layout_path)
     decoder = TextDecoder(layout.count)
