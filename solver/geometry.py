@@ -1,8 +1,10 @@
-"""Sensor layouts: where the taxels are and how thick the elastomer is."""
+"""Sensor layouts: where the taxels are, how thick and compressible the elastomer, how big a taxel."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +24,38 @@ def _positive_finite(name: str, value) -> float:
     return number
 
 
+def _shown(value) -> str:
+    # numpy scalars print as "np.float64(0.7)"; the user wrote 0.7
+    return repr(value.item()) if isinstance(value, np.generic) else repr(value)
+
+
+def _real(value) -> float | None:
+    """``value`` as a float if it is a real number (not a bool, not text), else None."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        return None
+    return float(value)
+
+
+def _poisson_ratio(value) -> float:
+    # an isotropic solid has -1 < nu <= 0.5; elastomers are not auxetic, and 0.5 itself
+    # (incompressible) must stay allowed because real silicones are within 1e-3 of it
+    number = _real(value)
+    if number is None or not math.isfinite(number) or not 0.0 <= number <= 0.5:
+        raise ValueError(f"poisson_ratio must be a finite number in [0, 0.5], got {_shown(value)}")
+    return number
+
+
+def _sensor_size(value, pitch: float) -> float:
+    number = _real(value)
+    if number is None or not math.isfinite(number) or number < 0.0:
+        raise ValueError("sensor_size must be a finite number of metres >= 0 (0 for point sensors), "
+                         f"got {_shown(value)}")
+    if number > pitch:
+        raise ValueError(f"sensor_size must be at most the pitch (taxels cannot overlap), got "
+                         f"{number:g} m with pitch {pitch:g} m")
+    return number
+
+
 def _positive_count(name: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
         raise ValueError(f"{name} must be a positive integer, got {value!r}")
@@ -35,7 +69,10 @@ def _positive_count(name: str, value) -> int:
 class SensorGrid:
     """A skin: sensor positions under an elastomer layer of uniform thickness.
 
-    Nodes (where forces are reconstructed) coincide with the sensors.
+    Nodes (where forces are reconstructed) coincide with the sensors. The
+    elastomer's Poisson ratio and the taxels' size belong to the geometry
+    because the forward model of a layer bonded to a rigid hull depends on
+    them (a half-space's normal stress ``T33`` does not depend on ``nu``).
 
     Attributes
     ----------
@@ -50,12 +87,27 @@ class SensorGrid:
     shape : tuple of int
         ``(ny, nx)`` for a regular grid, so that a frame reshapes to it;
         ``(m,)`` for an irregular layout.
+    poisson_ratio : float
+        Poisson ratio ``nu`` of the elastomer, dimensionless, in ``[0, 0.5]``;
+        0.5 (the default) is incompressible, which silicone rubbers nearly are.
+    sensor_size : float
+        Side of the square taxel over which each reading is averaged, metres,
+        in ``[0, pitch]`` (taxels cannot overlap); 0 (the default) means point
+        sensors.
+
+    Raises
+    ------
+    ValueError
+        When a field is impossible; the message names the field, the rule and
+        the value received.
     """
 
     positions: np.ndarray
     thickness: float
     pitch: float
     shape: tuple
+    poisson_ratio: float = 0.5
+    sensor_size: float = 0.0
 
     def __post_init__(self):
         positions = read_only(self.positions)
@@ -68,6 +120,8 @@ class SensorGrid:
         object.__setattr__(self, "positions", positions)
         object.__setattr__(self, "thickness", _positive_finite("thickness", self.thickness))
         object.__setattr__(self, "pitch", _positive_finite("pitch", self.pitch))
+        object.__setattr__(self, "poisson_ratio", _poisson_ratio(self.poisson_ratio))
+        object.__setattr__(self, "sensor_size", _sensor_size(self.sensor_size, self.pitch))
         shape = tuple(self.shape)
         if not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 1 for s in shape):
             raise ValueError(f"shape entries must be whole numbers >= 1, got {self.shape!r}")
@@ -79,7 +133,8 @@ class SensorGrid:
         object.__setattr__(self, "shape", shape)
 
     @classmethod
-    def regular(cls, nx: int, ny: int, pitch: float, thickness: float) -> SensorGrid:
+    def regular(cls, nx: int, ny: int, pitch: float, thickness: float, *, poisson_ratio: float = 0.5,
+                sensor_size: float = 0.0) -> SensorGrid:
         """A rectangular grid of ``nx`` by ``ny`` sensors centred on the origin.
 
         Parameters
@@ -90,6 +145,17 @@ class SensorGrid:
             Distance between neighbouring sensors, metres.
         thickness : float
             Elastomer thickness, metres.
+        poisson_ratio : float, optional
+            Poisson ratio ``nu`` of the elastomer, in ``[0, 0.5]``; default 0.5
+            (incompressible).
+        sensor_size : float, optional
+            Side of the square taxel, metres, in ``[0, pitch]``; default 0
+            (point sensors).
+
+        Returns
+        -------
+        SensorGrid
+            Row-major with x fastest, ``shape == (ny, nx)``.
         """
         nx = _positive_count("nx", nx)
         ny = _positive_count("ny", ny)
@@ -99,7 +165,8 @@ class SensorGrid:
         positions = np.column_stack(
             [(ix.ravel() - (nx - 1) / 2) * pitch, (iy.ravel() - (ny - 1) / 2) * pitch]
         )
-        return cls(positions=positions, thickness=thickness, pitch=pitch, shape=(ny, nx))
+        return cls(positions=positions, thickness=thickness, pitch=pitch, shape=(ny, nx),
+                   poisson_ratio=poisson_ratio, sensor_size=sensor_size)
 
     @property
     def size(self) -> int:
@@ -117,9 +184,34 @@ class SensorGrid:
         return np.allclose(self.positions, reference + offset, rtol=0, atol=1e-9 * self.pitch)
 
     def with_thickness(self, thickness: float) -> SensorGrid:
-        """The same layout under a layer of another thickness."""
-        return SensorGrid(self.positions, thickness, self.pitch, self.shape)
+        """The same layout, elastomer and taxels under a layer of another thickness (metres)."""
+        return self.replace(thickness=thickness)
+
+    def replace(self, **changes) -> SensorGrid:
+        """A copy with some fields changed, checked like a new grid; the rest (``nu`` too) is kept.
+
+        Parameters
+        ----------
+        **changes
+            New values of any of ``positions``, ``thickness``, ``pitch``,
+            ``shape``, ``poisson_ratio``, ``sensor_size``.
+
+        Returns
+        -------
+        SensorGrid
+
+        Examples
+        --------
+        A window of a larger skin keeps its material:
+
+        >>> skin = SensorGrid.regular(8, 8, 2e-3, 2e-3, poisson_ratio=0.45)
+        >>> window = skin.replace(positions=skin.positions[:4], shape=(4,))
+        >>> window.poisson_ratio
+        0.45
+        """
+        return dataclasses.replace(self, **changes)
 
     def __repr__(self) -> str:
+        taxel = f", sensor_size={self.sensor_size:g} m" if self.sensor_size > 0 else ""
         return (f"SensorGrid(shape={self.shape}, pitch={self.pitch:g} m, "
-                f"thickness={self.thickness:g} m)")
+                f"thickness={self.thickness:g} m, nu={self.poisson_ratio:g}{taxel})")

@@ -162,8 +162,10 @@ class Reconstructor:
     ----------
     grid : SensorGrid
         Sensor layout and layer thickness.
-    kernel : {"cell", "point"}, optional
-        Stress kernel (see :mod:`solver.kernels`). Default "cell".
+    kernel : {"layer", "cell", "point"}, optional
+        Stress kernel (see :mod:`solver.kernels`). Default "layer": the
+        grid's elastomer bonded to a rigid hull, with its Poisson ratio;
+        "cell" and "point" are the paper's half-space kernels.
     max_condition : float, optional
         Largest condition number of ``Cz`` and of ``C`` accepted undamped;
         beyond it Tikhonov damping keeps the forces bounded (thick layers,
@@ -186,7 +188,7 @@ class Reconstructor:
         :class:`solver.efficiency.ContactFit`.
     """
 
-    def __init__(self, grid: SensorGrid, *, kernel: str = "cell", max_condition: float = 100.0,
+    def __init__(self, grid: SensorGrid, *, kernel: str = "layer", max_condition: float = 100.0,
                  max_shear_ratio: float = 1.5, region_threshold: float = 0.2,
                  region_margin: int = 1,
                  efficiency=None):
@@ -206,7 +208,7 @@ class Reconstructor:
         m = grid.size
         self.matrix = stress_matrix(grid, kernel)
         self.matrix.setflags(write=False)
-        # Cz = cz^T is symmetric positive definite (Boussinesq kernel): one
+        # Cz = cz^T is symmetric positive definite (every kernel is even in the offset): one
         # Cholesky factor serves the normal-only path.
         self._normal = SymmetricFactor.of(self.matrix[:, 2 * m:], max_condition=self.max_condition)
         # C+ = C^T (C C^T)^-1; cond(C C^T) = cond(C)^2.

@@ -1,18 +1,28 @@
 """Forward model: normal stress at the sensors from surface forces at the nodes.
 
-Two kernels give the stress ``T33`` at depth ``h`` (compression positive)
+Three kernels give the stress ``T33`` at depth ``h`` (compression positive)
 produced by a unit force on a node:
 
+``layer`` (default)
+    What a skin is: an elastomer layer of thickness ``h`` and Poisson ratio
+    ``nu`` bonded to a rigid hull, the sensors on the hull, each node's force
+    spread uniformly over its cell (exact layer solution,
+    :mod:`solver.layer`). Unlike the half-space it depends on ``nu``; its
+    base stress peaks higher and narrower and decays exponentially.
 ``point``
     The force concentrated at the node (Boussinesq normal load plus Cerruti
     tangential load on an elastic half-space; exact for this stress component
     whatever Poisson's ratio).
 ``cell``
-    The force spread uniformly over the node's ``pitch x pitch`` cell, in
+    The half-space with the force spread uniformly over the node's ``pitch x pitch`` cell, in
     closed form (Love's rectangle for the normal part, the integrated Cerruti
     term for the tangential part). This keeps the sum over the grid right when
     ``h`` is not much larger than the pitch, where the point kernel loses
     much of the total force.
+
+The first two are the paper's half-space kernels, kept for comparison. A
+grid with a ``sensor_size`` averages every kernel over its square taxels
+(Gauss-Legendre points on the taxel) instead of reading it at a point.
 
 The stress matrix is ``C = [Cx | Cy | Cz]`` of shape ``(m, 3m)`` so that
 ``b = C @ concatenate([Fx, Fy, Fz])``.
@@ -20,14 +30,17 @@ The stress matrix is ``C = [Cx | Cy | Cz]`` of shape ``(m, 3m)`` so that
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from . import layer
 from .geometry import SensorGrid
 
-__all__ = ["KERNELS", "point_force_stress", "cell_force_stress", "stress_matrix"]
+__all__ = ["KERNELS", "point_force_stress", "cell_force_stress", "layer_force_stress", "stress_matrix"]
 
-KERNELS = ("cell", "point")
+KERNELS = ("layer", "cell", "point")
 
 
 def point_force_stress(dx, dy, depth):
@@ -102,6 +115,80 @@ def cell_force_stress(dx, dy, depth, width):
     return kx, ky, kz
 
 
+def _panels(length: float, thickness: float):
+    # Gauss-Legendre nodes and weights on [0, 1] in panels no longer than
+    # layer.EDGE_PANEL thicknesses: the integrands vary on the scale of h.
+    count = int(min(256, max(1, math.ceil(length / (layer.EDGE_PANEL * thickness)))))
+    nodes, weights = np.polynomial.legendre.leggauss(8)
+    edges = np.linspace(0.0, 1.0, count + 1)
+    mid, half = (edges[:-1] + edges[1:]) / 2, np.diff(edges) / 2
+    return (mid[:, None] + half[:, None] * nodes).ravel(), (half[:, None] * weights).ravel()
+
+
+def layer_force_stress(dx, dy, thickness: float, width: float, poisson_ratio: float):
+    """``T33`` on the base of a bonded layer per newton spread uniformly over a square cell.
+
+    By the divergence theorem the cell integral of the layer's point kernel
+    is a sum of line integrals over the cell's edges of the smooth tabulated
+    functions of :class:`solver.layer.LayerTable` (Gauss-Legendre panels of
+    at most ``EDGE_PANEL`` thicknesses), so thin layers need no special case.
+
+    Parameters
+    ----------
+    dx, dy : ndarray
+        Sensor position minus cell centre, metres (broadcast together).
+    thickness : float
+        Layer thickness ``h``, metres.
+    width : float
+        Side of the square cell, metres.
+    poisson_ratio : float
+        ``nu`` in [0, 0.5].
+
+    Returns
+    -------
+    kx, ky, kz : ndarray
+        Pascals per newton of force along x, y and z (z into the skin).
+    """
+    tab = layer.table(layer.check_poisson_ratio(poisson_ratio))
+    dx, dy = np.broadcast_arrays(np.asarray(dx, float), np.asarray(dy, float))
+    shape = dx.shape
+    dx, dy = dx.ravel(), dy.ravel()
+    half, h = 0.5 * width, thickness
+    kx, ky, kz = (np.zeros(dx.size) for _ in range(3))
+    # Sensors farther than the tables reach from the cell feel nothing.
+    gap = np.hypot(np.maximum(np.abs(dx) - half, 0.0), np.maximum(np.abs(dy) - half, 0.0))
+    near = np.flatnonzero(gap < tab.reach * h)
+    nodes, weights = _panels(width, h)
+    t = nodes - 0.5                                   # along an edge, in widths, from its middle
+    q = 1.0 / (width * width)                         # traction of one newton over the cell
+
+    def along(fixed, centre, function):
+        # int over the edge {fixed} x [centre - width/2, centre + width/2] of function(rho / h) dt
+        run = centre[:, None] + t[None, :] * width
+        rho = np.hypot(fixed[:, None], run) / h
+        return function(rho) @ weights * width
+
+    def flux(fixed, centre):
+        # normal: int_cell K = sum over edges of int (rho . n) F(rho) / (2 pi rho^2) dl
+        return fixed * along(fixed, centre, tab.carried) / (2.0 * np.pi * h * h)
+
+    # in blocks that keep the (pairs, nodes) work arrays near 16 MB
+    block = max(1, 2_000_000 // t.size)
+    for start in range(0, near.size, block):
+        rows = near[start:start + block]
+        a1, a2 = -dx[rows] - half, -dx[rows] + half   # load cell relative to the sensor
+        b1, b2 = -dy[rows] - half, -dy[rows] + half
+        mid_a, mid_b = -dx[rows], -dy[rows]
+        kz[rows] = q * (flux(a2, mid_b) - flux(a1, mid_b) + flux(b2, mid_a) - flux(b1, mid_a))
+        # Tangential: T33 = d/dx_sensor Psi(|x - s|) integrated over s_x leaves the two
+        # edges across x: int [Psi(left edge) - Psi(right edge)] dt (and alike for y).
+        kx[rows] = q * (along(a1, mid_b, tab.tangential_potential)
+                        - along(a2, mid_b, tab.tangential_potential)) / h
+        ky[rows] = q * (along(b1, mid_a, tab.tangential_potential)
+                        - along(b2, mid_a, tab.tangential_potential)) / h
+    return kx.reshape(shape), ky.reshape(shape), kz.reshape(shape)
+
+
 def _spread_offsets(values, out):
     # values[u, v] holds the kernel for sensor - node = (v - nx + 1, u - ny + 1)
     # pitches; spread it into the (m, m) block-Toeplitz block ``out`` (a view)
@@ -111,15 +198,16 @@ def _spread_offsets(values, out):
     np.copyto(out.reshape(ny, nx, ny, nx), windows)
 
 
-def stress_matrix(grid: SensorGrid, kernel: str = "cell") -> np.ndarray:
+def stress_matrix(grid: SensorGrid, kernel: str = "layer") -> np.ndarray:
     """The forward matrix ``C = [Cx | Cy | Cz]`` of a sensor grid.
 
     Parameters
     ----------
     grid : SensorGrid
         Sensor layout; nodes coincide with sensors.
-    kernel : {"cell", "point"}
-        How a node's force is spread on the surface (see module notes).
+    kernel : {"layer", "cell", "point"}
+        The medium and how a node's force is spread on the surface (see
+        module notes). Default "layer".
 
     Returns
     -------
@@ -131,10 +219,27 @@ def stress_matrix(grid: SensorGrid, kernel: str = "cell") -> np.ndarray:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
     h, pitch = grid.thickness, grid.pitch
 
-    def evaluate(dx, dy):
+    def at_point(dx, dy):
         if kernel == "point":
             return point_force_stress(dx, dy, h)
-        return cell_force_stress(dx, dy, h, pitch)
+        if kernel == "cell":
+            return cell_force_stress(dx, dy, h, pitch)
+        return layer_force_stress(dx, dy, h, pitch, grid.poisson_ratio)
+
+    def evaluate(dx, dy):
+        if grid.sensor_size == 0:
+            return at_point(dx, dy)
+        # Reading averaged over the taxel: the kernels vary on the scale of h.
+        side = grid.sensor_size
+        count = int(min(12, max(2, math.ceil(3.0 * side / h))))
+        nodes, weights = np.polynomial.legendre.leggauss(count)
+        nodes, weights = 0.5 * side * nodes, 0.5 * weights
+        total = [np.zeros(np.shape(dx)) for _ in range(3)]
+        for u, wu in zip(nodes, weights, strict=True):
+            for v, wv in zip(nodes, weights, strict=True):
+                for acc, part in zip(total, at_point(dx + u, dy + v), strict=True):
+                    acc += wu * wv * part
+        return total
 
     m = grid.size
     matrix = np.empty((m, 3 * m))

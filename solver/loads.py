@@ -4,11 +4,24 @@ A contact is a continuous surface traction: a normal pressure profile (Hertz,
 cone, flat punch, uniform ellipse, ring) of a given total force, plus a
 friction-like tangential traction ``shear_ratio * p`` in ``shear_direction``
 and an optional torsion. :func:`simulate` cuts the skin into sub-cells much
-smaller than the layer thickness, integrates the traction over each sub-cell
-(supersampled, so edges and clipped singularities are resolved), and sums the
-exact point-force stresses (Boussinesq and Cerruti) of every sub-cell at every
-sensor. The true nodal forces are the same sub-cell forces summed over each
-node's cell. Neither step uses the reconstruction kernels.
+smaller than the layer thickness and integrates the traction over each
+sub-cell (supersampled, so edges and clipped singularities are resolved). The
+true nodal forces are the sub-cell forces summed over each node's cell. The
+sensor stress comes from one of two media:
+
+``medium="layer"`` (default)
+    The skin as built: a layer of thickness ``h`` and the grid's Poisson ratio
+    bonded to a rigid hull. The sub-cell tractions go through the layer's
+    transfer functions (:func:`solver.layer.transfer`) by FFT convolution on
+    the sub-cell lattice, and the stress is read at the sensors (averaged
+    over the taxel through its transform when the grid has a
+    ``sensor_size``). No Hankel table, no cell kernel: an independent path
+    from the reconstruction's layer kernel.
+``medium="halfspace"``
+    The exact point-force stresses (Boussinesq and Cerruti) of every
+    sub-cell summed at every sensor, the physics of the paper's kernels.
+
+Neither step uses the reconstruction kernels' matrices.
 
 Example
 -------
@@ -24,16 +37,26 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+import scipy.fft
+from scipy import ndimage
+
+from . import layer
 from .arrays import read_only
 from .geometry import SensorGrid
 from .kernels import point_force_stress
 
 __all__ = [
     "Contact", "SimulatedFrame", "hertz", "cone", "flat_punch", "ellipse", "ring",
-    "simulate", "SHAPES",
+    "simulate", "SHAPES", "MEDIA",
 ]
 
 SHAPES = ("hertz", "cone", "flat_punch", "ellipse", "ring")
+MEDIA = ("layer", "halfspace")
+
+# The layer's base stress has fallen below 3e-6 of its peak this many
+# thicknesses from a load (any nu): the FFT lattice pads by it so that the
+# periodic wrap-around stays below that level.
+LAYER_REACH = 15.0
 
 
 @dataclass(frozen=True)
@@ -183,6 +206,8 @@ class SimulatedFrame:
     contacts : tuple of Contact
     noise : float
         Standard deviation of the added noise relative to the peak clean stress.
+    medium : str
+        One of ``MEDIA``: the physics the stress was computed with.
     """
 
     grid: SensorGrid
@@ -191,6 +216,7 @@ class SimulatedFrame:
     forces: np.ndarray
     contacts: tuple = field(default_factory=tuple)
     noise: float = 0.0
+    medium: str = "layer"
 
 
 def _subcell_forces(contact: Contact, x, y, step, supersample):
@@ -219,7 +245,8 @@ def _normalisation(contact: Contact, step, supersample, anchor):
 
 
 def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
-             subdivisions: int | None = None, supersample: int = 4) -> SimulatedFrame:
+             subdivisions: int | None = None, supersample: int = 4,
+             medium: str = "layer") -> SimulatedFrame:
     """Sensor stress and true nodal forces of one or several contacts.
 
     Parameters
@@ -234,9 +261,14 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
     subdivisions : int, optional
         Sub-cells per pitch along each axis. Default: enough that a sub-cell
         is at most a quarter of the thickness and a tenth of the smallest
-        contact radius (at least 8, at most 128).
+        contact radius (at least 8, at most 128). Even numbers are rounded up
+        to odd ones, so that sensors sit on the sub-cell lattice (and both
+        media see the very same sub-cell forces).
     supersample : int, optional
         Profile samples per sub-cell along each axis. Default 4.
+    medium : {"layer", "halfspace"}, optional
+        The skin's physics (module notes). Default "layer", with the grid's
+        Poisson ratio.
 
     Returns
     -------
@@ -249,10 +281,17 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
         raise ValueError(f"contacts must be one or more Contact, got {contacts!r}")
     if not (math.isfinite(noise) and noise >= 0):
         raise ValueError(f"noise must be finite and >= 0, got {noise!r}")
+    if medium not in MEDIA:
+        raise ValueError(f"medium must be one of {MEDIA}, got {medium!r}")
     pitch, h = grid.pitch, grid.thickness
     if subdivisions is None:
         smallest = min(min(c.semi_axes) for c in contacts)
         subdivisions = int(min(128, max(8, math.ceil(pitch / min(h / 4, smallest / 10)))))
+    if isinstance(subdivisions, bool) or int(subdivisions) != subdivisions or subdivisions < 1:
+        raise ValueError(f"subdivisions must be a whole number >= 1, got {subdivisions!r}")
+    subdivisions = int(subdivisions)
+    if subdivisions % 2 == 0:
+        subdivisions += 1   # odd: sensors of a regular grid sit on sub-cell centres
     step = pitch / subdivisions
     # Sub-cell centres tiling every node cell exactly.
     offsets = ((np.arange(subdivisions) + 0.5) / subdivisions - 0.5) * pitch
@@ -262,7 +301,7 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
 
     m = grid.size
     forces = np.zeros((m, 3))
-    stress = np.zeros(m)
+    points = []   # loaded sub-cells of every contact: x, y, fx, fy, fz
     for contact in contacts:
         total, second_moment = _normalisation(contact, step, supersample, anchor)
         # node cells that the contact can touch
@@ -293,17 +332,101 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
         np.add.at(forces, (owner, 0), fx)
         np.add.at(forces, (owner, 1), fy)
         np.add.at(forces, (owner, 2), fz)
-        # Exact point-force stresses of every sub-cell, in chunks to bound memory.
-        chunk = max(1, 4_000_000 // m)
-        for start in range(0, x.size, chunk):
-            sl = slice(start, start + chunk)
-            kx, ky, kz = point_force_stress(grid.positions[:, 0, None] - x[None, sl],
-                                            grid.positions[:, 1, None] - y[None, sl], h)
-            stress += kx @ fx[sl] + ky @ fy[sl] + kz @ fz[sl]
+        points.append((x, y, fx, fy, fz))
+
+    x, y, fx, fy, fz = (np.concatenate([p[k] for p in points]) if points else np.zeros(0)
+                        for k in range(5))
+    if medium == "layer":
+        stress = _layer_stress(grid, x, y, fx, fy, fz, step)
+    else:
+        stress = _halfspace_stress(grid, x, y, fx, fy, fz)
 
     clean = stress.copy()
     if noise > 0:
         generator = np.random.default_rng(rng)
         stress = stress + generator.normal(0.0, noise * np.abs(clean).max(), size=m)
     return SimulatedFrame(grid=grid, stress=read_only(stress), clean_stress=read_only(clean),
-                          forces=read_only(forces), contacts=contacts, noise=float(noise))
+                          forces=read_only(forces), contacts=contacts, noise=float(noise),
+                          medium=medium)
+
+
+def _taxel_points(grid: SensorGrid):
+    # Gauss-Legendre points and weights over a taxel (the centre alone for point sensors).
+    if grid.sensor_size == 0:
+        return np.zeros((1, 2)), np.ones(1)
+    count = int(min(12, max(2, math.ceil(3.0 * grid.sensor_size / grid.thickness))))
+    nodes, weights = np.polynomial.legendre.leggauss(count)
+    u, v = np.meshgrid(0.5 * grid.sensor_size * nodes, 0.5 * grid.sensor_size * nodes)
+    return np.column_stack([u.ravel(), v.ravel()]), np.outer(weights, weights).ravel() / 4.0
+
+
+def _halfspace_stress(grid: SensorGrid, x, y, fx, fy, fz):
+    # Exact point-force stresses of every sub-cell, in chunks to bound memory.
+    m = grid.size
+    stress = np.zeros(m)
+    offsets, weights = _taxel_points(grid)
+    chunk = max(1, 4_000_000 // m)
+    for (ox, oy), weight in zip(offsets, weights, strict=True):
+        sx, sy = grid.positions[:, 0, None] + ox, grid.positions[:, 1, None] + oy
+        for start in range(0, x.size, chunk):
+            sl = slice(start, start + chunk)
+            kx, ky, kz = point_force_stress(sx - x[None, sl], sy - y[None, sl], grid.thickness)
+            stress += weight * (kx @ fx[sl] + ky @ fy[sl] + kz @ fz[sl])
+    return stress
+
+
+def _layer_stress(grid: SensorGrid, x, y, fx, fy, fz, step):
+    # FFT convolution of the sub-cell tractions with the layer's transfer
+    # functions on the sub-cell lattice (anchored on the first sensor, so a
+    # regular grid's sensors are lattice points), then read at the sensors.
+    m, h = grid.size, grid.thickness
+    stress = np.zeros(m)
+    if x.size == 0:
+        return stress
+    anchor = grid.positions[0]
+    reach = LAYER_REACH * h
+    low = np.array([x.min(), y.min()]) - reach
+    high = np.array([x.max(), y.max()]) + reach
+    sensors = grid.positions
+    near = np.flatnonzero(np.all((sensors >= low) & (sensors <= high), axis=1))
+    if near.size == 0:
+        return stress
+    start = np.floor((np.minimum(low, sensors[near].min(axis=0)) - anchor) / step).astype(int) - 2
+    stop = np.ceil((np.maximum(high, sensors[near].max(axis=0)) - anchor) / step).astype(int) + 2
+    # the periodic lattice wraps: one more reach keeps the images apart
+    size = [scipy.fft.next_fast_len(int(n), real=True) for n in (stop - start + 1 + int(reach / step))]
+    origin = anchor + start * step
+    # Cloud-in-cell deposit: exact for sub-cells on the lattice, and it keeps
+    # the total force and first moment of any others.
+    grids = [np.zeros(size[::-1]) for _ in range(3)]
+    gx, gy = (x - origin[0]) / step, (y - origin[1]) / step
+    ix, iy = np.floor(gx).astype(int), np.floor(gy).astype(int)
+    wx, wy = gx - ix, gy - iy
+    for image, values in zip(grids, (fx, fy, fz), strict=True):
+        for dx_, wxs in ((0, 1 - wx), (1, wx)):
+            for dy_, wys in ((0, 1 - wy), (1, wy)):
+                np.add.at(image, (iy + dy_, ix + dx_), values * wxs * wys)
+    kx = 2 * np.pi * scipy.fft.rfftfreq(size[0], step)
+    ky = 2 * np.pi * scipy.fft.fftfreq(size[1], step)
+    kxx, kyy = np.meshgrid(kx, ky)
+    k = np.hypot(kxx, kyy)
+    # transfer functions on a fine 1-D table of kh, linear interpolation (error < 1e-5)
+    table_kh = np.linspace(0.0, 40.0, 8001)
+    normal, tangential = layer.transfer(table_kh, grid.poisson_ratio)
+    g_n = np.interp(k * h, table_kh, normal, right=0.0)
+    g_t = np.interp(k * h, table_kh, tangential, right=0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        direction_x = np.where(k > 0, kxx / k, 0.0)
+        direction_y = np.where(k > 0, kyy / k, 0.0)
+    # each sub-cell's force spread over its square; sensors averaged over their taxel
+    window = np.sinc(kxx * step / (2 * np.pi)) * np.sinc(kyy * step / (2 * np.pi))
+    if grid.sensor_size > 0:
+        side = grid.sensor_size
+        window = window * np.sinc(kxx * side / (2 * np.pi)) * np.sinc(kyy * side / (2 * np.pi))
+    fx_hat, fy_hat, fz_hat = (scipy.fft.rfft2(image) for image in grids)
+    response = (g_n * fz_hat - 1j * g_t * (direction_x * fx_hat + direction_y * fy_hat)) * window
+    field = scipy.fft.irfft2(response, s=size[::-1]) / (step * step)
+    # spline read-out: exact at lattice points, smooth (kernel scale h >> step) elsewhere
+    coords = (sensors[near] - origin) / step
+    stress[near] = ndimage.map_coordinates(field, [coords[:, 1], coords[:, 0]], order=3, mode="wrap")
+    return stress

@@ -1,6 +1,6 @@
 """Model only what the scene requires: solve each contact on its own window of the skin.
 
-The half-space kernels depend only on the offset between a sensor and a node,
+Every kernel (layer and half-space) depends only on the offset between a sensor and a node,
 so the stress matrix of any ``by x bx`` window of a regular grid is the same
 wherever the window sits. :class:`RegionSolver` therefore never forms the
 skin's full ``m x 3m`` matrix: per frame it finds the contacts in the data,
@@ -58,7 +58,8 @@ class RegionSolver:
     ----------
     grid : SensorGrid
         A regular grid (``grid.shape == (ny, nx)``).
-    kernel : {"cell", "point"}, optional
+    kernel : {"layer", "cell", "point"}, optional
+        Stress kernel (see :mod:`solver.kernels`). Default "layer".
     threshold : float, optional
         Fraction of the frame's peak stress above which a sensor shows
         contact. Default 0.05.
@@ -76,7 +77,7 @@ class RegionSolver:
         (``max_condition``, ``max_shear_ratio``, ``efficiency`` ...).
     """
 
-    def __init__(self, grid: SensorGrid, *, kernel: str = "cell", threshold: float = 0.05,
+    def __init__(self, grid: SensorGrid, *, kernel: str = "layer", threshold: float = 0.05,
                  spread: float = 2.0, step: int = 4, cache: int = 8, **options):
         if not isinstance(grid, SensorGrid) or not grid.is_regular:
             raise ValueError("grid must be a regular SensorGrid (RegionSolver cuts rectangular windows)")
@@ -98,7 +99,12 @@ class RegionSolver:
         self._capacity = cache
         self.factorizations = 0  # windows factored so far (the rest were reused)
         # the options are checked now, on the smallest window, not at the first frame
-        Reconstructor(SensorGrid.regular(1, 1, grid.pitch, grid.thickness), kernel=kernel, **options)
+        Reconstructor(self._window(1, 1), kernel=kernel, **options)
+
+    def _window(self, rows: int, columns: int) -> SensorGrid:
+        g = self.grid
+        return SensorGrid.regular(columns, rows, g.pitch, g.thickness,
+                                  poisson_ratio=g.poisson_ratio, sensor_size=g.sensor_size)
 
     def reconstructor(self, rows: int, columns: int) -> Reconstructor:
         """The (cached) reconstructor of a ``rows x columns`` window."""
@@ -106,8 +112,7 @@ class RegionSolver:
         if key in self._cache:
             self._cache.move_to_end(key)
             return self._cache[key]
-        window = SensorGrid.regular(columns, rows, self.grid.pitch, self.grid.thickness)
-        made = Reconstructor(window, kernel=self.kernel, **self._options)
+        made = Reconstructor(self._window(rows, columns), kernel=self.kernel, **self._options)
         self.factorizations += 1
         self._cache[key] = made
         if len(self._cache) > self._capacity:

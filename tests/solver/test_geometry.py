@@ -1,4 +1,4 @@
-"""SensorGrid: layout order, centring, immutability, regularity and rejected input."""
+"""SensorGrid: layout order, centring, immutability, regularity, material and taxel size, rejected input."""
 
 import dataclasses
 import math
@@ -52,6 +52,7 @@ def test_scalars_are_stored_as_floats():
 
 @pytest.mark.parametrize("field, value", [
     ("positions", np.zeros((4, 2))), ("thickness", 2e-3), ("pitch", 2e-3), ("shape", (4, 1)),
+    ("poisson_ratio", 0.3), ("sensor_size", 1e-4),
 ])
 def test_grid_is_frozen(field, value):
     grid = SensorGrid.regular(2, 2, 1e-3, 1e-3)
@@ -113,7 +114,89 @@ def test_irregular_layout_and_thickness_change():
 
 
 def test_repr_names_the_geometry():
-    assert repr(SensorGrid.regular(3, 2, 2e-3, 1e-3)) == "SensorGrid(shape=(2, 3), pitch=0.002 m, thickness=0.001 m)"
+    assert repr(SensorGrid.regular(3, 2, 2e-3, 1e-3)) == "SensorGrid(shape=(2, 3), pitch=0.002 m, thickness=0.001 m, nu=0.5)"
+    assert (repr(SensorGrid.regular(3, 2, 2e-3, 1e-3, poisson_ratio=0.45, sensor_size=1e-3))
+            == "SensorGrid(shape=(2, 3), pitch=0.002 m, thickness=0.001 m, nu=0.45, sensor_size=0.001 m)")
+
+
+# -- the elastomer's Poisson ratio and the taxel size -------------------------------------------
+
+def test_material_and_taxel_defaults():
+    # an incompressible layer read by point sensors, as every file without the keys means
+    for grid in (SensorGrid.regular(3, 2, 2e-3, 1e-3), SensorGrid(np.zeros((1, 2)), 1e-3, 1e-3, (1,))):
+        assert grid.poisson_ratio == 0.5 and type(grid.poisson_ratio) is float
+        assert grid.sensor_size == 0.0 and type(grid.sensor_size) is float
+
+
+@pytest.mark.parametrize("poisson_ratio, sensor_size", [
+    (0.45, 1e-3), (0, 0), (0.5, 2e-3), (np.float32(0.25), np.float64(5e-4)), (np.int64(0), 0.0),
+], ids=["typical", "zeros", "incompressible-full-cover", "numpy-floats", "numpy-int"])
+def test_material_and_taxel_are_stored_as_floats(poisson_ratio, sensor_size):
+    grid = SensorGrid.regular(4, 3, 2e-3, 1e-3, poisson_ratio=poisson_ratio, sensor_size=sensor_size)
+    assert type(grid.poisson_ratio) is float and grid.poisson_ratio == float(poisson_ratio)
+    assert type(grid.sensor_size) is float and grid.sensor_size == float(sensor_size)
+    assert grid.is_regular  # nu and the taxel size do not move the sensors
+    direct = SensorGrid(grid.positions, 1e-3, 2e-3, (3, 4), poisson_ratio, sensor_size)
+    assert direct.poisson_ratio == grid.poisson_ratio and direct.sensor_size == grid.sensor_size
+
+
+def test_thickness_change_and_replace_keep_material_and_taxel():
+    grid = SensorGrid.regular(4, 3, 2e-3, 1e-3, poisson_ratio=0.45, sensor_size=1e-3)
+    thicker = grid.with_thickness(3e-3)
+    assert thicker.thickness == 3e-3 and thicker.poisson_ratio == 0.45 and thicker.sensor_size == 1e-3
+    window = grid.replace(positions=grid.positions[:4], shape=(4,))
+    assert window.size == 4 and window.poisson_ratio == 0.45 and window.sensor_size == 1e-3
+    assert window.pitch == grid.pitch and window.thickness == grid.thickness
+    softer = grid.replace(poisson_ratio=0.3)
+    assert softer.poisson_ratio == 0.3 and grid.poisson_ratio == 0.45  # a copy: the original stays
+    np.testing.assert_array_equal(softer.positions, grid.positions)
+    # a changed field is checked like a new grid's
+    with pytest.raises(ValueError, match=r"poisson_ratio must be a finite number in \[0, 0.5\], got 0.7"):
+        grid.replace(poisson_ratio=0.7)
+    with pytest.raises(ValueError, match=r"sensor_size must be at most the pitch \(taxels cannot overlap\), "
+                                         r"got 0.001 m with pitch 0.0005 m"):
+        grid.replace(pitch=0.5e-3)  # the taxels that fitted at 2 mm overlap at 0.5 mm
+    with pytest.raises(TypeError, match="unexpected keyword argument 'nu'"):
+        grid.replace(nu=0.3)
+
+
+NU_RULE = r"poisson_ratio must be a finite number in \[0, 0.5\], got "
+SIZE_RULE = r"sensor_size must be a finite number of metres >= 0 \(0 for point sensors\), got "
+OVERLAP_RULE = r"sensor_size must be at most the pitch \(taxels cannot overlap\), got "
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(poisson_ratio=0.7), NU_RULE + "0.7$"),
+    (dict(poisson_ratio=0.5000001), NU_RULE + "0.5000001$"),
+    (dict(poisson_ratio=-0.1), NU_RULE + "-0.1$"),
+    (dict(poisson_ratio=math.nan), NU_RULE + "nan$"),
+    (dict(poisson_ratio=math.inf), NU_RULE + "inf$"),
+    (dict(poisson_ratio=-math.inf), NU_RULE + "-inf$"),
+    (dict(poisson_ratio="abc"), NU_RULE + "'abc'$"),
+    (dict(poisson_ratio="0.3"), NU_RULE + "'0.3'$"),
+    (dict(poisson_ratio=None), NU_RULE + "None$"),
+    (dict(poisson_ratio=True), NU_RULE + "True$"),
+    (dict(poisson_ratio=np.bool_(False)), NU_RULE + "False$"),
+    (dict(poisson_ratio=np.float64(0.7)), NU_RULE + "0.7$"),
+    (dict(poisson_ratio=[0.3]), NU_RULE + r"\[0.3\]$"),
+    (dict(sensor_size=-1e-4), SIZE_RULE + "-0.0001$"),
+    (dict(sensor_size=math.nan), SIZE_RULE + "nan$"),
+    (dict(sensor_size=math.inf), SIZE_RULE + "inf$"),
+    (dict(sensor_size="1mm"), SIZE_RULE + "'1mm'$"),
+    (dict(sensor_size=None), SIZE_RULE + "None$"),
+    (dict(sensor_size=False), SIZE_RULE + "False$"),
+    (dict(sensor_size=1.5e-3), OVERLAP_RULE + "0.0015 m with pitch 0.001 m$"),
+    (dict(sensor_size=1e-3 * (1 + 1e-9)), OVERLAP_RULE + "0.001 m with pitch 0.001 m$"),
+], ids=["nu-above", "nu-just-above", "nu-negative", "nu-nan", "nu-inf", "nu-minus-inf", "nu-text",
+        "nu-numeric-text", "nu-none", "nu-bool", "nu-numpy-bool", "nu-numpy", "nu-list", "size-negative",
+        "size-nan", "size-inf", "size-text", "size-none", "size-bool", "size-overlap", "size-just-over"])
+def test_impossible_material_or_taxel_is_rejected(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        SensorGrid.regular(4, 3, pitch=1e-3, thickness=1e-3, **kwargs)
+    with pytest.raises(ValueError, match=message):
+        SensorGrid(np.zeros((1, 2)), 1e-3, 1e-3, (1,), **kwargs)
+    with pytest.raises(ValueError, match=message):
+        SensorGrid.regular(4, 3, pitch=1e-3, thickness=1e-3).replace(**kwargs)
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -16,11 +16,11 @@ def love_rectangle(q, L, B, z):
 
 
 def test_hertz_on_axis_matches_closed_form():
-    # T33(0, z) = p0 a^2 / (a^2 + z^2), from the fine integration of the continuous load
+    # T33(0, z) = p0 a^2 / (a^2 + z^2) on a half-space, from the fine integration of the continuous load
     a, force, z = 4e-3, 2.0, 3e-3
     p0 = 3 * force / (2 * math.pi * a * a)
     grid = SensorGrid.regular(1, 1, pitch=30e-3, thickness=z)
-    frame = loads.simulate(grid, loads.hertz((0.0, 0.0), a, force), subdivisions=600)
+    frame = loads.simulate(grid, loads.hertz((0.0, 0.0), a, force), subdivisions=600, medium="halfspace")
     assert frame.stress[0] == pytest.approx(p0 * a * a / (a * a + z * z), rel=2e-3)
 
 

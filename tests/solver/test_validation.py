@@ -4,14 +4,24 @@ import numpy as np
 import pytest
 
 from solver import Reconstructor
-from solver.validation import evaluate, format_table, standard_cases, summarize
+from solver.validation import (
+    evaluate,
+    false_shear,
+    format_mismatch,
+    format_table,
+    layer_cases,
+    mismatch,
+    standard_cases,
+    summarize,
+)
 
 
 @pytest.fixture(scope="module")
 def cases():
     # 16x16; Hertz, cone, flat punch, uniform ellipse; shear ratio 0, 0.2, 0.4 in
-    # golden-angle directions; h/pitch 0.5, 1, 1.5; 1% noise; seed fixed in standard_cases
-    return standard_cases()
+    # golden-angle directions; h/pitch 0.5, 1, 1.5; 1% noise; seed fixed in standard_cases.
+    # Half-space data: this is the set the half-space kernels and the functional were tuned on.
+    return standard_cases(medium="halfspace")
 
 
 def test_standard_set_covers_what_the_bar_names(cases):
@@ -26,6 +36,7 @@ def test_standard_set_covers_what_the_bar_names(cases):
 
 
 @pytest.mark.parametrize("kernel, normal_bar", [("cell", 0.03), ("point", 0.08)])
+# half-space kernels on half-space data
 def test_medians_over_the_standard_set_meet_the_bar(cases, kernel, normal_bar, capsys):
     rows = evaluate(cases, lambda grid: Reconstructor(grid, kernel=kernel))
     with capsys.disabled():
@@ -50,3 +61,76 @@ def test_cell_kernel_keeps_the_normal_total_at_thin_layers(cases):
     point = summarize(evaluate(thin, lambda g: Reconstructor(g, kernel="point")))
     cell = summarize(evaluate(thin, lambda g: Reconstructor(g, kernel="cell")))
     assert cell["normal_total"] < 0.03 < point["normal_total"]
+
+
+# -- the bonded layer: the inverse crime avoided ---------------------------------------------------
+# Layer data come from the transfer functions by FFT convolution of the finely sampled
+# load (solver.loads), the layer kernel from Hankel tables and edge integrals
+# (solver.kernels): two paths. The set (solver.validation.layer_cases) has its own seed
+# and h/pitch 2: nothing was tuned on it.
+
+
+@pytest.fixture(scope="module")
+def layer_noisy():
+    return layer_cases(noise=0.01)
+
+
+@pytest.fixture(scope="module")
+def layer_clean():
+    return layer_cases(noise=0.0)
+
+
+@pytest.fixture(scope="module")
+def half_space_noisy():
+    return layer_cases(noise=0.01, medium="halfspace")
+
+
+def test_layer_set_covers_what_the_issue_names(layer_noisy):
+    assert len(layer_noisy) == 48
+    assert {c.thickness_ratio for c in layer_noisy} == {0.5, 1.0, 1.5, 2.0}
+    assert {c.shape for c in layer_noisy} == {"hertz", "cone", "flat_punch", "ellipse"}
+    assert all(c.frame.medium == "layer" and c.frame.grid.poisson_ratio == 0.5 for c in layer_noisy)
+
+
+def test_layer_kernel_on_layer_data_meets_the_bar(layer_noisy, capsys):
+    rows = evaluate(layer_noisy, lambda grid: Reconstructor(grid, kernel="layer"))
+    with capsys.disabled():
+        print(f"\nlayer kernel on layer data (nu 0.5), 1% noise\n{format_table(rows)}")
+    s = summarize(rows)
+    # measured 1.05%, 5.5%, 7.2 deg
+    assert s["normal_total"] <= 0.03
+    assert s["tangential_total"] <= 0.12
+    assert s["direction_deg"] <= 15.0
+
+
+def test_layer_kernel_on_clean_layer_data_finds_the_shear(layer_clean):
+    s = summarize(evaluate(layer_clean, lambda grid: Reconstructor(grid, kernel="layer")))
+    # measured 0.08%, 1.8%, 3.2 deg
+    assert s["tangential_total"] <= 0.05
+    assert s["direction_deg"] <= 5.0
+
+
+def test_shear_free_loads_get_no_more_shear_than_on_half_space_data(layer_noisy, half_space_noisy):
+    on_layer = false_shear(evaluate(layer_noisy, lambda grid: Reconstructor(grid, kernel="layer")))
+    on_half_space = false_shear(evaluate(half_space_noisy, lambda grid: Reconstructor(grid, kernel="cell")))
+    # measured 4/16 (largest 0.17) against 5/16 (largest 0.25)
+    assert on_layer["count"] <= on_half_space["count"]
+    assert on_layer["mean"] <= on_half_space["mean"]
+    assert on_layer["largest"] <= on_half_space["largest"]
+
+
+def test_half_space_kernels_miss_the_shear_of_a_real_skin(capsys):
+    rows = mismatch(noise=0.01)
+    with capsys.disabled():
+        print(f"\nkernels against data media, 1% noise\n{format_mismatch(rows)}")
+    table = {(r["medium"], r["kernel"]): r for r in rows}
+    for medium in ("layer nu=0.45", "layer nu=0.5"):
+        layer, cell = table[medium, "layer"], table[medium, "cell"]
+        # measured 5.5-5.7% against 24%: the half-space physics is the error
+        assert 3 * layer["tangential_total"] < cell["tangential_total"]
+        assert layer["false"]["count"] < cell["false"]["count"]
+        # equilibrium keeps the normal totals of both
+        assert cell["normal_total"] < 0.03 and layer["normal_total"] < 0.03
+    # conditions reported per thickness, growing with it
+    conditions = list(table["layer nu=0.5", "layer"]["condition"].values())
+    assert conditions == sorted(conditions) and conditions[0] >= 1
