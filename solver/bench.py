@@ -15,10 +15,10 @@ import time
 
 import numpy as np
 
-from . import loads
+from . import layer, loads
 from .geometry import SensorGrid
 from .inverse import Reconstructor
-from .kernels import stress_matrix
+from .kernels import KERNELS, stress_matrix
 
 
 def _median_ms(fn, repeat):
@@ -40,7 +40,7 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, numpy {np.__version__}, python {platform.python_version()}"
 
 
-def per_frame(n=16, frames=40, kernel="cell", repeat=5):
+def per_frame(n=16, frames=40, kernel="layer", repeat=5):
     """Median over frames of the solve time (ms) on simulated Hertzian frames with 1% noise.
 
     Each frame is solved ``repeat`` times and its fastest run kept: this
@@ -68,13 +68,23 @@ def per_frame(n=16, frames=40, kernel="cell", repeat=5):
     return out
 
 
-def setup(n, *, pinv=True, repeat=1):
-    """Set-up seconds for an n x n grid: our factorization and, optionally, numpy pinv."""
+def layer_tables(poisson_ratio=0.45):
+    """Seconds to compute the layer kernel's Hankel tables of one Poisson ratio (uncached)."""
+    start = time.perf_counter()
+    layer.LayerTable.compute(poisson_ratio)
+    return time.perf_counter() - start
+
+
+def setup(n, *, pinv=True, repeat=1, kernel="layer"):
+    """Set-up seconds for an n x n grid: our factorization and, optionally, numpy pinv.
+
+    The layer kernel's Hankel tables are cached per Poisson ratio: the first
+    set-up of a process pays for them too (:func:`layer_tables`)."""
     grid = SensorGrid.regular(n, n, 2e-3, 2e-3)
-    ours = _median_ms(lambda: Reconstructor(grid), repeat) / 1e3
+    ours = _median_ms(lambda: Reconstructor(grid, kernel=kernel), repeat) / 1e3
     reference = None
     if pinv:
-        C = stress_matrix(grid, "cell")
+        C = stress_matrix(grid, kernel)
         start = time.perf_counter()
         np.linalg.pinv(C)
         reference = time.perf_counter() - start
@@ -87,13 +97,15 @@ def main(argv=None):
     parser.add_argument("--no-pinv", action="store_true", help="skip numpy.linalg.pinv (90 s at 64x64)")
     args = parser.parse_args(argv)
     print(f"machine: {machine()}")
-    for kernel in ("cell", "point"):
+    print(f"layer tables (once per Poisson ratio): {layer_tables():.3f} s")
+    for kernel in KERNELS:
         t = per_frame(kernel=kernel)
         print(f"16x16 {kernel:5} solve median: auto {t['auto']:.3f} ms, given parameters "
               f"{t['given']:.3f} ms, normal only {t['normal']:.3f} ms")
     for n in args.sizes:
         ours, ref = setup(n, pinv=not args.no_pinv)
-        line = f"{n}x{n} set-up: Reconstructor {ours:.2f} s"
+        cell, _ = setup(n, pinv=False, kernel="cell")
+        line = f"{n}x{n} set-up: Reconstructor {ours:.2f} s (cell kernel {cell:.2f} s)"
         if ref is not None:
             line += f", numpy.linalg.pinv {ref:.2f} s, ratio pinv/ours {ref / ours:.1f}x"
         print(line, flush=True)

@@ -11,7 +11,7 @@ import numpy as np
 
 from .arrays import read_only
 
-__all__ = ["SensorGrid"]
+__all__ = ["SensorGrid", "check_poisson_ratio"]
 
 
 def _positive_finite(name: str, value) -> float:
@@ -36,7 +36,8 @@ def _real(value) -> float | None:
     return float(value)
 
 
-def _poisson_ratio(value) -> float:
+def check_poisson_ratio(value) -> float:
+    """``value`` as a Poisson ratio in [0, 0.5]; ValueError naming ``poisson_ratio`` otherwise."""
     # an isotropic solid has -1 < nu <= 0.5; elastomers are not auxetic, and 0.5 itself
     # (incompressible) must stay allowed because real silicones are within 1e-3 of it
     number = _real(value)
@@ -120,7 +121,7 @@ class SensorGrid:
         object.__setattr__(self, "positions", positions)
         object.__setattr__(self, "thickness", _positive_finite("thickness", self.thickness))
         object.__setattr__(self, "pitch", _positive_finite("pitch", self.pitch))
-        object.__setattr__(self, "poisson_ratio", _poisson_ratio(self.poisson_ratio))
+        object.__setattr__(self, "poisson_ratio", check_poisson_ratio(self.poisson_ratio))
         object.__setattr__(self, "sensor_size", _sensor_size(self.sensor_size, self.pitch))
         shape = tuple(self.shape)
         if not all(isinstance(s, (int, np.integer)) and not isinstance(s, bool) and s >= 1 for s in shape):

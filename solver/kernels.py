@@ -36,7 +36,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from . import layer
-from .geometry import SensorGrid
+from .geometry import SensorGrid, check_poisson_ratio
 
 __all__ = ["KERNELS", "point_force_stress", "cell_force_stress", "layer_force_stress", "stress_matrix"]
 
@@ -149,7 +149,7 @@ def layer_force_stress(dx, dy, thickness: float, width: float, poisson_ratio: fl
     kx, ky, kz : ndarray
         Pascals per newton of force along x, y and z (z into the skin).
     """
-    tab = layer.table(layer.check_poisson_ratio(poisson_ratio))
+    tab = layer.table(check_poisson_ratio(poisson_ratio))
     dx, dy = np.broadcast_arrays(np.asarray(dx, float), np.asarray(dy, float))
     shape = dx.shape
     dx, dy = dx.ravel(), dy.ravel()

@@ -51,9 +51,9 @@ from scipy.interpolate import CubicSpline
 from scipy.special import j0, j1
 
 from .arrays import read_only
+from .geometry import check_poisson_ratio
 
-__all__ = ["transfer", "LayerTable", "table", "point_force_stress", "check_poisson_ratio",
-           "EDGE_PANEL"]
+__all__ = ["transfer", "LayerTable", "table", "point_force_stress", "EDGE_PANEL"]
 
 # Tables reach this many thicknesses from the load; beyond it the base stress
 # of a bonded layer has decayed below 1e-9 of its peak at any nu (it decays
@@ -63,16 +63,6 @@ _STEP = 0.02              # table spacing, thicknesses (cubic spline: 2e-7 of th
 _WAVENUMBER_MAX = 40.0    # G_n, G_t ~ kh e^{-kh}: below 1e-15 of their peak beyond
 _WAVENUMBER_PANEL = 0.25  # 8-point Gauss-Legendre panels: J(k r) at r = REACH h is resolved
 EDGE_PANEL = 0.5          # cell-edge quadrature panels (solver.kernels), thicknesses
-
-
-def check_poisson_ratio(poisson_ratio) -> float:
-    """``poisson_ratio`` as a float in [0, 0.5]; ValueError naming it otherwise."""
-    if isinstance(poisson_ratio, bool) or not isinstance(poisson_ratio, (int, float, np.integer, np.floating)):
-        raise ValueError(f"poisson_ratio must be a finite number in [0, 0.5], got {poisson_ratio!r}")
-    value = float(poisson_ratio)
-    if not (math.isfinite(value) and 0.0 <= value <= 0.5):
-        raise ValueError(f"poisson_ratio must be a finite number in [0, 0.5], got {poisson_ratio!r}")
-    return value
 
 
 def _system_matrix(nu: float) -> np.ndarray:

@@ -35,10 +35,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
-
 import scipy.fft
 from scipy import ndimage
+from scipy.spatial import cKDTree
 
 from . import layer
 from .arrays import read_only

@@ -51,7 +51,9 @@ class Configuration:
     Attributes
     ----------
     name : str
-    kernel : {"cell", "point"}
+    kernel : {"layer", "cell", "point"}
+        Stress kernel (:mod:`solver.kernels`); "layer" is the skin as built,
+        "cell" and "point" the paper's half-space kernels.
     path : {"exact", "constrained", "normal", "region"}
         ``exact``: the member of the exact solution family at the efficiency
         maximum; ``constrained``: the fitted compressive, friction-shaped load
@@ -66,7 +68,7 @@ class Configuration:
     """
 
     name: str
-    kernel: str = "cell"
+    kernel: str = "layer"
     path: str = "exact"
     iterations: int = 12
     tolerance: float = 1e-3
@@ -129,12 +131,13 @@ def _normal_only(result, forces):
 CONFIGURATIONS = (
     Configuration("normal only", path="normal"),
     Configuration("point, exact", kernel="point"),
-    Configuration("cell, coarse search", iterations=2, tolerance=1e-2),
-    Configuration("cell, exact"),
-    Configuration("cell, exact, weak damping", max_condition=1e4),
-    Configuration("cell, exact, strong damping", max_condition=30.0),
-    Configuration("cell, region of interest", path="region"),
-    Configuration("cell, constrained", path="constrained"),
+    Configuration("cell, exact", kernel="cell"),
+    Configuration("layer, coarse search", iterations=2, tolerance=1e-2),
+    Configuration("layer, exact"),
+    Configuration("layer, exact, weak damping", max_condition=1e4),
+    Configuration("layer, exact, strong damping", max_condition=30.0),
+    Configuration("layer, region of interest", path="region"),
+    Configuration("layer, constrained", path="constrained"),
 )
 
 

@@ -110,7 +110,8 @@ MISMATCH_MEDIA = (("half-space", "halfspace", 0.5), ("layer nu=0.45", "layer", 0
                   ("layer nu=0.5", "layer", 0.5))
 
 
-def mismatch(*, noise: float = 0.01, kernels=("point", "cell", "layer"), media=MISMATCH_MEDIA) -> list[dict]:
+def mismatch(*, noise: float = 0.01, kernels=("point", "cell", "layer"),
+             media=MISMATCH_MEDIA) -> list[dict]:
     """Every kernel on data of every medium (:func:`layer_cases`): medians, false shear, conditions.
 
     Returns one row per (medium, kernel) with the :func:`summarize` medians, the
@@ -139,7 +140,8 @@ def mismatch(*, noise: float = 0.01, kernels=("point", "cell", "layer"), media=M
 def format_mismatch(rows) -> str:
     ratios = list(rows[0]["condition"])
     head = " ".join(f"{'cond h/p=' + format(r, 'g'):>12}" for r in ratios)
-    lines = [f"{'data':<14} {'kernel':<6} {'normal':>7} {'tang':>6} {'dir deg':>7} {'false shear':>15} {head}"]
+    lines = [f"{'data':<14} {'kernel':<6} {'normal':>7} {'tang':>6} {'dir deg':>7} "
+             f"{'false shear':>15} {head}"]
     for r in rows:
         false = f"{r['false']['count']}/{r['false']['cases']} max {r['false']['largest']:.2f}"
         conds = " ".join(f"{c:12.3g}" for c in r["condition"].values())

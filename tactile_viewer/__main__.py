@@ -16,19 +16,24 @@ import time
 import numpy as np
 
 from solver import Reconstructor, metrics
+from solver.kernels import KERNELS
 
+from .model import KERNEL_HELP, geometry_text
 from .recording import RecordingError, load
 
 
-def report(path, *, frame=None, kernel="cell", shear_ratio=None, shear_direction_deg=None, out=None):
+def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None, out=None):
+    """Reconstruct a recording headlessly and print one line per frame (with errors when it has truth).
+
+    The first line names the geometry, the elastomer's Poisson ratio included.
+    """
     out = sys.stdout if out is None else out
     recording = load(path)
     grid = recording.grid
     start = time.perf_counter()
     reconstructor = Reconstructor(grid, kernel=kernel)
     setup = time.perf_counter() - start
-    print(f"{path}: {len(recording)} frames, {grid.shape[1]}x{grid.shape[0]} grid, pitch "
-          f"{grid.pitch * 1e3:g} mm, thickness {grid.thickness * 1e3:g} mm, kernel {kernel}; "
+    print(f"{path}: {len(recording)} frames, {geometry_text(grid)}, kernel {kernel}; "
           f"set-up {setup * 1e3:.1f} ms", file=out)
     if recording.description:
         print(f"  {recording.description}", file=out)
@@ -60,7 +65,7 @@ def _frame_index(frame, recording):
     return frame
 
 
-def screenshot(path, out, *, frame=0, kernel="cell", shear_ratio=None, shear_direction_deg=None,
+def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None,
                scale=1, transparent=False, camera="iso", size=(1200, 800), display_map="pressure"):
     """Render one frame off screen with the window's own scene and save PNG + JSON sidecar."""
     import pyvista as pv
@@ -96,7 +101,7 @@ def main(argv=None):
     parser.add_argument("recording", nargs="?")
     parser.add_argument("--report", action="store_true", help="print the reconstruction (headless)")
     parser.add_argument("--frame", type=int)
-    parser.add_argument("--kernel", choices=("cell", "point"), default="cell")
+    parser.add_argument("--kernel", choices=KERNELS, default=KERNELS[0], help=KERNEL_HELP)
     parser.add_argument("--shear-ratio", type=float)
     parser.add_argument("--shear-direction", type=float, help="degrees")
     parser.add_argument("--screenshot", metavar="PNG",
@@ -128,7 +133,7 @@ def main(argv=None):
     return run_window(args.recording, kernel=args.kernel)
 
 
-def run_window(path=None, *, kernel="cell"):
+def run_window(path=None, *, kernel=KERNELS[0]):
     from PyQt6 import QtWidgets
 
     from .main_window import MainWindow
@@ -136,6 +141,9 @@ def run_window(path=None, *, kernel="cell"):
     app = QtWidgets.QApplication.instance() or QtWidgets.QApplication(sys.argv[:1])
     window = MainWindow()
     window.model.kernel = kernel
+    window.kernel_box.blockSignals(True)  # nothing is open yet: nothing to rebuild
+    window.kernel_box.setCurrentText(kernel)
+    window.kernel_box.blockSignals(False)
     window.show()
     if path:
         window.open(path)

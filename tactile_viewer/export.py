@@ -3,11 +3,12 @@
 Forces NPZ keys: ``forces (T, m, 3)`` N, ``frames (T,)`` indices into the
 recording, ``t (T,)`` s, ``shear_ratio (T,)``, ``shear_direction (T,)`` rad,
 ``efficiency (T,)``, ``residual (T,)``, ``condition (T,)``, ``positions (m, 2)``
-m, ``nx``, ``ny``, ``pitch``, ``thickness``, ``kernel``, ``mode`` ("auto" or
-"manual"), ``source`` (the recording's path).
+m, ``nx``, ``ny``, ``pitch``, ``thickness`` (m), ``poisson_ratio`` (the
+elastomer's nu), ``sensor_size`` (side of a square taxel, m; 0: point sensors),
+``kernel``, ``mode`` ("auto" or "manual"), ``source`` (the recording's path).
 
 Forces CSV: ``#`` header lines ``key=value`` (source, kernel, mode, nx, ny,
-pitch, thickness), then one row per frame and node:
+pitch, thickness, poisson_ratio, sensor_size), then one row per frame and node:
 ``frame, t, node, x, y, Fx, Fy, Fz, shear_ratio, shear_direction_deg``.
 """
 
@@ -38,7 +39,11 @@ class ExportCancelled(Exception):
 
 @dataclass(frozen=True)
 class ForceTable:
-    """Reconstructed forces of some frames of a recording (arrays as in the NPZ format)."""
+    """Reconstructed forces of some frames of a recording (arrays as in the NPZ format).
+
+    ``poisson_ratio`` and ``sensor_size`` (metres) are those of the geometry the
+    forces were solved on: the layer kernel's forces depend on them.
+    """
 
     forces: np.ndarray
     frames: np.ndarray
@@ -55,6 +60,8 @@ class ForceTable:
     kernel: str
     mode: str
     source: str
+    poisson_ratio: float = 0.5
+    sensor_size: float = 0.0
 
     def __post_init__(self):
         for name in ("forces", "frames", "t", "shear_ratio", "shear_direction", "efficiency", "residual",
@@ -91,7 +98,10 @@ def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frame
     return ForceTable(forces=forces, frames=frames, t=recording.t[frames], positions=recording.grid.positions,
                       shape=tuple(recording.grid.shape), pitch=recording.grid.pitch,
                       thickness=recording.grid.thickness, kernel=reconstructor.kernel,
-                      mode="auto" if auto else "manual", source=recording.description, **out)
+                      mode="auto" if auto else "manual", source=recording.description,
+                      # the material the forces were solved with, which is the solver's
+                      poisson_ratio=reconstructor.grid.poisson_ratio,
+                      sensor_size=reconstructor.grid.sensor_size, **out)
 
 
 def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
@@ -105,8 +115,9 @@ def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
                                 shear_ratio=table.shear_ratio, shear_direction=table.shear_direction,
                                 efficiency=table.efficiency, residual=table.residual,
                                 condition=table.condition, positions=table.positions, nx=nx, ny=ny,
-                                pitch=table.pitch, thickness=table.thickness, kernel=table.kernel,
-                                mode=table.mode, source=source)
+                                pitch=table.pitch, thickness=table.thickness,
+                                poisson_ratio=table.poisson_ratio, sensor_size=table.sensor_size,
+                                kernel=table.kernel, mode=table.mode, source=source)
     elif path.suffix.lower() == ".csv":
         T, m = table.forces.shape[:2]
         rows = np.column_stack([
@@ -118,7 +129,8 @@ def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
         buffer = io.StringIO()
         for key, value in (("source", " ".join(source.split())), ("kernel", table.kernel),
                            ("mode", table.mode), ("nx", nx), ("ny", ny), ("pitch", repr(table.pitch)),
-                           ("thickness", repr(table.thickness)), ("units", "m, N, degrees")):
+                           ("thickness", repr(table.thickness)), ("poisson_ratio", repr(table.poisson_ratio)),
+                           ("sensor_size", repr(table.sensor_size)), ("units", "m, N, degrees")):
             buffer.write(f"# {key}={value}\n")
         buffer.write(",".join(CSV_COLUMNS) + "\n")
         np.savetxt(buffer, rows, delimiter=",", fmt=["%d", "%.6f", "%d"] + ["%.9g"] * 7)

@@ -20,10 +20,11 @@ from PyQt6 import QtCore, QtGui, QtWidgets  # noqa: E402
 from pyvistaqt import QtInteractor  # noqa: E402
 
 from solver import tradeoff  # noqa: E402
+from solver.kernels import KERNELS  # noqa: E402
 
 from . import export  # noqa: E402
 from .connect_dialog import ConnectDialog  # noqa: E402
-from .model import MAX_SHEAR_RATIO, ViewerModel  # noqa: E402
+from .model import KERNEL_HELP, MAX_SHEAR_RATIO, ViewerModel, geometry_text  # noqa: E402
 from .recording import Recording, RecordingError, load  # noqa: E402
 from .scene import Scene  # noqa: E402
 from .sources import LayoutError, SensorLayout, SerialReader, load_layout  # noqa: E402
@@ -158,7 +159,10 @@ class MainWindow(QtWidgets.QMainWindow):
         self.direction_slider.valueChanged.connect(lambda v: self._manual(shear_direction=math.radians(v)))
         self.direction_spin.valueChanged.connect(lambda v: self._manual(shear_direction=math.radians(v)))
         self.kernel_box = QtWidgets.QComboBox()
-        self.kernel_box.addItems(["cell", "point"])
+        # the solver's list, its default first: a kernel added there appears here
+        self.kernel_box.addItems(list(KERNELS))
+        self.kernel_box.setCurrentText(self.model.kernel)
+        self.kernel_box.setToolTip(KERNEL_HELP)
         self.kernel_box.currentTextChanged.connect(self._kernel_changed)
         grid.addWidget(QtWidgets.QLabel("kernel"), 3, 0)
         grid.addWidget(self.kernel_box, 3, 1, 1, 2)
@@ -169,6 +173,12 @@ class MainWindow(QtWidgets.QMainWindow):
         self.quality_box.currentIndexChanged.connect(self._quality_changed)
         grid.addWidget(QtWidgets.QLabel("quality"), 4, 0)
         grid.addWidget(self.quality_box, 4, 1, 1, 2)
+        # the geometry the forces are solved on, nu included: the layer kernel depends on it
+        self.geometry_label = QtWidgets.QLabel("")
+        self.geometry_label.setWordWrap(True)
+        self.geometry_label.setToolTip("From the recording or the sensor layout file: taxels, pitch, "
+                                       "elastomer thickness, Poisson ratio nu, taxel size")
+        grid.addWidget(self.geometry_label, 5, 0, 1, 3)
         form.addWidget(params)
 
         shown = QtWidgets.QGroupBox("Display")
@@ -377,7 +387,7 @@ class MainWindow(QtWidgets.QMainWindow):
         """Measure the speed/accuracy front for the shown geometry in the background; fill the
         quality presets with their measured cost and error (emits ``presets_measured``)."""
         grid = self.model.grid
-        key = (grid.shape, grid.pitch, grid.thickness)
+        key = (grid.shape, grid.pitch, grid.thickness, grid.poisson_ratio, grid.sensor_size)
         if self._measured_for == (key, "done"):
             self.presets_measured.emit()
             return
@@ -421,6 +431,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _on_recording(self):
         self.scene.set_grid(self.model.grid)
+        self.geometry_label.setText(geometry_text(self.model.grid))
         self.kernel_box.blockSignals(True)
         self.kernel_box.setCurrentText(self.model.kernel)
         self.kernel_box.blockSignals(False)

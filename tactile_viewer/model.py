@@ -14,15 +14,31 @@ from pathlib import Path
 import numpy as np
 
 from solver import Reconstruction, Reconstructor, SensorGrid
+from solver.kernels import KERNELS
 from solver.tradeoff import Configuration
 
 from .recording import Recording
 
-__all__ = ["Signal", "Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO"]
+__all__ = ["Signal", "Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO", "KERNEL_HELP", "geometry_text"]
 
 MAX_SHEAR_RATIO = 1.5  # the slider's end; the automatic search uses the same bound
 FULL_LIMIT = 64 * 64  # larger regular skins are solved contact by contact (solver.region)
 MAPS = ("pressure", "stress", "none")
+KERNEL_HELP = "layer: elastomer layer bonded to a rigid hull (default); cell/point: half-space"
+
+
+def geometry_text(grid: SensorGrid) -> str:
+    """One line naming a geometry for people: taxels, pitch, thickness, nu, taxel size.
+
+    Examples
+    --------
+    >>> geometry_text(SensorGrid.regular(16, 12, 2e-3, 1.5e-3, poisson_ratio=0.45, sensor_size=1e-3))
+    '16x12 taxels, pitch 2 mm, thickness 1.5 mm, nu 0.45, taxel 1 mm'
+    """
+    taxels = f"{grid.shape[1]}x{grid.shape[0]} taxels" if len(grid.shape) == 2 else f"{grid.size} taxels"
+    size = f"taxel {grid.sensor_size * 1e3:g} mm" if grid.sensor_size > 0 else "point sensors"
+    return (f"{taxels}, pitch {grid.pitch * 1e3:g} mm, thickness {grid.thickness * 1e3:g} mm, "
+            f"nu {grid.poisson_ratio:g}, {size}")
 
 
 class Signal:
@@ -120,7 +136,7 @@ class ViewerModel:
         self.live_label = ""
         self.path: Path | None = None
         self.reconstructor: Reconstructor | None = None
-        self.kernel = "cell"
+        self.kernel = KERNELS[0]  # the solver lists its default first
         self.configuration = None  # a solver.tradeoff.Configuration (quality preset), None: standard
         self.frame = 0
         self.auto = True
@@ -157,6 +173,7 @@ class ViewerModel:
 
     @property
     def grid(self) -> SensorGrid | None:
+        """The geometry shown (the solver's), None when nothing is open."""
         return self.reconstructor.grid if self.is_open else None
 
     def install_live(self, reconstructor: Reconstructor, label: str):
@@ -185,12 +202,21 @@ class ViewerModel:
         self.live_frame = frame
 
     def install(self, recording: Recording, reconstructor: Reconstructor, path=None):
-        """Show a recording with its ready reconstructor; starts at frame 0."""
-        if reconstructor.grid is not recording.grid and not (
-                reconstructor.grid.shape == recording.grid.shape
-                and np.array_equal(reconstructor.grid.positions, recording.grid.positions)
-                and reconstructor.grid.thickness == recording.grid.thickness
-                and reconstructor.grid.pitch == recording.grid.pitch):
+        """Show a recording with its ready reconstructor; starts at frame 0.
+
+        Raises
+        ------
+        ValueError
+            When the reconstructor was built for another geometry: other
+            positions, thickness, pitch, Poisson ratio or taxel size (the
+            layer kernel's matrix depends on all of them).
+        """
+        ours, theirs = reconstructor.grid, recording.grid
+        if ours is not theirs and not (
+                ours.shape == theirs.shape
+                and np.array_equal(ours.positions, theirs.positions)
+                and (ours.thickness, ours.pitch, ours.poisson_ratio, ours.sensor_size)
+                == (theirs.thickness, theirs.pitch, theirs.poisson_ratio, theirs.sensor_size)):
             raise ValueError("reconstructor was built for another geometry than the recording's")
         self.recording = recording
         self.live, self.live_frame, self.live_label = False, None, ""
@@ -256,12 +282,18 @@ class ViewerModel:
             self.display_changed.emit()
 
     def describe(self) -> dict:
-        """What the last solve shows, for screenshot sidecars."""
+        """What the last solve shows, for screenshot sidecars.
+
+        Besides the frame and the parameters it names the material the forces
+        were solved with: ``poisson_ratio`` and ``sensor_size`` (metres).
+        """
         last = self.last
         r = last.result
+        grid = self.reconstructor.grid
         source = self.live_label if self.live else (str(self.path) if self.path else None)
         return dict(recording=source, frame=last.frame, t=last.time,
-                    kernel=self.kernel, mode="auto" if last.auto else "manual",
+                    kernel=self.kernel, poisson_ratio=grid.poisson_ratio, sensor_size=grid.sensor_size,
+                    mode="auto" if last.auto else "manual",
                     shear_ratio=r.shear_ratio, shear_direction_deg=math.degrees(r.shear_direction),
                     efficiency=r.efficiency, residual=r.residual, condition=r.condition,
                     display=dict(self.display.__dict__))

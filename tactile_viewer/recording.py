@@ -1,15 +1,20 @@
 """Recordings: a sensor grid, frames of stress and their timestamps, in NPZ or CSV.
 
 NPZ keys: ``frames (T, m)`` pascals, ``t (T,)`` seconds, ``nx``, ``ny``,
-``pitch``, ``thickness`` (metres), optional ``positions (m, 2)``, optional
+``pitch``, ``thickness`` (metres), optional ``poisson_ratio`` (the
+elastomer's nu, default 0.5), optional ``sensor_size`` (side of a square
+taxel, metres, default 0: point sensors), optional ``positions (m, 2)``, optional
 ``truth_forces (T, m, 3)`` newtons, optional ``seq (T,)`` sequence numbers of
 live frames, ``units``, ``description``. A live recording that was never
 closed (a crash) holds its frames in chunks ``chunkNNNNNN_frames``,
 ``chunkNNNNNN_t``, ``chunkNNNNNN_seq``; they load as one recording.
 
-CSV: ``#`` header lines of ``key=value`` (nx, ny, pitch, thickness, units,
-description, optional ``columns=seq,t``), then one frame per row:
-``t, v0, v1, ...`` (or ``seq, t, v0, v1, ...``).
+CSV: ``#`` header lines of ``key=value`` (nx, ny, pitch, thickness, optional
+poisson_ratio and sensor_size, units, description, optional ``columns=seq,t``),
+then one frame per row: ``t, v0, v1, ...`` (or ``seq, t, v0, v1, ...``).
+
+Files written before nu and the taxel size were recorded have neither key:
+they load as an incompressible layer (nu 0.5) read by point sensors.
 
 No Qt here: the command line, the tests and the solver tools use it too.
 """
@@ -110,13 +115,17 @@ def load(path) -> Recording:
         raise RecordingError(f"{path}: damaged NPZ archive ({exc})") from exc
 
 
-def _scalar(data, key, path, cast=float):
+def _scalar(data, key, path, cast=float, default=None):
     if key not in data:
+        if default is not None:
+            return default
         raise RecordingError(f"{path}: missing {key!r}")
     try:
         value = float(np.asarray(data[key], dtype=float).item())
     except (ValueError, TypeError):
-        raise RecordingError(f"{path}: {key!r} must be a single number, got {data[key]!r}") from None
+        raw = data[key]  # an NPZ holds 'abc' as array('abc'): show what was written
+        shown = raw.item() if isinstance(raw, np.ndarray) and raw.ndim == 0 else raw
+        raise RecordingError(f"{path}: {key!r} must be a single number, got {shown!r}") from None
     if cast is int:
         if not value.is_integer():
             raise RecordingError(f"{path}: {key!r} must be a whole number, got {value!r}")
@@ -129,10 +138,14 @@ def _scalar(data, key, path, cast=float):
 def _grid(meta, path, positions=None) -> SensorGrid:
     nx, ny = _scalar(meta, "nx", path, int), _scalar(meta, "ny", path, int)
     pitch, thickness = _scalar(meta, "pitch", path), _scalar(meta, "thickness", path)
+    # absent from files written before they were recorded: an incompressible layer, point sensors
+    poisson_ratio = _scalar(meta, "poisson_ratio", path, default=0.5)
+    sensor_size = _scalar(meta, "sensor_size", path, default=0.0)
     try:
-        grid = SensorGrid.regular(nx, ny, pitch, thickness)
+        grid = SensorGrid.regular(nx, ny, pitch, thickness, poisson_ratio=poisson_ratio,
+                                  sensor_size=sensor_size)
         if positions is not None:
-            grid = SensorGrid(np.asarray(positions, dtype=float), thickness, pitch, (ny, nx))
+            grid = grid.replace(positions=np.asarray(positions, dtype=float))
     except ValueError as exc:
         raise RecordingError(f"{path}: impossible geometry: {exc}") from None
     return grid
@@ -227,7 +240,7 @@ def _load_csv(path) -> Recording:
 
 
 def save(recording: Recording, path) -> Path:
-    """Write a recording as ``.npz`` (everything) or ``.csv`` (frames and geometry)."""
+    """Write a recording as ``.npz`` (everything) or ``.csv`` (frames and geometry, nu included)."""
     path = Path(path)
     grid = recording.grid
     ny, nx = grid.shape
@@ -238,11 +251,13 @@ def save(recording: Recording, path) -> Path:
         # through a handle: np.savez would append ".npz" to a name ending ".NPZ"
         with open(path, "wb") as handle:
             np.savez_compressed(handle, frames=recording.frames, t=recording.t, nx=nx, ny=ny,
-                                pitch=grid.pitch, thickness=grid.thickness, positions=grid.positions,
+                                pitch=grid.pitch, thickness=grid.thickness, poisson_ratio=grid.poisson_ratio,
+                                sensor_size=grid.sensor_size, positions=grid.positions,
                                 units="Pa", description=recording.description, **extra)
     elif path.suffix.lower() == ".csv":
         buffer = io.StringIO()
         buffer.write(f"# nx={nx}\n# ny={ny}\n# pitch={grid.pitch!r}\n# thickness={grid.thickness!r}\n")
+        buffer.write(f"# poisson_ratio={grid.poisson_ratio!r}\n# sensor_size={grid.sensor_size!r}\n")
         buffer.write("# units=Pa\n")
         if recording.description:
             buffer.write(f"# description={' '.join(recording.description.split())}\n")

@@ -1,7 +1,8 @@
 """Make the bundled sample recordings in ``sample_data/`` from :mod:`solver.loads`.
 
 ``python -m tactile_viewer.samples [OUTDIR]`` rewrites them; every sample
-carries its true nodal forces. Seeds are fixed, so the files are reproducible.
+carries its true nodal forces and the whole geometry (the elastomer's Poisson
+ratio and the taxel size too). Seeds are fixed, so the files are reproducible.
 """
 
 from __future__ import annotations
@@ -18,16 +19,19 @@ from .recording import Recording, save
 
 PITCH = 2e-3
 THICKNESS = 2e-3
+POISSON_RATIO = 0.5  # silicone elastomers are nearly incompressible
+SENSOR_SIZE = 0.0  # point sensors
 RATE = 30.0  # frames per second
 NOISE = 0.01
 
 
 def _record(grid, contacts_at, count, description, seed):
+    # the recording keeps `grid` itself, so the file says which nu and taxel size made the frames;
     # one generator for the whole recording: frames get independent noise
     rng = np.random.default_rng(seed)
     frames, truth = [], []
     for k in range(count):
-        frame = loads.simulate(grid, contacts_at(k / RATE), noise=NOISE, rng=rng)
+        frame = loads.simulate(grid, contacts_at(k / RATE), noise=NOISE, rng=rng, medium="layer")
         frames.append(frame.stress)
         truth.append(frame.forces)
     return Recording(grid, np.array(frames), np.arange(count) / RATE, np.array(truth), description)
@@ -38,28 +42,31 @@ def _ramp(t, rise=0.5):
 
 
 def make_all(outdir: Path) -> list[Path]:
-    grid = SensorGrid.regular(16, 16, PITCH, THICKNESS)
+    """Simulate every sample and write it to ``outdir``; returns the paths written."""
+    grid = SensorGrid.regular(16, 16, PITCH, THICKNESS, poisson_ratio=POISSON_RATIO, sensor_size=SENSOR_SIZE)
     samples = {
         "hertz_static.npz": _record(
             grid, lambda t: loads.hertz((0.6e-3, -0.4e-3), 5e-3, 1.0), 30,
             "Static Hertzian press: radius 5 mm, 1 N, no shear; 16x16, pitch 2 mm, "
-            "thickness 2 mm, 1% noise.", seed=1),
+            "thickness 2 mm (bonded layer, nu 0.5), 1% noise.", seed=1),
         "hertz_shear_turning.npz": _record(
             grid, lambda t: loads.hertz((0.0, 0.0), 5e-3, 1.0, shear_ratio=0.4,
                                         shear_direction=math.remainder(2 * math.pi * t / 2.0, 2 * math.pi)),
             60, "Hertzian press, radius 5 mm, 1 N, shear ratio 0.4 turning once through all "
-                "directions in 2 s; 16x16, pitch 2 mm, thickness 2 mm, 1% noise.", seed=2),
+                "directions in 2 s; 16x16, pitch 2 mm, thickness 2 mm (bonded layer, nu 0.5), 1% noise.",
+            seed=2),
         "flat_punch_shear.npz": _record(
             grid, lambda t: loads.flat_punch((-1e-3, 1e-3), 4e-3, 1.5 * _ramp(t), shear_ratio=0.3,
                                              shear_direction=math.radians(30)),
             45, "Flat punch, radius 4 mm, force ramping to 1.5 N, shear ratio 0.3 towards 30 degrees; "
-                "16x16, pitch 2 mm, thickness 2 mm, 1% noise.", seed=3),
+                "16x16, pitch 2 mm, thickness 2 mm (bonded layer, nu 0.5), 1% noise.", seed=3),
         "two_contacts.npz": _record(
             grid, lambda t: [loads.hertz((-7e-3, -5e-3), 3.5e-3, 0.6, shear_ratio=0.3, shear_direction=0.0),
                              loads.hertz((7e-3, 6e-3), 4e-3, 0.8 * _ramp(t),
                                          shear_ratio=0.2, shear_direction=math.radians(120))],
             45, "Two Hertzian contacts (0.6 N with shear 0.3 along +x; 0.8 N ramping, shear 0.2 "
-                "towards 120 degrees); 16x16, pitch 2 mm, thickness 2 mm, 1% noise.", seed=4),
+                "towards 120 degrees); 16x16, pitch 2 mm, thickness 2 mm (bonded layer, nu 0.5), 1% noise.",
+            seed=4),
     }
     outdir.mkdir(parents=True, exist_ok=True)
     return [save(recording, outdir / name) for name, recording in samples.items()]

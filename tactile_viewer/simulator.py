@@ -6,7 +6,9 @@ path), or writes to any pyserial URL (``--url socket://host:port``). Frames
 of a Hertzian contact circling the skin with turning shear, from
 :mod:`solver.loads`, go out at ``--rate`` Hz (up to 1 kHz) in text or binary
 format, in kPa, with optional injected garbage bytes and dropped frames.
-``--layout PATH`` writes the sensor layout JSON that goes with the stream.
+``--layout PATH`` writes the sensor layout JSON that goes with the stream,
+the elastomer's Poisson ratio (``--poisson-ratio``) and the taxel size
+(``--sensor-size``) included.
 """
 
 from __future__ import annotations
@@ -137,6 +139,10 @@ def main(argv=None) -> int:
     parser.add_argument("--ny", type=int, default=16)
     parser.add_argument("--pitch", type=float, default=2e-3, help="metres")
     parser.add_argument("--thickness", type=float, default=2e-3, help="metres")
+    parser.add_argument("--poisson-ratio", type=float, default=0.5,
+                        help="Poisson ratio nu of the elastomer, in [0, 0.5] (default 0.5: incompressible)")
+    parser.add_argument("--sensor-size", type=float, default=0.0,
+                        help="side of a square taxel, metres, at most the pitch (default 0: point sensors)")
     parser.add_argument("--units", choices=("Pa", "kPa", "MPa"), default="kPa")
     parser.add_argument("--noise", type=float, default=0.01)
     parser.add_argument("--garbage", type=float, default=0.0, help="probability of a garbage burst per frame")
@@ -155,7 +161,8 @@ def main(argv=None) -> int:
         if not 0 <= getattr(args, name) <= 1:
             parser.error(f"--{name} must be a probability in [0, 1], got {getattr(args, name):g}")
     try:
-        grid = SensorGrid.regular(args.nx, args.ny, args.pitch, args.thickness)
+        grid = SensorGrid.regular(args.nx, args.ny, args.pitch, args.thickness,
+                                  poisson_ratio=args.poisson_ratio, sensor_size=args.sensor_size)
     except ValueError as exc:
         parser.error(str(exc))
     layout = SensorLayout(grid, args.units)

@@ -85,8 +85,20 @@ class SensorLayout:
 
 
 def load_layout(path) -> SensorLayout:
-    """Read a layout JSON file: ``nx``, ``ny``, ``pitch``, ``thickness`` (metres), optional
-    ``positions`` ([[x, y], ...] metres), ``units``, ``gain``, ``offset`` (a number or one per taxel)."""
+    """Read a sensor layout JSON file.
+
+    Keys: ``nx``, ``ny``, ``pitch``, ``thickness`` (metres); optional
+    ``poisson_ratio`` (the elastomer's nu, default 0.5), ``sensor_size`` (side
+    of a square taxel, metres, default 0: point sensors), ``positions``
+    ([[x, y], ...] metres), ``units``, ``gain``, ``offset`` (a number or one per
+    taxel). Files written before nu and the taxel size were recorded have
+    neither key and open with the defaults.
+
+    Raises
+    ------
+    LayoutError
+        The message names the file and the key that is wrong.
+    """
     path = Path(path)
     try:
         spec = json.loads(path.read_text(encoding="utf-8"))
@@ -106,21 +118,31 @@ def load_layout(path) -> SensorLayout:
         for key in ("pitch", "thickness"):
             if isinstance(spec[key], bool) or not isinstance(spec[key], (int, float)):
                 raise ValueError(f"{key} must be a number of metres, got {spec[key]!r}")
-        grid = SensorGrid.regular(nx, ny, float(spec["pitch"]), float(spec["thickness"]))
+        # SensorGrid checks nu and the taxel size (a string or a bool is no number there either)
+        grid = SensorGrid.regular(nx, ny, float(spec["pitch"]), float(spec["thickness"]),
+                                  poisson_ratio=spec.get("poisson_ratio", 0.5),
+                                  sensor_size=spec.get("sensor_size", 0.0))
         if "positions" in spec:
-            positions = np.asarray(spec["positions"], dtype=float)
-            grid = SensorGrid(positions, grid.thickness, grid.pitch, (ny, nx))
+            grid = grid.replace(positions=np.asarray(spec["positions"], dtype=float))
         return SensorLayout(grid, spec.get("units", "Pa"), spec.get("gain", 1.0), spec.get("offset", 0.0))
     except (ValueError, TypeError) as exc:
         raise LayoutError(f"{path}: {exc}") from None
 
 
 def save_layout(layout: SensorLayout, path) -> Path:
+    """Write ``layout`` as the JSON file :func:`load_layout` reads (nu and the taxel size always written).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     grid = layout.grid
     ny, nx = grid.shape[0], grid.shape[-1]
     one = lambda a: float(a[0]) if np.all(a == a[0]) else a.tolist()  # noqa: E731
-    spec = {"nx": nx, "ny": ny, "pitch": grid.pitch, "thickness": grid.thickness, "units": layout.units,
+    spec = {"nx": nx, "ny": ny, "pitch": grid.pitch, "thickness": grid.thickness,
+            "poisson_ratio": grid.poisson_ratio, "sensor_size": grid.sensor_size, "units": layout.units,
             "gain": one(layout.gain), "offset": one(layout.offset)}
     # is_regular ignores where the grid sits: keep positions unless they are exactly regular()'s
     regular = SensorGrid.regular(nx, ny, grid.pitch, grid.thickness).positions
@@ -248,7 +270,8 @@ class Recorder:
         self._lock = threading.Lock()
         grid = layout.grid
         ny, nx = grid.shape[0], grid.shape[-1]
-        self._meta = dict(nx=nx, ny=ny, pitch=grid.pitch, thickness=grid.thickness, units="Pa")
+        self._meta = dict(nx=nx, ny=ny, pitch=grid.pitch, thickness=grid.thickness,
+                          poisson_ratio=grid.poisson_ratio, sensor_size=grid.sensor_size, units="Pa")
         if self.kind == ".npz":
             with zipfile.ZipFile(path, "w") as archive:
                 for key, value in (*self._meta.items(), ("positions", grid.positions),

@@ -8,14 +8,56 @@ chart, rendered off screen).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
 from solver import SensorGrid
 from solver import tradeoff as measured
 from solver.bench import machine
+from solver.kernels import KERNELS
 
-__all__ = ["plot", "main"]
+from .model import KERNEL_HELP, geometry_text
+
+__all__ = ["plot", "on_kernel", "main"]
+
+
+def on_kernel(configurations, kernel: str) -> list:
+    """The configurations measured on ``kernel``.
+
+    Those on the solver's default kernel move to ``kernel`` (a name that
+    starts with the old kernel's, such as "cell, exact", is renamed to match);
+    those that exist to compare another kernel keep it, unless they would now
+    repeat a moved one.
+
+    Parameters
+    ----------
+    configurations : iterable of solver.tradeoff.Configuration
+    kernel : str
+        One of :data:`solver.kernels.KERNELS`.
+
+    Returns
+    -------
+    list of solver.tradeoff.Configuration
+    """
+    default = next(f.default for f in dataclasses.fields(measured.Configuration) if f.name == "kernel")
+    moved, compared = [], []
+    for c in configurations:
+        if c.kernel == default:
+            name = kernel + c.name[len(default):] if c.name.startswith(default + ",") else c.name
+            moved.append(dataclasses.replace(c, name=name, kernel=kernel))
+        else:
+            compared.append(c)
+    # e.g. "point, exact" is "cell, exact" moved to --kernel point: measure it once
+    unnamed = {dataclasses.replace(c, name="") for c in moved}
+    repeats = {c.name for c in compared if dataclasses.replace(c, name="") in unnamed}
+    out = []
+    for c in configurations:  # in the solver's order, which the table and the plot follow
+        if c.kernel == default:
+            out.append(moved.pop(0))
+        elif c.name not in repeats:
+            out.append(c)
+    return out
 
 
 def plot(measurements, path, *, title="", size=(1200, 800)) -> Path:
@@ -78,6 +120,11 @@ def main(argv=None) -> int:
     parser.add_argument("--ny", type=int, default=16)
     parser.add_argument("--pitch", type=float, default=2e-3, help="metres")
     parser.add_argument("--thickness", type=float, default=2e-3, help="metres")
+    parser.add_argument("--poisson-ratio", type=float, default=0.5,
+                        help="Poisson ratio nu of the elastomer, in [0, 0.5] (default 0.5: incompressible)")
+    parser.add_argument("--sensor-size", type=float, default=0.0,
+                        help="side of a square taxel, metres, at most the pitch (default 0: point sensors)")
+    parser.add_argument("--kernel", choices=KERNELS, default=KERNELS[0], help=KERNEL_HELP)
     parser.add_argument(
         "--noise",
         type=float,
@@ -97,20 +144,21 @@ def main(argv=None) -> int:
     )
     args = parser.parse_args(argv)
     try:
-        grid = SensorGrid.regular(args.nx, args.ny, args.pitch, args.thickness)
+        grid = SensorGrid.regular(args.nx, args.ny, args.pitch, args.thickness,
+                                  poisson_ratio=args.poisson_ratio, sensor_size=args.sensor_size)
     except ValueError as exc:
         parser.error(str(exc))
     if any(not 0 <= n < 1 for n in args.noise):
         parser.error(f"--noise levels must be in [0, 1), got {args.noise}")
     cases = measured.default_cases(grid, noises=tuple(args.noise))
     print(
-        f"{machine()}\n{args.nx}x{args.ny} skin, pitch {args.pitch * 1e3:g} mm, thickness "
-        f"{args.thickness * 1e3:g} mm; {len(cases)} cases "
+        f"{machine()}\n{geometry_text(grid)}; kernel {args.kernel}; {len(cases)} cases "
         f"(noise {', '.join(f'{100 * n:g}%' for n in args.noise)})",
         flush=True,
     )
     results = measured.measure_all(
         grid,
+        on_kernel(measured.CONFIGURATIONS, args.kernel),
         cases=cases,
         repeat=args.repeat,
         progress=lambda m: print(f"  measured {m.name}", file=sys.stderr, flush=True),

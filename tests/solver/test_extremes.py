@@ -12,7 +12,6 @@ asserted with a margin; each comment gives the measured value.
 import functools
 import math
 import warnings
-
 from types import SimpleNamespace
 
 import numpy as np

@@ -65,3 +65,28 @@ def test_module_entry_point_runs():
     out = subprocess.run([sys.executable, "-m", "tactile_viewer", str(SAMPLES / "hertz_static.npz"),
                           "--report", "--frame", "0"], capture_output=True, text=True, check=True)
     assert "median solve" in out.stdout
+
+
+def test_report_names_the_poisson_ratio_and_taxel_size(tmp_path, capsys):
+    from solver import SensorGrid
+    from tactile_viewer.recording import Recording, save
+
+    grid = SensorGrid.regular(6, 5, 2e-3, 2e-3, poisson_ratio=0.45, sensor_size=1e-3)
+    stress = 5e3 * np.exp(-(grid.positions**2).sum(axis=1) / (3e-3) ** 2)  # a smooth press, pascals
+    path = save(Recording(grid, stress[None], [0.0]), tmp_path / "soft.npz")
+    assert main([str(path), "--report", "--kernel", "point"]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert "6x5 taxels, pitch 2 mm, thickness 2 mm, nu 0.45, taxel 1 mm, kernel point" in first
+
+
+def test_kernel_choices_are_the_solvers(capsys):
+    from solver.kernels import KERNELS
+
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "{" + ",".join(KERNELS) + "}" in text
+    assert "layer: elastomer layer bonded to a rigid hull (default); cell/point: half-space" in text
+    with pytest.raises(SystemExit) as info:
+        main(["x.npz", "--report", "--kernel", "spline"])
+    assert info.value.code == 2 and "invalid choice: 'spline'" in capsys.readouterr().err

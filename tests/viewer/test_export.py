@@ -42,7 +42,8 @@ def test_reconstructed_frames_are_the_solver_results(recording, reconstructor):
         assert table.residual[row] == expected.residual and table.condition[row] == expected.condition
     np.testing.assert_array_equal(table.frames, [3, 1])
     np.testing.assert_array_equal(table.t, recording.t[[3, 1]])
-    assert table.mode == "auto" and table.kernel == "cell" and table.shape == (5, 6)
+    assert table.mode == "auto" and table.kernel == reconstructor.kernel and table.shape == (5, 6)
+    assert table.poisson_ratio == 0.5 and table.sensor_size == 0.0  # the grid's defaults
     with pytest.raises(ValueError, match="read-only"):
         table.forces[0, 0, 0] = 1.0
 
@@ -84,6 +85,24 @@ def test_saved_forces_read_back(recording, reconstructor, tmp_path, name):
     np.testing.assert_allclose(back["forces"], table.forces, rtol=1e-8, atol=1e-15)
     np.testing.assert_allclose(back["shear_ratio"], table.shear_ratio, rtol=1e-8, atol=1e-12)
     np.testing.assert_allclose(back["shear_direction"], table.shear_direction, rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["forces.npz", "forces.csv"])
+def test_force_exports_name_the_poisson_ratio_and_sensor_size(recording, tmp_path, name):
+    # the forces depend on the material they were solved with: the export must say which
+    grid = recording.grid.replace(poisson_ratio=0.45, sensor_size=1e-3)
+    soft = Recording(grid, recording.frames, recording.t, description="soft skin")
+    table = reconstruct_frames(soft, Reconstructor(grid, kernel="point"), [0])
+    assert table.poisson_ratio == 0.45 and table.sensor_size == 1e-3
+    path = save_forces(table, tmp_path / name)
+    if name.endswith(".npz"):
+        back = load_forces(path)
+        assert float(back["poisson_ratio"]) == 0.45 and float(back["sensor_size"]) == 1e-3
+        assert float(back["thickness"]) == 2e-3 and str(back["kernel"]) == "point"
+    else:
+        lines = path.read_text().splitlines()
+        header = {line[2:].split("=", 1)[0]: line.split("=", 1)[1] for line in lines if line.startswith("#")}
+        assert float(header["poisson_ratio"]) == 0.45 and float(header["sensor_size"]) == 1e-3
 
 
 def test_csv_export_has_its_header_and_columns(recording, reconstructor, tmp_path):

@@ -99,6 +99,7 @@ def test_screenshot_export_has_the_size_asked_and_is_not_blank(opened, tmp_path,
     sidecar = json.loads(path.with_suffix(".json").read_text())
     assert sidecar["frame"] == 0 and sidecar["recording"].endswith("hertz_shear_turning.npz")
     assert sidecar["scale"] == scale and sidecar["mode"] == "auto"
+    assert sidecar["poisson_ratio"] == 0.5 and sidecar["sensor_size"] == 0.0  # the sample's material
 
 
 def test_screenshot_honours_the_transparent_option(opened, tmp_path):
@@ -231,3 +232,24 @@ def test_separate_contacts_are_reported_each_with_its_parameters(window, qtbot):
     directions = sorted(round(math.degrees(c.result.shear_direction)) for c in result.contacts)
     assert abs(directions[0] - math.degrees(-2.0)) < 10 and abs(directions[1] - math.degrees(0.5)) < 10
     assert "contact 1: mu" in window.status.text() and "contact 2: mu" in window.status.text()
+
+
+def test_kernels_come_from_the_solver_with_its_default_first(window):
+    from solver.kernels import KERNELS
+
+    assert [window.kernel_box.itemText(k) for k in range(window.kernel_box.count())] == list(KERNELS)
+    assert window.kernel_box.currentText() == KERNELS[0] == window.model.kernel
+    assert "layer: elastomer layer bonded to a rigid hull" in window.kernel_box.toolTip()
+
+
+def test_the_geometry_shown_names_poisson_ratio_and_taxel_size(window, qtbot):
+    from solver import SensorGrid
+    from tactile_viewer.recording import Recording
+
+    grid = SensorGrid.regular(6, 5, 2e-3, 2e-3, poisson_ratio=0.45, sensor_size=1e-3)
+    r2 = (grid.positions**2).sum(axis=1)
+    stress = 5e3 * np.exp(-r2 / (3e-3) ** 2)  # a smooth press in the middle, pascals
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        window.show_recording(Recording(grid, np.stack([stress, stress]), [0.0, 0.1], description="soft"))
+    assert window.geometry_label.text() == "6x5 taxels, pitch 2 mm, thickness 2 mm, nu 0.45, taxel 1 mm"
+    assert window.model.reconstructor.grid.poisson_ratio == 0.45  # solved on the recording's material

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from solver import Reconstructor, SensorGrid, loads
-from tactile_viewer.model import MAX_SHEAR_RATIO, Display, Signal, ViewerModel
+from solver.kernels import KERNELS
+from tactile_viewer.model import MAX_SHEAR_RATIO, Display, Signal, ViewerModel, geometry_text
 from tactile_viewer.recording import Recording
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -32,7 +33,7 @@ def recording():
 
 @pytest.fixture(scope="module")
 def reconstructor(recording):
-    return ViewerModel.build(recording.grid, "cell")
+    return ViewerModel.build(recording.grid, "layer")
 
 
 @pytest.fixture
@@ -90,7 +91,7 @@ def test_install_announces_the_recording_then_its_display(recording, reconstruct
     # the window builds the scene on recording_changed, then reads the display it was given
     assert events == [("recording_changed", ()), ("display_changed", ())]
     assert model.recording is recording and model.reconstructor is reconstructor
-    assert model.kernel == "cell" and model.path == Path("takes/sliding.npz")
+    assert model.kernel == "layer" and model.path == Path("takes/sliding.npz")
     assert model.frame == 0 and model.last is None
 
 
@@ -124,12 +125,14 @@ def test_install_accepts_the_same_geometry_built_separately(recording, reconstru
     SensorGrid.regular(5, 6, PITCH, THICKNESS),        # x and y swapped: same size, other shape
     SensorGrid.regular(6, 5, PITCH, 3e-3),             # a thicker layer
     SensorGrid.regular(6, 5, 2.5e-3, THICKNESS),       # another pitch (so other positions)
-], ids=["transposed", "thicker", "wider"])
+    SensorGrid.regular(6, 5, PITCH, THICKNESS, poisson_ratio=0.45),  # a compressible elastomer
+    SensorGrid.regular(6, 5, PITCH, THICKNESS, sensor_size=1e-3),    # taxels that average
+], ids=["transposed", "thicker", "wider", "other-nu", "taxel-size"])
 def test_install_rejects_a_reconstructor_for_another_geometry(model, recording, other):
     events = listen(model)
     shown = model.recording
     with pytest.raises(ValueError, match="reconstructor was built for another geometry than the recording's"):
-        model.install(recording, Reconstructor(other))
+        model.install(recording, Reconstructor(other, kernel="cell"))
     assert model.recording is shown and events == []
 
 
@@ -350,12 +353,13 @@ def test_describe_carries_frame_mode_and_parameters(model, recording):
     model.solve()
     info = model.describe()
     assert info["recording"] == str(Path("takes/sliding.npz"))
-    assert info["frame"] == 2 and info["t"] == recording.t[2] and info["kernel"] == "cell"
+    assert info["frame"] == 2 and info["t"] == recording.t[2] and info["kernel"] == "layer"
     assert info["mode"] == "manual"
     assert info["shear_ratio"] == pytest.approx(0.7)
     assert info["shear_direction_deg"] == pytest.approx(-90.0)
     assert info["residual"] == model.last.result.residual and math.isfinite(info["condition"])
     assert info["display"] == dict(model.display.__dict__)
+    assert info["poisson_ratio"] == 0.5 and info["sensor_size"] == 0.0  # the solver's geometry
     # it describes the last solve, not settings changed since (the screenshot shows that solve)
     model.set_auto(True)
     model.set_frame(0)
@@ -364,6 +368,27 @@ def test_describe_carries_frame_mode_and_parameters(model, recording):
     info = model.describe()
     assert info["mode"] == "auto" and info["shear_ratio"] == model.shear_ratio
     assert info["shear_direction_deg"] == pytest.approx(math.degrees(model.shear_direction))
+
+
+def test_describe_names_the_material_solved_with(recording):
+    grid = recording.grid.replace(poisson_ratio=0.45, sensor_size=1e-3)
+    model = ViewerModel()
+    model.install(Recording(grid, recording.frames, recording.t), ViewerModel.build(grid, "point"))
+    model.solve()
+    info = model.describe()
+    assert info["poisson_ratio"] == 0.45 and info["sensor_size"] == 1e-3 and info["kernel"] == "point"
+
+
+def test_the_default_kernel_is_the_solvers_first():
+    assert ViewerModel().kernel == KERNELS[0]
+
+
+def test_geometry_text_names_nu_and_the_taxel():
+    assert geometry_text(SensorGrid.regular(6, 5, PITCH, THICKNESS)) == (
+        "6x5 taxels, pitch 2 mm, thickness 2 mm, nu 0.5, point sensors")
+    irregular = SensorGrid(np.zeros((3, 2)) + [[0, 0], [1e-3, 0], [0, 1e-3]], THICKNESS, PITCH, (3,),
+                           poisson_ratio=0.45, sensor_size=1.5e-3)
+    assert geometry_text(irregular) == "3 taxels, pitch 2 mm, thickness 2 mm, nu 0.45, taxel 1.5 mm"
 
 
 def test_describe_without_a_path(recording, reconstructor):

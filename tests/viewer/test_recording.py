@@ -59,6 +59,36 @@ def test_csv_keeps_a_multi_line_description_on_one_line(tmp_path):
     assert load(path).description == "two lines"
 
 
+# -- the elastomer's Poisson ratio and the taxel size ---------------------------------------------
+
+NU, TAXEL = 0.45, 1e-3
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_poisson_ratio_and_sensor_size_round_trip(recording, tmp_path, suffix):
+    grid = recording.grid.replace(poisson_ratio=NU, sensor_size=TAXEL)
+    soft = Recording(grid, recording.frames, recording.t, description="soft skin")
+    back = load(save(soft, tmp_path / f"soft{suffix}")).grid
+    assert back.poisson_ratio == NU and back.sensor_size == TAXEL  # exact: repr in CSV, float64 in NPZ
+    assert back.shape == (2, 3) and back.pitch == 2e-3 and back.thickness == 1.5e-3
+
+
+def test_files_write_the_defaults_explicitly(recording, tmp_path):
+    with np.load(save(recording, tmp_path / "r.npz")) as data:
+        assert float(data["poisson_ratio"]) == 0.5 and float(data["sensor_size"]) == 0.0
+    text = save(recording, tmp_path / "r.csv").read_text()
+    assert "# poisson_ratio=0.5\n" in text and "# sensor_size=0.0\n" in text
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_files_without_poisson_ratio_or_sensor_size_load_with_the_defaults(tmp_path, suffix):
+    # recordings made before the layer kernel: an incompressible layer read by point sensors
+    path = tmp_path / f"old{suffix}"
+    write_npz(path) if suffix == ".npz" else path.write_text(HEADER + "0, 1, 2\n")
+    grid = load(path).grid
+    assert grid.poisson_ratio == 0.5 and grid.sensor_size == 0.0
+
+
 def test_npz_without_t_counts_frames(tmp_path):
     path = tmp_path / "no_t.npz"
     np.savez(path, frames=np.ones((3, 4)), nx=2, ny=2, pitch=1e-3, thickness=1e-3)
@@ -158,7 +188,26 @@ MALFORMED = [
      r"truth_forces must have shape \(2, 4, 3\), got \(2, 4\)"),
     ("units.npz", lambda p: write_npz(p, units="psi"), r"units must be one of \['MPa', 'Pa', 'kPa'\], got 'psi'"),
     ("pickle.npz", lambda p: write_npz(p, frames=np.array([1, "a", None], dtype=object)), "allow_pickle=False"),
+    ("nu.npz", lambda p: write_npz(p, poisson_ratio=0.7),
+     r"impossible geometry: poisson_ratio must be a finite number in \[0, 0.5\], got 0.7$"),
+    ("nutext.npz", lambda p: write_npz(p, poisson_ratio="abc"), r"'poisson_ratio' must be a single number, got 'abc'$"),
+    ("nunan.npz", lambda p: write_npz(p, poisson_ratio=np.nan), "'poisson_ratio' must be finite, got nan$"),
+    ("nupair.npz", lambda p: write_npz(p, poisson_ratio=[0.4, 0.45]), "'poisson_ratio' must be a single number"),
+    ("taxel.npz", lambda p: write_npz(p, sensor_size=2e-3),
+     r"impossible geometry: sensor_size must be at most the pitch \(taxels cannot overlap\), got 0.002 m with pitch 0.001 m$"),
+    ("taxelneg.npz", lambda p: write_npz(p, sensor_size=-1e-4),
+     r"impossible geometry: sensor_size must be a finite number of metres >= 0 .* got -0.0001$"),
+    ("taxeltext.npz", lambda p: write_npz(p, sensor_size="big"), r"'sensor_size' must be a single number, got 'big'$"),
     # CSV
+    ("nu.csv", write_csv("0, 1, 2\n", header=HEADER + "# poisson_ratio=0.7\n"),
+     r"impossible geometry: poisson_ratio must be a finite number in \[0, 0.5\], got 0.7$"),
+    ("nutext.csv", write_csv("0, 1, 2\n", header=HEADER + "# poisson_ratio=abc\n"),
+     r"'poisson_ratio' must be a single number, got 'abc'$"),
+    ("nuinf.csv", write_csv("0, 1, 2\n", header=HEADER + "# poisson_ratio=inf\n"), "'poisson_ratio' must be finite, got inf$"),
+    ("taxel.csv", write_csv("0, 1, 2\n", header=HEADER + "# sensor_size=0.0015\n"),
+     r"impossible geometry: sensor_size must be at most the pitch .* got 0.0015 m with pitch 0.001 m$"),
+    ("taxeltext.csv", write_csv("0, 1, 2\n", header=HEADER + "# sensor_size=1 mm\n"),
+     r"'sensor_size' must be a single number, got '1 mm'$"),
     ("rows.csv", write_csv("0, 1, 2\n1, 1\n"), "line 6: 1 values, earlier rows have 2"),
     ("text.csv", write_csv("0, 1, 2\nhello\n"), "line 6: not a row of numbers: 'hello'"),
     ("cell.csv", write_csv("0, 1, 2\n\n1, 1, x2\n"), "line 7: not a row of numbers: '1, 1, x2'"),

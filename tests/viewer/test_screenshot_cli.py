@@ -18,3 +18,4 @@ def test_command_line_screenshot_renders_saves_and_exits(tmp_path):
     assert sidecar["frame"] == 20 and sidecar["mode"] == "manual"
     assert abs(sidecar["shear_ratio"] - 0.3) < 1e-9 and abs(sidecar["shear_direction_deg"] - 30) < 1e-6
     assert sidecar["scale"] == 2
+    assert sidecar["poisson_ratio"] == 0.5 and sidecar["sensor_size"] == 0.0  # the material solved with

@@ -1,5 +1,6 @@
 """tactile-sim: the Board byte stream, the contact cycle, and the command line on a real pseudo-terminal."""
 
+import json
 import os
 import re
 import signal
@@ -266,6 +267,40 @@ def test_cli_rejects_bad_arguments(option, value, capsys, tmp_path):
     err = capsys.readouterr().err
     assert err.startswith("usage: tactile-sim")
     assert option.lstrip("-") in err.splitlines()[-1]  # the message names the option
+    assert not (tmp_path / "board").exists()
+
+
+def test_cli_writes_poisson_ratio_and_sensor_size_to_its_layout(tmp_path):
+    layout_path = tmp_path / "layout.json"
+    out = subprocess.run([sys.executable, "-m", "tactile_viewer.simulator", "--nx", "3", "--ny", "2",
+                          "--poisson-ratio", "0.45", "--sensor-size", "1e-3", "--duration", "0",
+                          "--layout", str(layout_path), "--link", str(tmp_path / "board")],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr[-500:]
+    grid = load_layout(layout_path).grid
+    assert grid.poisson_ratio == 0.45 and grid.sensor_size == 1e-3 and grid.shape == (2, 3)
+
+
+def test_cli_layout_defaults_to_an_incompressible_layer_and_point_sensors(tmp_path):
+    layout_path = tmp_path / "layout.json"
+    out = subprocess.run([sys.executable, "-m", "tactile_viewer.simulator", "--nx", "3", "--ny", "2",
+                          "--duration", "0", "--layout", str(layout_path), "--link", str(tmp_path / "board")],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr[-500:]
+    spec = json.loads(layout_path.read_text())
+    assert spec["poisson_ratio"] == 0.5 and spec["sensor_size"] == 0.0
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--poisson-ratio", "0.7", r"poisson_ratio must be a finite number in [0, 0.5], got 0.7"),
+    ("--poisson-ratio", "nan", r"poisson_ratio must be a finite number in [0, 0.5], got nan"),
+    ("--sensor-size", "3e-3", r"sensor_size must be at most the pitch (taxels cannot overlap), got 0.003 m"),
+    ("--sensor-size", "-1e-3", r"sensor_size must be a finite number of metres >= 0"),
+])
+def test_cli_rejects_an_impossible_material_or_taxel(option, value, message, capsys, tmp_path):
+    with pytest.raises(SystemExit) as info:
+        main([f"{option}={value}", "--link", str(tmp_path / "board")])  # "=": argparse takes -1e-3 for an option
+    assert info.value.code == 2 and message in capsys.readouterr().err
     assert not (tmp_path / "board").exists()
 
 

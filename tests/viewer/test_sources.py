@@ -158,6 +158,64 @@ def test_bad_layout_files_name_the_file_and_the_problem(tmp_path, content, messa
         load_layout(path)
 
 
+# the elastomer's Poisson ratio and the taxel size travel with the layout
+NU, TAXEL = 0.45, 1e-3
+
+
+def grid_with_material():
+    return SensorGrid.regular(3, 2, 2e-3, 1.5e-3, poisson_ratio=NU, sensor_size=TAXEL)
+
+
+def test_layout_round_trip_keeps_poisson_ratio_and_sensor_size(tmp_path):
+    path = save_layout(SensorLayout(grid_with_material(), "kPa"), tmp_path / "board.json")
+    spec = json.loads(path.read_text())
+    assert spec["poisson_ratio"] == NU and spec["sensor_size"] == TAXEL  # readable in the file itself
+    back = load_layout(path).grid
+    assert back.poisson_ratio == NU and back.sensor_size == TAXEL and back.is_regular
+    # irregular positions are written separately: the material must survive that path too
+    positions = grid_with_material().positions.copy()
+    positions[1] += [0.2e-3, 0.0]
+    moved = grid_with_material().replace(positions=positions)
+    back = load_layout(save_layout(SensorLayout(moved), tmp_path / "moved.json")).grid
+    assert back.poisson_ratio == NU and back.sensor_size == TAXEL
+    np.testing.assert_array_equal(back.positions, positions)
+
+
+def test_default_layout_writes_the_defaults_explicitly(tmp_path):
+    spec = json.loads(save_layout(SensorLayout(grid32()), tmp_path / "board.json").read_text())
+    assert spec["poisson_ratio"] == 0.5 and spec["sensor_size"] == 0.0
+
+
+def test_layout_without_poisson_ratio_or_sensor_size_opens_with_the_defaults(tmp_path):
+    # files written before the layer kernel: an incompressible layer, point sensors
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(GOOD), encoding="utf-8")
+    grid = load_layout(path).grid
+    assert grid.poisson_ratio == 0.5 and grid.sensor_size == 0.0
+    path.write_text(json.dumps({**GOOD, "poisson_ratio": 0}), encoding="utf-8")
+    assert load_layout(path).grid.poisson_ratio == 0.0  # 0 is allowed and not taken for "absent"
+
+
+@pytest.mark.parametrize("changes, message", [
+    (dict(poisson_ratio=0.7), r"poisson_ratio must be a finite number in \[0, 0.5\], got 0.7$"),
+    (dict(poisson_ratio="abc"), r"poisson_ratio must be a finite number in \[0, 0.5\], got 'abc'$"),
+    (dict(poisson_ratio="0.45"), r"poisson_ratio must be a finite number in \[0, 0.5\], got '0.45'$"),
+    (dict(poisson_ratio=-0.2), r"poisson_ratio must be a finite number in \[0, 0.5\], got -0.2$"),
+    (dict(poisson_ratio=True), r"poisson_ratio must be a finite number in \[0, 0.5\], got True$"),
+    (dict(poisson_ratio=None), r"poisson_ratio must be a finite number in \[0, 0.5\], got None$"),
+    (dict(sensor_size=3e-3), r"sensor_size must be at most the pitch \(taxels cannot overlap\), "
+                             r"got 0.003 m with pitch 0.002 m$"),
+    (dict(sensor_size=-1e-3), r"sensor_size must be a finite number of metres >= 0 .*, got -0.001$"),
+    (dict(sensor_size="1 mm"), r"sensor_size must be a finite number of metres >= 0 .*, got '1 mm'$"),
+], ids=["nu-above-half", "nu-text", "nu-numeric-text", "nu-negative", "nu-bool", "nu-null", "taxel-overlap",
+        "taxel-negative", "taxel-text"])
+def test_bad_poisson_ratio_or_sensor_size_in_a_layout_names_file_and_field(tmp_path, changes, message):
+    path = tmp_path / "bad layout.json"
+    path.write_text(json.dumps({**GOOD, **changes}), encoding="utf-8")
+    with pytest.raises(LayoutError, match=re.escape(str(path)) + ": " + message):
+        load_layout(path)
+
+
 def test_missing_and_undecodable_layout_files(tmp_path):
     missing = tmp_path / "nowhere.json"
     with pytest.raises(LayoutError, match=re.escape(str(missing)) + r": cannot read"):
@@ -359,6 +417,24 @@ def test_recorder_close_csv(tmp_path):
     np.testing.assert_array_equal(loaded.seq, [7, 8, 9, 10])
     np.testing.assert_allclose(loaded.t, 0.001 * np.arange(4), atol=1e-9)
     np.testing.assert_allclose(loaded.frames, stress, rtol=1e-8)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_recorder_keeps_poisson_ratio_and_sensor_size(tmp_path, suffix):
+    # both while recording (a crash leaves the unclosed file) and after close() rewrote it
+    path = tmp_path / f"live{suffix}"
+    recorder = Recorder(path, SensorLayout(grid_with_material()), flush_interval=0.1)
+    stress = frames_for(5, seed=4)  # fixed seed
+    for k in range(5):
+        recorder.add(k, k / 10, stress[k])
+    unclosed = recording.load(path).grid
+    assert unclosed.poisson_ratio == NU and unclosed.sensor_size == TAXEL
+    assert recorder.close() == path
+    closed = recording.load(path)
+    assert closed.grid.poisson_ratio == NU and closed.grid.sensor_size == TAXEL and len(closed) == 5
+    if suffix == ".csv":
+        text = path.read_text()
+        assert f"# poisson_ratio={NU!r}\n" in text and f"# sensor_size={TAXEL!r}\n" in text
 
 
 @pytest.mark.parametrize("suffix", [".npz", ".CSV"])
