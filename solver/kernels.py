@@ -38,7 +38,8 @@ from numpy.lib.stride_tricks import sliding_window_view
 from . import layer
 from .geometry import SensorGrid, check_poisson_ratio
 
-__all__ = ["KERNELS", "point_force_stress", "cell_force_stress", "layer_force_stress", "stress_matrix"]
+__all__ = ["KERNELS", "point_force_stress", "cell_force_stress", "layer_force_stress", "taxel_points",
+           "stress_matrix"]
 
 KERNELS = ("layer", "cell", "point")
 
@@ -198,6 +199,26 @@ def _spread_offsets(values, out):
     np.copyto(out.reshape(ny, nx, ny, nx), windows)
 
 
+def taxel_points(grid: SensorGrid):
+    """Where a reading is taken over the taxel, and with what weight.
+
+    Returns
+    -------
+    offsets : (k, 2) ndarray
+        Gauss-Legendre points on the square taxel relative to its centre,
+        metres (the centre alone for point sensors).
+    weights : (k,) ndarray
+        Their weights, summing to 1.
+    """
+    if grid.sensor_size == 0:
+        return np.zeros((1, 2)), np.ones(1)
+    # the kernels vary on the scale of h: about three points per thickness
+    count = int(min(12, max(2, math.ceil(3.0 * grid.sensor_size / grid.thickness))))
+    nodes, weights = np.polynomial.legendre.leggauss(count)
+    u, v = np.meshgrid(0.5 * grid.sensor_size * nodes, 0.5 * grid.sensor_size * nodes)
+    return np.column_stack([u.ravel(), v.ravel()]), np.outer(weights, weights).ravel() / 4.0
+
+
 def stress_matrix(grid: SensorGrid, kernel: str = "layer") -> np.ndarray:
     """The forward matrix ``C = [Cx | Cy | Cz]`` of a sensor grid.
 
@@ -229,16 +250,10 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer") -> np.ndarray:
     def evaluate(dx, dy):
         if grid.sensor_size == 0:
             return at_point(dx, dy)
-        # Reading averaged over the taxel: the kernels vary on the scale of h.
-        side = grid.sensor_size
-        count = int(min(12, max(2, math.ceil(3.0 * side / h))))
-        nodes, weights = np.polynomial.legendre.leggauss(count)
-        nodes, weights = 0.5 * side * nodes, 0.5 * weights
         total = [np.zeros(np.shape(dx)) for _ in range(3)]
-        for u, wu in zip(nodes, weights, strict=True):
-            for v, wv in zip(nodes, weights, strict=True):
-                for acc, part in zip(total, at_point(dx + u, dy + v), strict=True):
-                    acc += wu * wv * part
+        for (u, v), weight in zip(*taxel_points(grid), strict=True):
+            for acc, part in zip(total, at_point(dx + u, dy + v), strict=True):
+                acc += weight * part
         return total
 
     m = grid.size

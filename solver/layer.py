@@ -53,7 +53,8 @@ from scipy.special import j0, j1
 from .arrays import read_only
 from .geometry import check_poisson_ratio
 
-__all__ = ["transfer", "LayerTable", "table", "point_force_stress", "EDGE_PANEL"]
+__all__ = ["transfer", "LayerTable", "table", "point_force_stress", "EDGE_PANEL",
+           "transfer_table"]
 
 # Tables reach this many thicknesses from the load; beyond it the base stress
 # of a bonded layer has decayed below 1e-9 of its peak at any nu (it decays
@@ -223,6 +224,13 @@ class LayerTable:
         """
         return (self._evaluate("normal_point", u, np.zeros_like),
                 self._evaluate("tangential_point", u, np.zeros_like))
+
+
+@lru_cache(maxsize=8)
+def transfer_table(poisson_ratio: float):
+    """(Cached) ``kh`` from 0 to 40 in steps of 0.005 with ``G_n`` and ``G_t`` there (read-only)."""
+    kh = np.linspace(0.0, 40.0, 8001)
+    return tuple(read_only(a) for a in (kh, *transfer(kh, poisson_ratio)))
 
 
 @lru_cache(maxsize=8)

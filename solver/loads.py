@@ -42,7 +42,7 @@ from scipy.spatial import cKDTree
 from . import layer
 from .arrays import read_only
 from .geometry import SensorGrid
-from .kernels import point_force_stress
+from .kernels import point_force_stress, taxel_points
 
 __all__ = [
     "Contact", "SimulatedFrame", "hertz", "cone", "flat_punch", "ellipse", "ring",
@@ -349,21 +349,11 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
                           medium=medium)
 
 
-def _taxel_points(grid: SensorGrid):
-    # Gauss-Legendre points and weights over a taxel (the centre alone for point sensors).
-    if grid.sensor_size == 0:
-        return np.zeros((1, 2)), np.ones(1)
-    count = int(min(12, max(2, math.ceil(3.0 * grid.sensor_size / grid.thickness))))
-    nodes, weights = np.polynomial.legendre.leggauss(count)
-    u, v = np.meshgrid(0.5 * grid.sensor_size * nodes, 0.5 * grid.sensor_size * nodes)
-    return np.column_stack([u.ravel(), v.ravel()]), np.outer(weights, weights).ravel() / 4.0
-
-
 def _halfspace_stress(grid: SensorGrid, x, y, fx, fy, fz):
     # Exact point-force stresses of every sub-cell, in chunks to bound memory.
     m = grid.size
     stress = np.zeros(m)
-    offsets, weights = _taxel_points(grid)
+    offsets, weights = taxel_points(grid)
     chunk = max(1, 4_000_000 // m)
     for (ox, oy), weight in zip(offsets, weights, strict=True):
         sx, sy = grid.positions[:, 0, None] + ox, grid.positions[:, 1, None] + oy
@@ -410,8 +400,7 @@ def _layer_stress(grid: SensorGrid, x, y, fx, fy, fz, step):
     kxx, kyy = np.meshgrid(kx, ky)
     k = np.hypot(kxx, kyy)
     # transfer functions on a fine 1-D table of kh, linear interpolation (error < 1e-5)
-    table_kh = np.linspace(0.0, 40.0, 8001)
-    normal, tangential = layer.transfer(table_kh, grid.poisson_ratio)
+    table_kh, normal, tangential = layer.transfer_table(grid.poisson_ratio)
     g_n = np.interp(k * h, table_kh, normal, right=0.0)
     g_t = np.interp(k * h, table_kh, tangential, right=0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
