@@ -5,6 +5,8 @@ numpy and scipy only; never imports Qt or pyvista.
 
 from . import efficiency, loads, metrics
 from .geometry import SensorGrid
-from .inverse import Reconstruction, Reconstructor
+from .inverse import Contact, Reconstruction, Reconstructor
+from .region import RegionSolver, make_solver
 
-__all__ = ["SensorGrid", "Reconstructor", "Reconstruction", "loads", "metrics", "efficiency"]
+__all__ = ["SensorGrid", "Reconstructor", "RegionSolver", "make_solver", "Reconstruction", "Contact",
+           "loads", "metrics", "efficiency"]

@@ -4,99 +4,63 @@ Every ``x(mu, theta) = C+ b + (I - C+ C) y(mu, theta)`` fits the data exactly,
 so a functional must reward physical admissibility, not fit. A functional here
 is an object with a ``name`` and a method
 ``choose(frame, *, shear_ratio=None, shear_direction=None) -> Choice`` that
-returns the shear parameters (the given ones, or the maximizer over the free
-ones), the compressive normal profile ``g`` of the template load and the value
-of the functional. :class:`solver.Reconstructor` takes any such object.
+returns the shear parameters of every contact (the given ones, or the
+maximizer over the free ones), the compressive normal profile ``g`` of the
+template load and the value of the functional. :class:`solver.Reconstructor`
+takes any such object.
 
 Chosen: :class:`ContactFit` (see its notes and ``docs/efficiency.md`` for the
-measured comparison). Kept for comparison: :class:`Admissibility` (penalties
-on the linear family, the DESIGN's first sketch) and :class:`NoShear` (the
-baseline that never reports shear).
+measured comparison). Kept for comparison: :class:`NoShear`, the baseline
+that never reports shear.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
+import scipy.linalg
+from scipy.optimize import lsq_linear, nnls
 
-from .nnls import nnls_gram
-
-__all__ = ["Frame", "Choice", "ContactFit", "Admissibility", "NoShear", "FUNCTIONALS"]
+__all__ = ["Frame", "Choice", "ContactFit", "NoShear", "FUNCTIONALS", "nonnegative_fit"]
 
 
 @dataclass(frozen=True, eq=False)
 class Frame:
     """What a functional may look at for one frame.
 
+    The contact fit works on the sensors near the contacts (``rows``) and on
+    the sub-cells of the contact region's nodes (the columns): each node's
+    cell is split into ``s x s`` sub-cells (:func:`solver.kernels.stress_matrix`
+    with ``subdivision``), so a contact edge inside a cell is not mistaken
+    for shear.
+
     Attributes
     ----------
-    stress : (m,) ndarray
-        Sensor stress ``b``, pascals.
-    normal : (m,) ndarray
-        Normal-only solution ``Cz^-1 b``, newtons.
-    region : (m,) ndarray of bool
-        Contact region (see :meth:`solver.Reconstructor.contact_region`).
-    matrix : (m, 3m) ndarray
-        ``C = [Cx | Cy | Cz]``.
+    stress : (R,) ndarray
+        Sensor stress ``b`` on the rows, pascals.
+    fit_x, fit_y, fit_z : (R, n) ndarray
+        Stress on the rows per newton along x, y, z on each sub-cell column.
+    column_contact : (n,) ndarray of int
+        Contact (0 to K-1) of each column.
+    row_contact : (R, K) ndarray of bool
+        Rows near each contact (its local statistics).
     max_shear_ratio : float
         Upper bound for the shear ratio search.
-    project_null : callable or None
-        ``y -> (I - C+ C) y`` for ``(3m,)`` or ``(3m, k)`` arrays.
-    apply_pinv : callable or None
-        ``b -> C+ b``.
-    gram : (3m, 3m) ndarray or None
-        ``C^T C`` when the reconstructor keeps it (small grids); otherwise the
-        region's Gram blocks are formed per frame.
     """
 
     stress: np.ndarray
-    normal: np.ndarray
-    region: np.ndarray
-    matrix: np.ndarray
+    fit_x: np.ndarray
+    fit_y: np.ndarray
+    fit_z: np.ndarray
+    column_contact: np.ndarray
+    row_contact: np.ndarray
     max_shear_ratio: float
-    project_null: object = None
-    apply_pinv: object = None
-    gram: np.ndarray | None = None
 
-    @cached_property
-    def region_index(self) -> np.ndarray:
-        return np.flatnonzero(self.region)
-
-    @cached_property
-    def region_gram(self):
-        """Gram blocks of the region's columns, for the contact-fit NNLS problems.
-
-        Returns
-        -------
-        blocks : dict of (r, r) ndarray
-            ``blocks["ab"] = Ca_R^T Cb_R`` for ``ab`` in xx, yy, zz, xz, yz, xy.
-        stack : (6, r, r) ndarray
-            The terms of ``A(s)^T A(s)`` for the coefficients
-            ``(1, sx, sy, sx^2, sx sy, sy^2)``.
-        products : (3, r) ndarray
-            ``Cx_R^T b``, ``Cy_R^T b``, ``Cz_R^T b``.
-        """
-        m = self.stress.size
-        idx = self.region_index
-        r = idx.size
-        columns = np.concatenate([idx, idx + m, idx + 2 * m])
-        if self.gram is not None:
-            full = self.gram.take(columns, axis=0).take(columns, axis=1)
-            products = (self.stress @ self.matrix)[columns].reshape(3, r)
-        else:
-            selected = self.matrix.take(columns, axis=1)
-            full = selected.T @ selected
-            products = (self.stress @ selected).reshape(3, r)
-        x, y, z = slice(0, r), slice(r, 2 * r), slice(2 * r, 3 * r)
-        blocks = {"xx": full[x, x], "yy": full[y, y], "zz": full[z, z],
-                  "xz": full[x, z], "yz": full[y, z], "xy": full[x, y]}
-        # A(s)^T A(s) = sum_k c_k(s) stack[k] with c = (1, sx, sy, sx^2, sx sy, sy^2)
-        stack = np.stack([blocks["zz"], blocks["xz"] + blocks["xz"].T, blocks["yz"] + blocks["yz"].T,
-                          blocks["xx"], blocks["xy"] + blocks["xy"].T, blocks["yy"]])
-        return blocks, products, stack
+    @property
+    def contacts(self) -> int:
+        return self.row_contact.shape[1]
 
 
 @dataclass(frozen=True)
@@ -105,213 +69,315 @@ class Choice:
 
     Attributes
     ----------
-    shear_x, shear_y : float
-        ``mu cos(theta)`` and ``mu sin(theta)``.
-    profile : (m,) ndarray
-        Compressive normal profile ``g`` of the template load, newtons.
+    shear : (K, 2) ndarray
+        ``mu (cos theta, sin theta)`` of every contact.
+    profile : (n,) ndarray
+        Compressive normal profile ``g`` on the columns, newtons.
     efficiency : float
         Value of the functional at the chosen parameters.
-    shear_detected : bool
-        True when automatic search kept a non-zero shear.
+    evidence : (K,) ndarray
+        F statistic of each contact's shear against a shear-free load
+        (``nan`` when the shear ratio was given).
+    shear_detected : (K,) ndarray of bool
+        Where the automatic search kept a non-zero shear.
+    residual : float
+        ``|A g - b|`` on the rows, pascals.
     """
 
-    shear_x: float
-    shear_y: float
+    shear: np.ndarray
     profile: np.ndarray
     efficiency: float
-    shear_detected: bool = False
+    evidence: np.ndarray
+    shear_detected: np.ndarray
+    residual: float
 
 
-def _fixed_pair(shear_ratio, shear_direction):
-    return shear_ratio * math.cos(shear_direction), shear_ratio * math.sin(shear_direction)
+def nonnegative_fit(matrix, stress, *, support=None, max_swaps=None):
+    """``argmin_{g >= 0} |matrix g - stress|``, warm-started from a guessed support.
 
-
-class ContactFit:
-    """How well a compressive, friction-shaped load on the contact region explains the data.
-
-    For a pair ``s = mu (cos theta, sin theta)`` the template load is
-    ``Fz = g``, ``(Fx, Fy) = s g`` with ``g >= 0`` on the contact region only.
-    Its best fit to the data is a non-negative least-squares problem
-
-        rho(s) = min_{g >= 0} | (Cz_R + sx Cx_R + sy Cy_R) g - b |^2
-
-    and the efficiency is ``E(s) = 1 - sqrt(rho(s)) / |b|`` (1: explained
-    exactly). With more sensors than region nodes and ``g >= 0``, a wrong
-    shear leaves a residual: the shear signature (compression ahead of the
-    load, relief behind it) cannot be mimicked by a compressive normal load.
-
-    The maximization is continuous: Gauss-Newton on the free parameters, with
-    the profile eliminated (variable projection: each step solves the
-    linearized problem for ``g`` on its current support and the parameter
-    step together, then re-solves the NNLS at the new parameters and halves
-    the step until the residual drops). A found shear is kept only when it
-    explains the data significantly better than no shear: the F statistic
-    ``((rho(0) - rho(s)) / k) / (rho(s) / dof)`` (``k`` free parameters,
-    ``dof`` sensors minus loaded nodes minus ``k``) must exceed
-    ``significance``. On shear-free loads of the standard set at 1% noise its
-    median is 1.2 and 65% fall below 2; on shear ratio 0.2 and 0.4, 19% and
-    2% do (``docs/efficiency.md``).
+    The search solves many NNLS problems that differ only a little from the
+    previous one (the next Gauss-Newton trial, the next parameter), so it
+    starts Lawson-Hanson's active-set method from the previous positive set:
+    usually one to three small Cholesky solves. ``scipy.optimize.nnls`` has no
+    warm start; from scratch it costs about 0.9 ms per problem here against
+    about 0.1 ms warm (``docs/efficiency.md``), and it remains the answer
+    whenever the warm start does not settle within ``max_swaps`` changes of
+    the set (``lsq_linear`` if it runs out of iterations on a degenerate
+    problem).
 
     Parameters
     ----------
-    significance : float, optional
-        F-statistic threshold for keeping shear. Default 2.
+    matrix : (R, n) ndarray
+    stress : (R,) ndarray
+    support : (n,) ndarray of bool, optional
+        The guessed positive set. Default: none (cold start through scipy).
+    max_swaps : int, optional
+        Changes of the positive set tried before falling back. Default
+        ``max(16, n // 3)``: a cold scipy solve costs about as much.
+
+    Returns
+    -------
+    g : (n,) ndarray
+        The minimizer, ``g >= 0``.
+    """
+    n = matrix.shape[1]
+    if support is not None and support.any():
+        g = _active_set(matrix, stress, np.array(support, dtype=bool),
+                        max(16, n // 3) if max_swaps is None else int(max_swaps))
+        if g is not None:
+            return g
+    try:
+        return nnls(matrix, stress, maxiter=30 * max(n, 1))[0]
+    except RuntimeError:
+        return lsq_linear(matrix, stress, bounds=(0.0, np.inf), method="bvls").x
+
+
+_potrf = scipy.linalg.lapack.dpotrf
+_potrs = scipy.linalg.lapack.dpotrs
+
+
+def _least_squares(matrix, stress, free):
+    # LAPACK directly: these systems are small and solved often, so wrapper checks would dominate
+    columns = matrix[:, free]
+    factor, info = _potrf(columns.T @ columns, lower=1, clean=0)
+    if info != 0:
+        return None
+    solution, info = _potrs(factor, columns.T @ stress, lower=1)
+    return solution if info == 0 else None
+
+
+def _active_set(matrix, stress, free, max_swaps):
+    # Lawson-Hanson from a warm start; None when it does not settle within max_swaps.
+    n = matrix.shape[1]
+    g = np.zeros(n)
+    tolerance = 1e-10 * n * float(np.abs(matrix.T @ stress).max(initial=0.0))
+    swaps = 0
+    # drop guessed variables until the least-squares solution on the set is positive
+    while free.any():
+        z = _least_squares(matrix, stress, free)
+        if z is None:
+            return None
+        if np.all(z > 0):
+            g[free] = z
+            break
+        free[np.flatnonzero(free)[z <= 0]] = False
+        swaps += 1
+    while swaps <= max_swaps:
+        gradient = matrix.T @ (stress - matrix @ g)
+        gradient[free] = -np.inf
+        j = int(np.argmax(gradient))
+        if gradient[j] <= tolerance:
+            return g
+        free[j] = True
+        while True:
+            swaps += 1
+            if swaps > max_swaps:
+                return None
+            index = np.flatnonzero(free)
+            z = _least_squares(matrix, stress, free)
+            if z is None:
+                return None
+            if np.all(z > 0):
+                g[:] = 0.0
+                g[index] = z
+                break
+            # step from g towards z until the first variable reaches zero
+            current = g[index]
+            negative = np.flatnonzero(z <= 0)
+            ratios = current[negative] / np.maximum(current[negative] - z[negative], 1e-300)
+            k = int(np.argmin(ratios))
+            g[index] = current + ratios[k] * (z - current)
+            g[index[negative[k]]] = 0.0
+            leaving = index[g[index] <= 0]
+            g[leaving] = 0.0
+            free[leaving] = False
+    return None
+
+
+class ContactFit:
+    """How well a compressive, friction-shaped load on each contact explains the data.
+
+    Contact ``k`` gets its pair ``s_k = mu_k (cos theta_k, sin theta_k)``; the
+    template load on its sub-cells is ``Fz = g``, ``(Fx, Fy) = s_k g`` with
+    ``g >= 0``. Its best fit to the sensors near the contacts is a
+    non-negative least-squares problem
+
+        rho(s) = min_{g >= 0} | (Sz + Sx diag(sx) + Sy diag(sy)) g - b |^2
+
+    and the efficiency is ``E = 1 - sqrt(rho) / |b|`` on those sensors (1:
+    explained exactly). A wrong shear leaves a residual: the shear signature
+    (compression ahead of the load, relief behind it) cannot be mimicked by a
+    compressive normal load on a compact region.
+
+    The maximization is Gauss-Newton on the free parameters with the profile
+    eliminated (variable projection): each step solves the problem
+    linearized in ``s`` for ``g`` on its current support and the parameter
+    step together, then re-solves the NNLS at the new parameters (warm: one
+    Cholesky solve while the support holds) and halves the step until the
+    residual drops.
+
+    **Shear decision.** For each contact the F statistic
+
+        F_k = ((rho0_k - rho_k) / p) / max(rho_k / dof_k, (model_error * peak_k)^2)
+
+    compares the residual on the sensors near the contact with no shear
+    (``rho0_k``) and with the found shear (``rho_k``); ``p`` free parameters,
+    ``dof_k`` those sensors minus the positive sub-cells minus ``p``,
+    ``peak_k`` the largest stress there. The found ratio is then shrunk by
+    the evidence, ``mu_k <- mu_k max(0, 1 - shrinkage / F_k)`` (the
+    positive-part James-Stein factor): weak evidence gives a small ratio, no
+    evidence none, strong evidence keeps it. Both constants were chosen on
+    the tuning set (:func:`solver.validation.tuning_cases`) and are judged on
+    the validation set (``docs/efficiency.md``).
+
+    Parameters
+    ----------
+    shrinkage : float, optional
+        ``c`` of the shrinkage factor. Default 2.
     model_error : float, optional
-        Floor of the misfit standard deviation in the F statistic, relative
-        to the peak stress: the cell kernel's own error on continuous loads,
-        which would otherwise read as significant shear on clean data.
-        Default 0.008: with it the median false shear ratio on shear-free
-        loads is 0 at 0%, 0.3% and 1% noise (without it, 0.05 on clean data).
+        Floor of the misfit standard deviation relative to the local peak
+        stress: the sub-cell model's own error on continuous loads. Default
+        0.002.
     max_iterations : int, optional
         Gauss-Newton iterations. Default 12.
     tolerance : float, optional
-        Stop when a step changes the parameters by less (shear ratio units or
-        radians), or lowers the residual by less than a tenth of this
-        fraction. Default 1e-3: far below the statistical error at 1% noise,
-        and a change of about 0.02 in the F statistic.
+        Stop when a step changes the parameters by less (shear ratio units),
+        or lowers the residual by less than a tenth of this fraction.
+        Default 1e-3.
     """
 
     name = "contact_fit"
 
-    def __init__(self, *, significance: float = 2.0, model_error: float = 0.008,
+    def __init__(self, *, shrinkage: float = 2.0, model_error: float = 0.002,
                  max_iterations: int = 12, tolerance: float = 1e-3):
-        if not (math.isfinite(significance) and significance >= 0):
-            raise ValueError(f"significance must be finite and >= 0, got {significance!r}")
-        if int(max_iterations) < 0:
-            raise ValueError(f"max_iterations must be >= 0, got {max_iterations!r}")
-        self.significance = float(significance)
+        if not (math.isfinite(shrinkage) and shrinkage >= 0):
+            raise ValueError(f"shrinkage must be finite and >= 0, got {shrinkage!r}")
         if not (math.isfinite(model_error) and model_error >= 0):
             raise ValueError(f"model_error must be finite and >= 0, got {model_error!r}")
+        if isinstance(max_iterations, bool) or int(max_iterations) != max_iterations or max_iterations < 0:
+            raise ValueError(f"max_iterations must be a whole number >= 0, got {max_iterations!r}")
+        if not (math.isfinite(tolerance) and tolerance > 0):
+            raise ValueError(f"tolerance must be finite and > 0, got {tolerance!r}")
+        self.shrinkage = float(shrinkage)
         self.model_error = float(model_error)
         self.max_iterations = int(max_iterations)
-        if not tolerance > 0:
-            raise ValueError(f"tolerance must be > 0, got {tolerance!r}")
         self.tolerance = float(tolerance)
 
+    # -- the profile at given parameters ---------------------------------------------
+
     @staticmethod
-    def _system(frame: Frame, sx: float, sy: float):
-        # A(s) = Cz + sx Cx + sy Cy on the region: A^T A and A^T b from the Gram blocks.
-        _, prod, stack = frame.region_gram
-        gram = np.tensordot(np.array([1.0, sx, sy, sx * sx, sx * sy, sy * sy]), stack, axes=1)
-        return gram, prod[2] + sx * prod[0] + sy * prod[1]
+    def _matrix(frame: Frame, shear: np.ndarray) -> np.ndarray:
+        # A(s) = Sz + Sx diag(sx) + Sy diag(sy), each column with its contact's pair
+        sx, sy = shear[frame.column_contact, 0], shear[frame.column_contact, 1]
+        return frame.fit_z + frame.fit_x * sx + frame.fit_y * sy
 
-    def fit(self, frame: Frame, shear_x: float, shear_y: float, *, passive=None):
-        """Best compressive profile at ``s`` and its squared residual.
-
-        Parameters
-        ----------
-        passive : (r,) ndarray of bool, optional
-            Warm start for the NNLS active set.
+    def fit(self, frame: Frame, shear: np.ndarray, *, support=None):
+        """Best compressive profile at the pairs ``shear`` (K, 2) and its residual vector.
 
         Returns
         -------
-        profile : (r,) ndarray
-            ``g`` on the region nodes, newtons.
-        rho : float
-            Squared residual ``|A(s) g - b|^2``, pascals squared.
+        profile : (n,) ndarray
+            ``g`` on the columns, newtons.
+        residual : (R,) ndarray
+            ``A(s) g - b``, pascals.
         """
-        bb = float(frame.stress @ frame.stress)
-        if frame.region_index.size == 0:
-            return np.zeros(0), bb
-        gram, rhs = self._system(frame, shear_x, shear_y)
-        if passive is None:
-            passive = frame.normal[frame.region_index] > 0
-        g, _ = nnls_gram(gram, rhs, passive=passive)
-        # at the optimum g^T H g = g^T A^T b on the support, so rho = b.b - g.(A^T b)
-        return g, max(bb - float(g @ rhs), 0.0)
+        matrix = self._matrix(frame, shear)
+        g = nonnegative_fit(matrix, frame.stress, support=support)
+        return g, matrix @ g - frame.stress
+
+    # -- the search ------------------------------------------------------------------------
 
     def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None) -> Choice:
-        norm = float(np.linalg.norm(frame.stress))
+        K = frame.contacts
         mu_max = frame.max_shear_ratio
         if shear_ratio is not None and shear_direction is not None:
-            s = _fixed_pair(shear_ratio, shear_direction)
-            g, rho = self.fit(frame, *s)
-            return self._choice(frame, s, g, rho, norm, detected=False)
+            pair = shear_ratio * np.array([math.cos(shear_direction), math.sin(shear_direction)])
+            shear = np.tile(pair, (K, 1))
+            g, residual = self.fit(frame, shear)
+            return self._choice(frame, shear, g, residual, np.full(K, math.nan), np.zeros(K, bool))
 
-        # Parametrize the free parameters p -> s(p) with Jacobian ds/dp (2, k).
+        # Free parameters p (K, k) -> pairs s (K, 2), with ds/dp per contact (K, 2, k).
         if shear_ratio is None and shear_direction is None:
-            def shear(p):
-                mu = math.hypot(p[0], p[1])
-                return (p[0], p[1]) if mu <= mu_max else (p[0] * mu_max / mu, p[1] * mu_max / mu)
+            def pairs(p):
+                mu = np.hypot(p[:, 0], p[:, 1])
+                return p * np.minimum(1.0, mu_max / np.maximum(mu, 1e-300))[:, None]
 
             def jacobian(p):
-                return np.eye(2)
-            starts = [np.zeros(2)]
+                return np.broadcast_to(np.eye(2), (K, 2, 2))
+            start = np.zeros((K, 2))
         elif shear_ratio is None:
-            c, s_ = math.cos(shear_direction), math.sin(shear_direction)
+            direction = np.array([math.cos(shear_direction), math.sin(shear_direction)])
 
-            def shear(p):
-                mu = min(max(p[0], 0.0), mu_max)
-                return (mu * c, mu * s_)
+            def pairs(p):
+                return np.clip(p, 0.0, mu_max) * direction
 
             def jacobian(p):
-                return np.array([[c], [s_]])
-            starts = [np.zeros(1)]
+                return np.broadcast_to(direction[:, None], (K, 2, 1))
+            start = np.zeros((K, 1))
         else:
-            mu = shear_ratio
+            mu = float(shear_ratio)
 
-            def shear(p):
-                return (mu * math.cos(p[0]), mu * math.sin(p[0]))
+            def pairs(p):
+                return mu * np.column_stack([np.cos(p[:, 0]), np.sin(p[:, 0])])
 
             def jacobian(p):
-                return np.array([[-mu * math.sin(p[0])], [mu * math.cos(p[0])]])
-            # theta alone is periodic and may have several local optima: scan first.
-            starts = [np.array([t]) for t in np.linspace(-math.pi, math.pi, 12, endpoint=False)]
+                return mu * np.stack([-np.sin(p), np.cos(p)], axis=1)
+            # theta alone is periodic with several local optima: start from the best of a scan
+            scan = [np.full((K, 1), t) for t in np.linspace(-math.pi, math.pi, 12, endpoint=False)]
+            start = min(scan, key=lambda p: float(np.sum(self.fit(frame, pairs(p))[1] ** 2)))
 
-        scanned = []
-        for start in starts:
-            g_start, rho_start = self.fit(frame, *shear(start))
-            scanned.append((rho_start, start, g_start))
-        rho0, _, g0 = scanned[0]  # the first start is the shear-free load when mu is free
-        rho, p, g = min(scanned, key=lambda item: item[0])
-        p, g, rho = self._gauss_newton(frame, p, g, rho, shear, jacobian)
-        s = shear(p)
-        if shear_ratio is None:
-            # Keep shear only when it is significant against a shear-free load.
-            dof = frame.stress.size - int(np.count_nonzero(g)) - len(p)
-            gain = rho0 - rho
-            # The misfit of the kernel's model of a continuous load acts as noise
-            # that does not shrink with the sensor noise: floor the variance.
-            floor = (self.model_error * float(np.abs(frame.stress).max())) ** 2
-            variance = max(rho / dof, floor) if dof > 0 else math.inf
-            significant = gain > 0 and (variance <= 0 or (gain / len(p)) / variance > self.significance)
-            if not significant:
-                return self._choice(frame, (0.0, 0.0), g0, rho0, norm, detected=False)
-        return self._choice(frame, s, g, rho, norm, detected=shear_ratio is None)
+        g0, residual0 = self.fit(frame, pairs(start))
+        p, g, residual = self._gauss_newton(frame, start, g0, residual0, pairs, jacobian)
+        if shear_ratio is not None:  # only the direction was free: nothing to decide
+            return self._choice(frame, pairs(p), g, residual, np.full(K, math.nan), np.zeros(K, bool))
 
-    def _gauss_newton(self, frame, p, g, rho, shear, jacobian):
-        # Linearize A(s + ds) g' ~ A(s) g' + ds_x Cx g + ds_y Cy g and solve for
-        # (g' on the support, dp) together through the normal equations, all
-        # from the region's Gram blocks.
-        G, prod, _ = frame.region_gram
+        # Soft decision from the sensors near each contact (module notes).
+        k = p.shape[1]
+        near = frame.row_contact
+        rho0 = (residual0 ** 2) @ near
+        rho = (residual ** 2) @ near
+        positive = np.bincount(frame.column_contact[g > 0], minlength=K)
+        dof = near.sum(axis=0) - positive - k
+        peak = np.array([np.abs(frame.stress[near[:, c]]).max(initial=0.0) for c in range(K)])
+        floor = (self.model_error * peak) ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            variance = np.where(dof > 0, np.maximum(rho / np.maximum(dof, 1), floor), np.inf)
+            evidence = np.where(variance > 0, (rho0 - rho) / k / variance, np.inf)
+            keep = np.where(evidence > 0, np.maximum(0.0, 1.0 - self.shrinkage / evidence), 0.0)
+        evidence = np.nan_to_num(evidence, nan=0.0)
+        p = p * keep[:, None]
+        if np.all(keep == 0):
+            g, residual = g0, residual0
+        elif np.any(keep < 1):
+            g, residual = self.fit(frame, pairs(p), support=g > 0)
+        return self._choice(frame, pairs(p), g, residual, evidence, keep > 0)
+
+    def _gauss_newton(self, frame, p, g, residual, pairs, jacobian):
+        # Linearize A(s + ds) g' ~ A(s) g' + sum_k (dsx_k Sx_k g_k + dsy_k Sy_k g_k) and solve
+        # for (g' on the support, dp) together, by the normal equations.
+        K, k = p.shape
+        rho = float(residual @ residual)
+        onehot = np.eye(K)[frame.column_contact]          # (n, K) column -> contact
         for _ in range(self.max_iterations):
             support = g > 0
             if not support.any():
                 break
-            sx, sy = shear(p)
-            gram, rhs = self._system(frame, sx, sy)
-            # A^T Cx g and A^T Cy g (r,), then the sensitivities' own products
-            at_cx = (G["xz"].T + sx * G["xx"] + sy * G["xy"].T) @ g
-            at_cy = (G["yz"].T + sx * G["xy"] + sy * G["yy"]) @ g
-            jac = jacobian(p)
-            k = jac.shape[1]
-            cross = np.column_stack([at_cx[support], at_cy[support]]) @ jac
-            sens = np.array([[g @ G["xx"] @ g, g @ G["xy"] @ g],
-                             [g @ G["xy"] @ g, g @ G["yy"] @ g]])
-            n = int(support.sum())
-            normal = np.empty((n + k, n + k))
-            normal[:n, :n] = gram[np.ix_(support, support)]
-            normal[:n, n:] = cross
-            normal[n:, :n] = cross.T
-            normal[n:, n:] = jac.T @ sens @ jac
-            right = np.concatenate([rhs[support], jac.T @ np.array([g @ prod[0], g @ prod[1]])])
+            matrix = self._matrix(frame, pairs(p))
+            # d(A g)/ds for each contact: (R, K, 2), then d/dp through the Jacobian
+            weighted = onehot * g[:, None]
+            sens = np.stack([frame.fit_x @ weighted, frame.fit_y @ weighted], axis=2)
+            sens = np.einsum("rcj,cjl->rcl", sens, jacobian(p)).reshape(len(frame.stress), K * k)
+            design = np.hstack([matrix[:, support], sens])
             try:
-                step = np.linalg.solve(normal, right)[n:]
+                factor = scipy.linalg.cho_factor(design.T @ design, lower=True, check_finite=False)
+                solution = scipy.linalg.cho_solve(factor, design.T @ frame.stress, check_finite=False)
             except np.linalg.LinAlgError:
-                step = np.linalg.lstsq(normal, right, rcond=None)[0][n:]
+                solution = np.linalg.lstsq(design, frame.stress, rcond=None)[0]
+            step = solution[-K * k:].reshape(K, k)
             for _halving in range(6):
                 trial = p + step
-                g_trial, rho_trial = self.fit(frame, *shear(trial), passive=support)
+                g_trial, residual_trial = self.fit(frame, pairs(trial), support=support)
+                rho_trial = float(residual_trial @ residual_trial)
                 if rho_trial < rho:
                     break
                 step = step / 2
@@ -319,16 +385,17 @@ class ContactFit:
                 break
             converged = (np.max(np.abs(step)) < self.tolerance
                          or rho - rho_trial < self.tolerance * 0.1 * rho)
-            p, g, rho = trial, g_trial, rho_trial
+            p, g, residual, rho = trial, g_trial, residual_trial, rho_trial
             if converged:
                 break
-        return p, g, rho
+        return p, g, residual
 
-    def _choice(self, frame, s, g_region, rho, norm, *, detected):
-        profile = np.zeros(frame.stress.size)
-        profile[frame.region_index] = g_region
-        efficiency = 1.0 if norm == 0 else 1.0 - math.sqrt(max(rho, 0.0)) / norm
-        return Choice(float(s[0]), float(s[1]), profile, efficiency, detected)
+    @staticmethod
+    def _choice(frame, shear, g, residual, evidence, detected):
+        norm = float(np.linalg.norm(frame.stress))
+        misfit = float(np.linalg.norm(residual))
+        efficiency = 1.0 if norm == 0 else 1.0 - misfit / norm
+        return Choice(np.asarray(shear, float), g, efficiency, evidence, detected, misfit)
 
 
 class NoShear:
@@ -341,51 +408,4 @@ class NoShear:
                                    shear_direction=shear_direction or 0.0)
 
 
-class Admissibility:
-    """Penalties on the linear family with a fixed profile (the DESIGN's first sketch).
-
-    With ``g`` the positive part of the normal-only solution, the family is
-    ``x = a0 + sx a1 + sy a2`` (three vectors per frame), evaluated on a grid of
-    pairs in one matrix product. The efficiency is minus the squared sum of
-    tension (``Fz < 0``), friction-cone violation (``|Ft| > mu Fz``) and force
-    outside the contact region, relative to ``|g|^2``.
-
-    Parameters
-    ----------
-    ratios, directions : int, optional
-        Grid resolution of the search. Defaults 31 and 72.
-    """
-
-    name = "admissibility"
-
-    def __init__(self, *, ratios: int = 31, directions: int = 72):
-        self.ratios = int(ratios)
-        self.directions = int(directions)
-
-    def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None) -> Choice:
-        m = frame.stress.size
-        g = np.maximum(frame.normal, 0.0) * frame.region
-        zeros = np.zeros(m)
-        a0 = frame.apply_pinv(frame.stress) + frame.project_null(np.concatenate([zeros, zeros, g]))
-        a12 = frame.project_null(np.column_stack([np.concatenate([g, zeros, zeros]),
-                                                  np.concatenate([zeros, g, zeros])]))
-        mus = (np.linspace(0, frame.max_shear_ratio, self.ratios) if shear_ratio is None
-               else np.array([shear_ratio]))
-        thetas = (np.linspace(-math.pi, math.pi, self.directions, endpoint=False)
-                  if shear_direction is None else np.array([shear_direction]))
-        mu, theta = (a.ravel() for a in np.meshgrid(mus, thetas))
-        sx, sy = mu * np.cos(theta), mu * np.sin(theta)
-        x = a0[:, None] + a12 @ np.vstack([sx, sy])
-        fx, fy, fz = x[:m], x[m:2 * m], x[2 * m:]
-        outside = ~frame.region
-        tension = np.minimum(fz, 0.0)
-        cone = np.maximum(np.hypot(fx, fy) - mu * np.maximum(fz, 0.0), 0.0)
-        penalty = ((tension**2).sum(0) + (cone**2).sum(0)
-                   + (fx[outside]**2 + fy[outside]**2 + fz[outside]**2).sum(0))
-        scale = max(float(g @ g), 1e-300)
-        best = int(np.argmin(penalty))
-        return Choice(float(sx[best]), float(sy[best]), g, -float(penalty[best]) / scale,
-                      bool(mu[best] > 0) and shear_ratio is None)
-
-
-FUNCTIONALS = {f.name: f for f in (ContactFit, Admissibility, NoShear)}
+FUNCTIONALS = {f.name: f for f in (ContactFit, NoShear)}

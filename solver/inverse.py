@@ -10,13 +10,17 @@ the data-consistent force field closest to a friction-shaped compressive load
 ``y``. ``C+ = C^T (C C^T)^-1`` comes from one Cholesky factor per geometry; the
 projector is applied as ``y - C+ (C y)`` and never formed. The shear ratio
 ``mu`` and direction ``theta`` are either given (the GUI sliders) or chosen by
-maximizing an efficiency functional (:mod:`solver.efficiency`).
+maximizing an efficiency functional (:mod:`solver.efficiency`), which fits a
+compressive, friction-shaped load to every contact with its own parameters.
+With automatic parameters that fitted load is the answer: it has no tension,
+no load outside the contacts and totals that do not depend on the skin around
+them (the exact member spreads every sensor's noise into the totals).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
@@ -29,11 +33,7 @@ from .efficiency import ContactFit, Frame
 from .geometry import SensorGrid
 from .kernels import KERNELS, stress_matrix
 
-__all__ = ["Reconstructor", "Reconstruction", "SymmetricFactor"]
-
-# Largest grid (sensors) for which C^T C (3m x 3m) is kept: beyond it, forming
-# it costs more set-up time than the per-frame region Gram blocks ever save.
-GRAM_LIMIT = 400
+__all__ = ["Reconstructor", "Reconstruction", "Contact", "SymmetricFactor", "check_options"]
 
 
 @dataclass(frozen=True)
@@ -98,6 +98,39 @@ def _condition_from_cholesky(lower: np.ndarray, norm: float) -> float:
 
 
 @dataclass(frozen=True)
+class Contact:
+    """One contact of a frame and its own parameters.
+
+    Attributes
+    ----------
+    nodes : (m,) ndarray of bool
+        The contact's region on the skin (the nodes allowed to carry its load).
+    shear_ratio : float
+        Tangential over normal force of its template load (dimensionless).
+    shear_direction : float
+        Radians from +x in ``(-pi, pi]``.
+    evidence : float
+        F statistic of its shear against a shear-free load, from the sensors
+        near it (``nan`` when the shear ratio was given).
+    shear_detected : bool
+        Whether the automatic search kept shear on it.
+    at_edge : bool
+        Its region touches the skin's border: part of its stress field is not
+        sensed, so its shear is less certain than an inner contact's.
+    total_force : (3,) ndarray
+        Its resultant (Fx, Fy, Fz), newtons.
+    """
+
+    nodes: np.ndarray
+    shear_ratio: float
+    shear_direction: float
+    evidence: float
+    shear_detected: bool
+    at_edge: bool
+    total_force: np.ndarray
+
+
+@dataclass(frozen=True)
 class Reconstruction:
     """Reconstructed surface forces of one frame.
 
@@ -106,9 +139,10 @@ class Reconstruction:
     forces : (m, 3) ndarray
         Force per node (Fx, Fy, Fz), newtons; ``Fz > 0`` presses into the skin.
     shear_ratio : float
-        Tangential over normal force of the template load (dimensionless).
+        Tangential over normal force of the template load of the largest
+        contact (dimensionless); every contact's own is in ``contacts``.
     shear_direction : float
-        Direction of the tangential load, radians from +x in ``(-pi, pi]``.
+        Its direction, radians from +x in ``(-pi, pi]``.
     efficiency : float
         Value of the efficiency functional at the chosen parameters (``nan``
         on the normal-only path).
@@ -118,18 +152,20 @@ class Reconstruction:
         Condition estimate of the matrix factored for this solve
         (``C C^T`` for three components, ``Cz`` for normal only), damping included.
     regularized : bool
-        Whether Tikhonov damping was applied because the layer is too thick
-        for the grid (the condition exceeded the reconstructor's limit).
+        Whether Tikhonov damping entered the answer because the layer is too
+        thick for the grid (the condition exceeded the reconstructor's limit).
     normal_only : bool
         True when the tangential components were not reconstructed.
     shear_detected : bool
-        Whether the automatic search found shear that explains the data
-        better than a shear-free load (False when the parameters were given).
+        Whether the automatic search kept shear on any contact (False when
+        the parameters were given).
+    exact : bool
+        True when the forces are the member of the exact family ``C x = b``;
+        False when they are the fitted compressive load (automatic solves).
     region : (m,) ndarray of bool
-        Nodes allowed to carry the template load (the contact region).
-    contacts : tuple of solver.region.Contact
-        Per-contact solutions when the skin was solved contact by contact
-        (:class:`solver.region.RegionSolver`); empty otherwise.
+        Nodes allowed to carry load (every contact's region).
+    contacts : tuple of Contact
+        Every contact with its own parameters, largest normal force first.
     """
 
     forces: np.ndarray
@@ -142,6 +178,7 @@ class Reconstruction:
     normal_only: bool
     shear_detected: bool
     region: np.ndarray
+    exact: bool = True
     contacts: tuple = ()
 
     @property
@@ -150,13 +187,20 @@ class Reconstruction:
         return self.forces.sum(axis=0)
 
 
+def _direction(x: float, y: float, fallback: float = 0.0) -> float:
+    if x == 0 and y == 0:
+        return math.remainder(fallback, 2 * math.pi) if fallback != -math.pi else math.pi
+    angle = math.atan2(y, x)
+    return math.pi if angle == -math.pi else angle
+
+
 class Reconstructor:
     """Contact forces from normal stress readings, for one sensor geometry.
 
-    Everything that depends only on the geometry (the stress matrix, the
+    Everything that depends only on the geometry (the stress matrices, the
     Cholesky factors of ``Cz`` and ``C C^T``, the neighbourhoods used to grow
     contact regions) is computed once here; :meth:`solve` then costs a few
-    matrix-vector products plus a small search.
+    matrix-vector products plus a small search on the contacts.
 
     Parameters
     ----------
@@ -168,11 +212,10 @@ class Reconstructor:
         "cell" and "point" are the paper's half-space kernels.
     max_condition : float, optional
         Largest condition number of ``Cz`` and of ``C`` accepted undamped;
-        beyond it Tikhonov damping keeps the forces bounded (thick layers,
-        ``h / pitch`` above about 1.7). Default 100: on a 16x16 Hertzian
-        contact with 1% noise at ``h / pitch = 3`` the field error is 0.9 of
-        ``|F|`` with it, 5.2 with 1e3 and 23 with 1e4 (total normal error
-        1.3%, 5.9%, 7.9%).
+        beyond it Tikhonov damping keeps the exact solutions bounded (thick
+        layers, ``h / pitch`` above about 1.7). Default 100: on a 16x16
+        Hertzian contact with 1% noise at ``h / pitch = 3`` the field error is
+        0.9 of ``|F|`` with it, 5.2 with 1e3 and 23 with 1e4.
     max_shear_ratio : float, optional
         Upper bound of the automatic shear-ratio search. Default 1.5.
     region_threshold : float, optional
@@ -180,9 +223,18 @@ class Reconstructor:
         Default 0.2.
     region_margin : int, optional
         Pitches by which the contact region grows around the loaded nodes.
-        Default 1. (Threshold and margin were chosen by measured accuracy on
-        the standard set; 5% grown by ``h/pitch + 1`` rings let in more noise:
-        see ``docs/efficiency.md``.)
+        Default 1.
+    subdivision : int, optional
+        The contact fit splits each node's cell into ``s x s`` sub-cells so
+        that a contact edge inside a cell is not read as shear (regular grids
+        with the layer or cell kernel and ``pitch / s <= 2 h``; 1 otherwise).
+        Default 2 (3 and 4 measured worse: the extra freedom absorbs the
+        shear signature). The answer stays one force per node (the sum of
+        its sub-cells).
+    reach : float, optional
+        The contact fit and its statistics use the sensors within ``reach``
+        layer thicknesses plus one pitch of a contact. Default 2 (the layer
+        kernel falls below 1% of its peak there).
     efficiency : object, optional
         The efficiency functional (see :mod:`solver.efficiency`). Default
         :class:`solver.efficiency.ContactFit`.
@@ -190,47 +242,52 @@ class Reconstructor:
 
     def __init__(self, grid: SensorGrid, *, kernel: str = "layer", max_condition: float = 100.0,
                  max_shear_ratio: float = 1.5, region_threshold: float = 0.2,
-                 region_margin: int = 1,
+                 region_margin: int = 1, subdivision: int = 2, reach: float = 2.0,
                  efficiency=None):
-        if not isinstance(grid, SensorGrid):
-            raise ValueError(f"grid must be a SensorGrid, got {type(grid).__name__}")
-        if kernel not in KERNELS:
-            raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
-        if not (math.isfinite(max_condition) and max_condition > 1):
-            raise ValueError(f"max_condition must be a finite number > 1, got {max_condition!r}")
-        if not (math.isfinite(max_shear_ratio) and max_shear_ratio >= 0):
-            raise ValueError(f"max_shear_ratio must be finite and >= 0, got {max_shear_ratio!r}")
+        check_options(grid, kernel=kernel, max_condition=max_condition, max_shear_ratio=max_shear_ratio,
+                      region_threshold=region_threshold, region_margin=region_margin,
+                      subdivision=subdivision, reach=reach)
         self.grid = grid
         self.kernel = kernel
         self.max_condition = float(max_condition)
         self.max_shear_ratio = float(max_shear_ratio)
+        self.region_threshold = float(region_threshold)
+        self.region_margin = int(region_margin)
+        self.reach = float(reach)
         self.efficiency = ContactFit() if efficiency is None else efficiency
+        # Sub-cells need translation invariance and a kernel that spreads the force over a
+        # cell, and a layer thick enough to tell them apart: under a layer thinner than half
+        # a sub-cell each sensor sees only its sub-cells' shared corner, and the fit exploits
+        # loads that cancel there (at h / pitch = 0.2 it invents a shear ratio of 0.5).
+        self.subdivision = int(subdivision)
+        if not grid.is_regular or kernel == "point" or grid.pitch / subdivision > 2 * grid.thickness:
+            self.subdivision = 1
         m = grid.size
         self.matrix = stress_matrix(grid, kernel)
         self.matrix.setflags(write=False)
+        self._fit_matrix = (self.matrix if self.subdivision == 1
+                            else stress_matrix(grid, kernel, subdivision=self.subdivision))
         # Cz = cz^T is symmetric positive definite (every kernel is even in the offset): one
         # Cholesky factor serves the normal-only path.
         self._normal = SymmetricFactor.of(self.matrix[:, 2 * m:], max_condition=self.max_condition)
         # C+ = C^T (C C^T)^-1; cond(C C^T) = cond(C)^2.
         self._gram = SymmetricFactor.of(self.matrix @ self.matrix.T, max_condition=self.max_condition**2)
-        # Small grids keep C^T C so each frame's contact fit only gathers its blocks.
-        self._column_gram = self.matrix.T @ self.matrix if m <= GRAM_LIMIT else None
-        # Contact regions: connected patches of the normal-only solution, grown
-        # by a margin.
+        # Contact regions: connected patches of the normal-only solution, grown by a margin.
         tree = cKDTree(grid.positions)
         self._adjacent = _within(tree, 1.5 * grid.pitch)
-        if not 0 < region_threshold < 1:
-            raise ValueError(f"region_threshold must be in (0, 1), got {region_threshold!r}")
-        if isinstance(region_margin, bool) or int(region_margin) != region_margin or region_margin < 0:
-            raise ValueError(f"region_margin must be a whole number of pitches >= 0, got {region_margin!r}")
-        self.region_threshold = float(region_threshold)
-        self.region_margin = int(region_margin)
         self._margin = _within(tree, self.region_margin * grid.pitch * 1.0001)
+        self._rings = math.ceil(self.reach * grid.thickness / grid.pitch) + 1
+        self._near = _within(tree, self._rings * grid.pitch * 1.0001)
         self._disk = None
         if grid.is_regular:
             k = self.region_margin
             oy, ox = np.mgrid[-k:k + 1, -k:k + 1]
             self._disk = ox * ox + oy * oy <= k * k * 1.0001
+        self._border = np.zeros(m, dtype=bool)
+        if grid.is_regular:
+            edge = np.zeros(grid.shape, dtype=bool)
+            edge[[0, -1], :] = edge[:, [0, -1]] = True
+            self._border = edge.ravel()
 
     # -- linear algebra of the solution family ---------------------------------
 
@@ -264,29 +321,30 @@ class Reconstructor:
             normal_only=True, shear_detected=False, region=read_only(fz > 0, bool))
 
     def solve(self, stress, *, shear_ratio: float | None = None,
-              shear_direction: float | None = None, constrained: bool = False) -> Reconstruction:
-        """Three-component forces: the member of the exact solution family at ``(mu, theta)``.
+              shear_direction: float | None = None, exact: bool | None = None) -> Reconstruction:
+        """Three-component forces of every contact, each with its own shear parameters.
 
-        When both parameters are chosen automatically and the data shows no
-        shear signature (the efficiency functional keeps no shear), the answer
-        is the normal-only solution, and the result says so
-        (``normal_only=True``, ``shear_detected=False``).
+        The efficiency functional fits a compressive, friction-shaped load to
+        each contact (:class:`solver.efficiency.ContactFit`). With automatic
+        parameters the answer is that fitted load: compressive, zero outside
+        the contacts, its totals independent of the skin around the contacts,
+        and shear only where the data shows it. With given parameters (the
+        sliders) it is the paper's answer: the member of the exact family
+        ``C x = b`` closest to the fitted template at ``(mu, theta)``.
 
         Parameters
         ----------
         stress : (m,) or (ny, nx) ndarray
             Sensor stress, pascals, compression positive.
         shear_ratio : float or None, optional
-            ``mu >= 0``. None: chosen by maximizing the efficiency functional.
+            ``mu >= 0`` for every contact. None: each contact's own, chosen by
+            the efficiency functional.
         shear_direction : float or None, optional
-            ``theta`` in radians. None: chosen by maximizing the efficiency functional.
-        constrained : bool, optional
-            Return the compressive, friction-shaped load the efficiency
-            functional fitted at the chosen parameters (normal forces >= 0 on
-            the contact region, tangential = shear x normal) instead of the
-            exact solution closest to it. It does not satisfy ``C x = b``
-            exactly (the residual says how far); on the standard set it trades
-            normal-total accuracy for tangential accuracy. Default False.
+            ``theta`` in radians. None: chosen by the efficiency functional.
+        exact : bool or None, optional
+            True: the exact member ``x = y + C+ (b - C y)``; False: the fitted
+            load ``y`` itself. Default None: False when both parameters are
+            automatic, True otherwise.
 
         Returns
         -------
@@ -300,34 +358,45 @@ class Reconstructor:
             raise ValueError(f"shear_ratio must be finite and >= 0 (or None), got {shear_ratio!r}")
         if shear_direction is not None and not math.isfinite(shear_direction):
             raise ValueError(f"shear_direction must be finite radians (or None), got {shear_direction!r}")
-        frame = self._frame(b)
-        choice = self.efficiency.choose(frame, shear_ratio=shear_ratio,
-                                        shear_direction=shear_direction)
-        shear_x, shear_y = choice.shear_x, choice.shear_y
-        g = choice.profile
+        if exact is None:
+            exact = shear_ratio is not None or shear_direction is not None
         m = self.grid.size
-        automatic = shear_ratio is None and shear_direction is None
-        if automatic and not choice.shear_detected and not constrained:
-            # no shear signature: the normal-only path, and the result says so
-            normal = self.solve_normal(b)
-            return replace(normal, efficiency=choice.efficiency,
-                           region=read_only(frame.region, bool))
-        # x = y + C+ (b - C y): the exact solution closest to the template y.
-        template = np.concatenate([shear_x * g, shear_y * g, g])
-        x = template if constrained else template + self.apply_pinv(b - self.matrix @ template)
-        ratio = math.hypot(shear_x, shear_y)
-        if ratio > 0:
-            direction = math.atan2(shear_y, shear_x)
-        else:
-            direction = 0.0 if shear_direction is None else math.remainder(shear_direction, 2 * math.pi)
-        if direction == -math.pi:
-            direction = math.pi
+        fallback = 0.0 if shear_direction is None else float(shear_direction)
+        frame, labels, nodes = self._frame(b)
+        if frame is None:  # nothing compressive anywhere: no contact to fit
+            forces = np.zeros((m, 3))
+            if exact:
+                forces[:, 2] = self._normal.solve(b)
+            return Reconstruction(
+                forces=read_only(forces), shear_ratio=0.0, shear_direction=_direction(0, 0, fallback),
+                efficiency=math.nan, residual=self._residual(forces.T.ravel(), b),
+                condition=self._gram.condition, regularized=exact and self._gram.shift > 0,
+                normal_only=False, shear_detected=False, region=read_only(np.zeros(m, bool), bool),
+                exact=bool(exact))
+        choice = self.efficiency.choose(frame, shear_ratio=shear_ratio, shear_direction=shear_direction)
+        # the answer stays one force per node: the sum of its sub-cells
+        g = np.bincount(nodes, weights=choice.profile, minlength=m)
+        pair = np.zeros((m, 2))
+        pair[labels > 0] = choice.shear[labels[labels > 0] - 1]
+        template = np.concatenate([pair[:, 0] * g, pair[:, 1] * g, g])
+        x = template + self.apply_pinv(b - self.matrix @ template) if exact else template
+        forces = x.reshape(3, m).T
+        contacts = []
+        for k, (sx, sy) in enumerate(choice.shear):
+            mask = labels == k + 1
+            contacts.append(Contact(
+                nodes=read_only(mask, bool), shear_ratio=math.hypot(sx, sy),
+                shear_direction=_direction(sx, sy, fallback), evidence=float(choice.evidence[k]),
+                shear_detected=bool(choice.shear_detected[k]), at_edge=bool(np.any(mask & self._border)),
+                total_force=read_only(forces[mask].sum(axis=0))))
+        contacts.sort(key=lambda c: -c.total_force[2])
+        main = contacts[0]
         return Reconstruction(
-            forces=read_only(x.reshape(3, m).T), shear_ratio=ratio, shear_direction=direction,
+            forces=read_only(forces), shear_ratio=main.shear_ratio, shear_direction=main.shear_direction,
             efficiency=choice.efficiency, residual=self._residual(x, b),
-            condition=self._gram.condition, regularized=self._gram.shift > 0,
-            normal_only=False, shear_detected=choice.shear_detected,
-            region=read_only(frame.region, bool))
+            condition=self._gram.condition, regularized=exact and self._gram.shift > 0,
+            normal_only=False, shear_detected=bool(np.any(choice.shear_detected)),
+            region=read_only(labels > 0, bool), exact=bool(exact), contacts=tuple(contacts))
 
     # -- helpers ------------------------------------------------------------------
 
@@ -364,18 +433,85 @@ class Reconstructor:
         keep[core[mass[labels] >= 0.05 * mass.max()]] = 1
         return np.asarray(self._margin @ keep).ravel() > 0
 
-    def _frame(self, b: np.ndarray) -> Frame:
+    def contacts_of(self, region: np.ndarray) -> tuple[np.ndarray, int]:
+        """Separate contacts: the connected patches of a region (8-neighbours on a grid).
+
+        Returns
+        -------
+        labels : (m,) ndarray of int
+            Contact number 1..K of each region node, 0 elsewhere.
+        count : int
+            ``K``.
+        """
+        if self.grid.is_regular:
+            labels, count = ndimage.label(region.reshape(self.grid.shape), structure=np.ones((3, 3)))
+            return labels.ravel(), int(count)
+        index = np.flatnonzero(region)
+        count, parts = connected_components(self._adjacent[index][:, index], directed=False)
+        labels = np.zeros(region.size, dtype=int)
+        labels[index] = parts + 1
+        return labels, int(count)
+
+    def _frame(self, b: np.ndarray):
+        # The contact fit's view of a frame: sub-cell columns of every contact's region
+        # and the sensors near the contacts.
+        m = self.grid.size
         normal = self._normal.solve(b)
         region = self.contact_region(normal)
-        return Frame(stress=b, normal=normal, region=region, matrix=self.matrix,
-                     max_shear_ratio=self.max_shear_ratio, project_null=self.project_null,
-                     apply_pinv=self.apply_pinv, gram=self._column_gram)
+        labels, count = self.contacts_of(region)
+        if count == 0:
+            return None, labels, None
+        onehot = np.zeros((m, count), dtype=np.int8)
+        onehot[np.flatnonzero(labels), labels[labels > 0] - 1] = 1
+        near = np.asarray(self._near @ onehot) > 0              # (m, K) sensors near each contact
+        rows = np.flatnonzero(near.any(axis=1))
+        index = np.flatnonzero(labels)
+        cells = self.subdivision ** 2
+        columns = (np.arange(cells)[:, None] * m + index).ravel()  # sub-cell q of node j: q m + j
+        width = cells * m
+        fit = self._fit_matrix[np.ix_(rows, np.concatenate([columns, columns + width, columns + 2 * width]))]
+        n = columns.size
+        frame = Frame(stress=b[rows], fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],
+                      column_contact=np.tile(labels[index] - 1, cells), row_contact=near[rows],
+                      max_shear_ratio=self.max_shear_ratio)
+        return frame, labels, np.tile(index, cells)
 
     def _residual(self, x: np.ndarray, b: np.ndarray) -> float:
         norm = np.linalg.norm(b)
         if norm == 0:
             return 0.0
         return float(np.linalg.norm(self.matrix @ x - b) / norm)
+
+
+def check_options(grid, *, kernel="layer", max_condition=100.0, max_shear_ratio=1.5, region_threshold=0.2,
+                  region_margin=1, subdivision=2, reach=2.0):
+    """Check every tuning argument of :class:`Reconstructor` before any matrix is built.
+
+    Raises
+    ------
+    ValueError
+        Naming the argument, the rule and what was received.
+    """
+    if not isinstance(grid, SensorGrid):
+        raise ValueError(f"grid must be a SensorGrid, got {type(grid).__name__}")
+    if kernel not in KERNELS:
+        raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+    for name, value in (("max_condition", max_condition), ("max_shear_ratio", max_shear_ratio),
+                        ("region_threshold", region_threshold), ("reach", reach)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise ValueError(f"{name} must be a real number, got {type(value).__name__}")
+    if not (math.isfinite(max_condition) and max_condition > 1):
+        raise ValueError(f"max_condition must be a finite number > 1, got {max_condition!r}")
+    if not (math.isfinite(max_shear_ratio) and max_shear_ratio >= 0):
+        raise ValueError(f"max_shear_ratio must be finite and >= 0, got {max_shear_ratio!r}")
+    if not 0 < region_threshold < 1:
+        raise ValueError(f"region_threshold must be in (0, 1), got {region_threshold!r}")
+    if isinstance(region_margin, bool) or int(region_margin) != region_margin or region_margin < 0:
+        raise ValueError(f"region_margin must be a whole number of pitches >= 0, got {region_margin!r}")
+    if isinstance(subdivision, bool) or int(subdivision) != subdivision or not 1 <= subdivision <= 4:
+        raise ValueError(f"subdivision must be a whole number from 1 to 4, got {subdivision!r}")
+    if not (math.isfinite(reach) and reach >= 0):
+        raise ValueError(f"reach must be finite and >= 0 thicknesses, got {reach!r}")
 
 
 def check_stress(stress, grid: SensorGrid) -> np.ndarray:

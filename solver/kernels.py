@@ -219,7 +219,7 @@ def taxel_points(grid: SensorGrid):
     return np.column_stack([u.ravel(), v.ravel()]), np.outer(weights, weights).ravel() / 4.0
 
 
-def stress_matrix(grid: SensorGrid, kernel: str = "layer") -> np.ndarray:
+def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int = 1) -> np.ndarray:
     """The forward matrix ``C = [Cx | Cy | Cz]`` of a sensor grid.
 
     Parameters
@@ -230,22 +230,37 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer") -> np.ndarray:
         The medium and how a node's force is spread on the surface (see
         module notes). Default "layer".
 
+    subdivision : int, optional
+        ``s``: split every cell into ``s x s`` sub-cells, each its own source
+        (the contact fit's finer load profile). Default 1. Not defined for
+        the point kernel, and only on regular grids when ``s > 1``.
+
     Returns
     -------
-    C : (m, 3m) ndarray
-        Pascals per newton; ``C[i, j]`` is the stress at sensor ``i`` from a
-        unit force component on node ``j mod m``.
+    C : (m, 3 m s^2) ndarray
+        Pascals per newton; ``C[i, c * m s^2 + q * m + j]`` is the stress at
+        sensor ``i`` from a unit force component ``c`` (x, y, z) on sub-cell
+        ``q`` (row-major within the cell, x fastest) of node ``j``. With
+        ``s = 1``, ``C[i, j]`` is the stress from a unit force component on
+        node ``j mod m``.
     """
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+    if isinstance(subdivision, bool) or int(subdivision) != subdivision or subdivision < 1:
+        raise ValueError(f"subdivision must be a whole number >= 1, got {subdivision!r}")
+    subdivision = int(subdivision)
+    if subdivision > 1 and (kernel == "point" or not grid.is_regular):
+        raise ValueError("subdivision > 1 needs a regular grid and a cell or layer kernel, got "
+                         f"{'an irregular grid' if not grid.is_regular else 'the point kernel'}")
     h, pitch = grid.thickness, grid.pitch
+    width = pitch / subdivision
 
     def at_point(dx, dy):
         if kernel == "point":
             return point_force_stress(dx, dy, h)
         if kernel == "cell":
-            return cell_force_stress(dx, dy, h, pitch)
-        return layer_force_stress(dx, dy, h, pitch, grid.poisson_ratio)
+            return cell_force_stress(dx, dy, h, width)
+        return layer_force_stress(dx, dy, h, width, grid.poisson_ratio)
 
     def evaluate(dx, dy):
         if grid.sensor_size == 0:
@@ -257,14 +272,19 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer") -> np.ndarray:
         return total
 
     m = grid.size
-    matrix = np.empty((m, 3 * m))
+    cells = subdivision * subdivision
+    matrix = np.empty((m, 3 * m * cells))
     if grid.is_regular:
-        # Translation invariance: evaluate on the (2ny-1, 2nx-1) offsets once.
+        # Translation invariance: evaluate on the (2ny-1, 2nx-1) offsets once per sub-cell.
         ny, nx = grid.shape
         oy, ox = np.meshgrid(np.arange(-(ny - 1), ny) * pitch, np.arange(-(nx - 1), nx) * pitch,
                              indexing="ij")
-        for i, values in enumerate(evaluate(ox, oy)):
-            _spread_offsets(values, matrix[:, i * m:(i + 1) * m])
+        centres = (np.arange(subdivision) + 0.5) * width - 0.5 * pitch
+        for q in range(cells):
+            cy, cx = centres[q // subdivision], centres[q % subdivision]
+            for i, values in enumerate(evaluate(ox - cx, oy - cy)):
+                start = (i * cells + q) * m
+                _spread_offsets(values, matrix[:, start:start + m])
     else:
         p = grid.positions
         dx = p[:, 0, None] - p[None, :, 0]

@@ -18,37 +18,44 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import replace
 
 import numpy as np
 from scipy import ndimage
 
 from .arrays import read_only
 from .geometry import SensorGrid
-from .inverse import Reconstruction, Reconstructor, check_stress
+from .inverse import Reconstruction, Reconstructor, check_options, check_stress
 
-__all__ = ["Contact", "RegionSolver"]
+__all__ = ["RegionSolver", "make_solver", "DENSE_LIMIT"]
+
+# Largest skin (sensors) solved with one dense Reconstructor: its sub-cell fit matrix is
+# 12 m^2 doubles (100 MB at 32x32, 1.6 GB at 64x64). Larger regular skins are solved
+# window by window.
+DENSE_LIMIT = 1024
 
 
-@dataclass(frozen=True)
-class Contact:
-    """One contact's window and its own solution.
+def make_solver(grid: SensorGrid, **options):
+    """The solver for a skin of any size: the one place callers get one.
 
-    Attributes
+    A :class:`~solver.Reconstructor` of the whole skin when it has at most
+    ``DENSE_LIMIT`` sensors (or is irregular), else a :class:`RegionSolver`
+    that solves each contact on its window: no path ever allocates the dense
+    matrices of a large skin. Both answer ``solve(stress, *, shear_ratio=None,
+    shear_direction=None, exact=None)`` and ``solve_normal(stress)`` with a
+    :class:`~solver.Reconstruction`.
+
+    Parameters
     ----------
-    window : tuple of slice
-        ``(rows, columns)`` of the skin image the contact was solved on.
-    result : Reconstruction
-        The solution on the window (its forces are the window's nodes, row-major).
+    grid : SensorGrid
+    **options
+        Tuning arguments of :class:`~solver.Reconstructor` (``kernel``,
+        ``max_condition`` ...), all checked before any matrix is built.
     """
-
-    window: tuple
-    result: Reconstruction
-
-    @property
-    def total_force(self) -> np.ndarray:
-        """(3,) ndarray: the contact's resultant, newtons."""
-        return self.result.total_force
+    check_options(grid, **{k: v for k, v in options.items() if k != "efficiency"})
+    if grid.size <= DENSE_LIMIT or not grid.is_regular:
+        return Reconstructor(grid, **options)
+    return RegionSolver(grid, **options)
 
 
 class RegionSolver:
@@ -89,6 +96,7 @@ class RegionSolver:
             raise ValueError(f"step must be a whole number >= 1, got {step!r}")
         if isinstance(cache, bool) or not isinstance(cache, int) or cache < 1:
             raise ValueError(f"cache must be a whole number >= 1, got {cache!r}")
+        check_options(grid, kernel=kernel, **{k: v for k, v in options.items() if k != "efficiency"})
         self.grid = grid
         self.kernel = kernel
         self.threshold = float(threshold)
@@ -98,8 +106,6 @@ class RegionSolver:
         self._cache: OrderedDict = OrderedDict()
         self._capacity = cache
         self.factorizations = 0  # windows factored so far (the rest were reused)
-        # the options are checked now, on the smallest window, not at the first frame
-        Reconstructor(self._window(1, 1), kernel=kernel, **options)
 
     def _window(self, rows: int, columns: int) -> SensorGrid:
         g = self.grid
@@ -162,44 +168,65 @@ class RegionSolver:
             out += [start, start + side]
         return out
 
-    def solve(self, stress, *, shear_ratio=None, shear_direction=None) -> Reconstruction:
+    def solve_normal(self, stress) -> Reconstruction:
+        """Normal-only forces, window by window (zero outside the contact windows)."""
+        return self.solve(stress, normal_only=True)
+
+    def solve(self, stress, *, shear_ratio=None, shear_direction=None, exact=None,
+              normal_only=False) -> Reconstruction:
         """Solve every contact on its window (its own parameters when automatic).
 
         Returns a :class:`~solver.Reconstruction` of the whole skin: forces are
         zero outside the windows; ``shear_ratio``, ``shear_direction`` and
         ``efficiency`` are the largest contact's; ``residual`` counts the data
-        outside the windows as unexplained; ``contacts`` holds each contact.
+        outside the windows as unexplained; ``contacts`` holds every contact
+        with its nodes on the skin.
         """
         grid = self.grid
         image = check_stress(stress, grid).reshape(grid.shape)
         forces = np.zeros(grid.shape + (3,))
         region = np.zeros(grid.shape, dtype=bool)
-        contacts = []
+        contacts, results = [], []
         explained = np.zeros(grid.shape, dtype=bool)
         unexplained = 0.0
+        border = np.zeros(grid.shape, dtype=bool)
+        border[[0, -1], :] = border[:, [0, -1]] = True
         for rows, columns in self.windows(image):
             window = image[rows, columns]
             solver = self.reconstructor(window.shape[0], window.shape[1])
-            result = solver.solve(window, shear_ratio=shear_ratio, shear_direction=shear_direction)
+            if normal_only:
+                result = solver.solve_normal(window)
+            else:
+                result = solver.solve(window, shear_ratio=shear_ratio, shear_direction=shear_direction,
+                                      exact=exact)
             forces[rows, columns] += result.forces.reshape(window.shape + (3,))
             region[rows, columns] |= result.region.reshape(window.shape)
             explained[rows, columns] = True
             unexplained += (result.residual * np.linalg.norm(window)) ** 2
-            contacts.append(Contact((rows, columns), result))
+            results.append(result)
+            for contact in result.contacts:
+                nodes = np.zeros(grid.shape, dtype=bool)
+                nodes[rows, columns] = contact.nodes.reshape(window.shape)
+                contacts.append(replace(contact, nodes=read_only(nodes.ravel(), bool),
+                                        at_edge=bool(np.any(nodes & border))))
         norm = float(np.linalg.norm(image))
         unexplained += float(np.sum(image[~explained] ** 2))
-        if not contacts:
+        contacts.sort(key=lambda c: -c.total_force[2])
+        if exact is None:
+            exact = shear_ratio is not None or shear_direction is not None
+        if not results:
             direction = 0.0 if shear_direction is None else math.remainder(shear_direction, 2 * math.pi)
             return Reconstruction(
                 forces=read_only(forces.reshape(-1, 3)), shear_ratio=0.0, shear_direction=direction,
                 efficiency=math.nan, residual=0.0 if norm == 0 else 1.0, condition=1.0, regularized=False,
-                normal_only=False, shear_detected=False, region=read_only(region.ravel(), bool))
-        main = max(contacts, key=lambda c: c.total_force[2]).result
+                normal_only=normal_only, shear_detected=False, region=read_only(region.ravel(), bool),
+                exact=bool(exact))
+        main = max(results, key=lambda r: r.total_force[2])
         return Reconstruction(
-            forces=read_only(forces.reshape(-1, 3)), shear_ratio=main.shear_ratio,
-            shear_direction=main.shear_direction, efficiency=main.efficiency,
-            residual=math.sqrt(unexplained) / norm if norm > 0 else 0.0,
-            condition=max(c.result.condition for c in contacts),
-            regularized=any(c.result.regularized for c in contacts), normal_only=False,
-            shear_detected=any(c.result.shear_detected for c in contacts),
-            region=read_only(region.ravel(), bool), contacts=tuple(contacts))
+            forces=read_only(forces.reshape(-1, 3)),
+            shear_ratio=contacts[0].shear_ratio if contacts else main.shear_ratio,
+            shear_direction=contacts[0].shear_direction if contacts else main.shear_direction,
+            efficiency=main.efficiency, residual=math.sqrt(unexplained) / norm if norm > 0 else 0.0,
+            condition=max(r.condition for r in results), regularized=any(r.regularized for r in results),
+            normal_only=normal_only, shear_detected=any(r.shear_detected for r in results),
+            region=read_only(region.ravel(), bool), exact=main.exact, contacts=tuple(contacts))

@@ -15,13 +15,12 @@ import csv
 import math
 import time
 import tracemalloc
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import loads, metrics
-from .arrays import read_only
 from .efficiency import ContactFit
 from .geometry import SensorGrid
 from .inverse import Reconstructor
@@ -41,7 +40,7 @@ __all__ = [
     "write_csv",
 ]
 
-PATHS = ("exact", "constrained", "normal", "region")
+PATHS = ("fit", "exact", "normal", "region")
 
 
 @dataclass(frozen=True)
@@ -54,11 +53,15 @@ class Configuration:
     kernel : {"layer", "cell", "point"}
         Stress kernel (:mod:`solver.kernels`); "layer" is the skin as built,
         "cell" and "point" the paper's half-space kernels.
-    path : {"exact", "constrained", "normal", "region"}
-        ``exact``: the member of the exact solution family at the efficiency
-        maximum; ``constrained``: the fitted compressive, friction-shaped load
-        itself (DESIGN.md 3, "a constrained alternative"); ``normal``: normal
-        forces only; ``region``: ``exact`` on one window per contact.
+    path : {"fit", "exact", "normal", "region"}
+        ``fit``: the fitted compressive, friction-shaped load of every contact
+        (the automatic answer of :meth:`solver.Reconstructor.solve`);
+        ``exact``: the member of the exact solution family at the fitted
+        parameters (the paper's answer); ``normal``: normal forces only;
+        ``region``: ``fit`` on one window per contact.
+    subdivision : int
+        Sub-cells per side of each node's cell in the contact fit (1: the
+        whole cell, the previous profile).
     iterations : int
         Gauss-Newton iterations of the automatic search (its resolution).
     tolerance : float
@@ -69,7 +72,8 @@ class Configuration:
 
     name: str
     kernel: str = "layer"
-    path: str = "exact"
+    path: str = "fit"
+    subdivision: int = 2
     iterations: int = 12
     tolerance: float = 1e-3
     max_condition: float = 100.0
@@ -82,7 +86,8 @@ class Configuration:
         """A solver for ``grid``: an object with ``solve(stress, shear_ratio=, shear_direction=)``,
         ``solve_normal(stress)``, ``grid`` and ``kernel``."""
         efficiency = ContactFit(max_iterations=self.iterations, tolerance=self.tolerance)
-        options = dict(kernel=self.kernel, max_condition=self.max_condition, efficiency=efficiency)
+        options = dict(kernel=self.kernel, max_condition=self.max_condition, subdivision=self.subdivision,
+                       efficiency=efficiency)
         if self.path == "region":
             return _Region(RegionSolver(grid, **options))
         return _Configured(Reconstructor(grid, **options), self.path)
@@ -101,7 +106,7 @@ class _Configured:
             stress,
             shear_ratio=shear_ratio,
             shear_direction=shear_direction,
-            constrained=self.path == "constrained",
+            exact=self.path == "exact",
         )
 
     def solve_normal(self, stress):
@@ -117,27 +122,20 @@ class _Region:
         return self.solver.solve(stress, shear_ratio=shear_ratio, shear_direction=shear_direction)
 
     def solve_normal(self, stress):
-        # the normal-only answer of each window, zero elsewhere
-        result = self.solver.solve(stress, shear_ratio=0.0, shear_direction=0.0)
-        forces = np.array(result.forces)
-        forces[:, :2] = 0.0
-        return _normal_only(result, forces)
-
-
-def _normal_only(result, forces):
-    return replace(result, forces=read_only(forces), normal_only=True, shear_ratio=0.0)
+        return self.solver.solve_normal(stress)
 
 
 CONFIGURATIONS = (
     Configuration("normal only", path="normal"),
-    Configuration("point, exact", kernel="point"),
-    Configuration("cell, exact", kernel="cell"),
+    Configuration("point, exact", kernel="point", path="exact"),
+    Configuration("cell, fit", kernel="cell"),
+    Configuration("layer, whole-cell profile", subdivision=1),
     Configuration("layer, coarse search", iterations=2, tolerance=1e-2),
-    Configuration("layer, exact"),
-    Configuration("layer, exact, weak damping", max_condition=1e4),
-    Configuration("layer, exact, strong damping", max_condition=30.0),
+    Configuration("layer, fit"),
+    Configuration("layer, exact", path="exact"),
+    Configuration("layer, exact, weak damping", path="exact", max_condition=1e4),
+    Configuration("layer, exact, strong damping", path="exact", max_condition=30.0),
     Configuration("layer, region of interest", path="region"),
-    Configuration("layer, constrained", path="constrained"),
 )
 
 

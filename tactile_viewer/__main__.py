@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from solver import Reconstructor, metrics
+from solver import make_solver, metrics
 from solver.kernels import KERNELS
 
 from .model import KERNEL_HELP, geometry_text
@@ -31,7 +31,7 @@ def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direc
     recording = load(path)
     grid = recording.grid
     start = time.perf_counter()
-    reconstructor = Reconstructor(grid, kernel=kernel)
+    reconstructor = make_solver(grid, kernel=kernel)
     setup = time.perf_counter() - start
     print(f"{path}: {len(recording)} frames, {geometry_text(grid)}, kernel {kernel}; "
           f"set-up {setup * 1e3:.1f} ms", file=out)

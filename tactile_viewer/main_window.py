@@ -532,16 +532,16 @@ class MainWindow(QtWidgets.QMainWindow):
         r = solved.result
         total = r.total_force
         if r.normal_only:
-            # the fast preset, or automatic parameters on data without a shear signature
-            shear = "normal only" + ("" if self.model.configuration is not None and not solved.auto
-                                     else " (no shear signature)" if solved.auto else "")
+            shear = "normal only"  # the fast preset
+        elif solved.auto and not r.shear_detected:
+            shear = "auto: no shear signature"
         else:
             shear = (f"{'auto' if solved.auto else 'manual'}: mu {r.shear_ratio:.2f}, "
                      f"theta {math.degrees(r.shear_direction):+.0f} deg")
         if len(r.contacts) > 1:  # solved contact by contact: each has its own parameters
             shear += "  (" + "; ".join(
-                f"contact {k + 1}: mu {c.result.shear_ratio:.2f}, theta "
-                f"{math.degrees(c.result.shear_direction):+.0f}" for k, c in enumerate(r.contacts)) + ")"
+                f"contact {k + 1}: mu {c.shear_ratio:.2f}, theta "
+                f"{math.degrees(c.shear_direction):+.0f}" for k, c in enumerate(r.contacts)) + ")"
         where = (f"seq {solved.frame}" if solved.frame >= 0 else "live") if self.model.live \
             else f"frame {solved.frame + 1}/{len(self.model.recording)}"
         self.status.setText(

@@ -13,16 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
-from solver import Reconstruction, Reconstructor, SensorGrid
+from solver import Reconstruction, Reconstructor, SensorGrid, make_solver
 from solver.kernels import KERNELS
-from solver.tradeoff import Configuration
 
 from .recording import Recording
 
 __all__ = ["Signal", "Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO", "KERNEL_HELP", "geometry_text"]
 
 MAX_SHEAR_RATIO = 1.5  # the slider's end; the automatic search uses the same bound
-FULL_LIMIT = 64 * 64  # larger regular skins are solved contact by contact (solver.region)
 MAPS = ("pressure", "stress", "none")
 KERNEL_HELP = "layer: elastomer layer bonded to a rigid hull (default); cell/point: half-space"
 
@@ -159,11 +157,9 @@ class ViewerModel:
         ``configuration`` is a :class:`solver.tradeoff.Configuration` (a quality
         preset); None is the standard exact solve. Its kernel is replaced by ``kernel``.
         """
-        if configuration is None and grid.is_regular and grid.size > FULL_LIMIT:
-            # a full solver would hold a dense m x 3m matrix (6 GiB at 128x128): solve by contact
-            configuration = Configuration("region of interest", path="region")
         if configuration is None:
-            return Reconstructor(grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO)
+            # solver.make_solver: dense up to 32x32, contact by contact beyond
+            return make_solver(grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO)
         return replace(configuration, kernel=kernel).build(grid)
 
     @property

@@ -1,12 +1,15 @@
-"""Efficiency functionals and the contact region they look at."""
+"""Efficiency functionals, their non-negative least squares and the contact region they look at."""
 
 import math
 
 import numpy as np
 import pytest
+from scipy.optimize import nnls
 
+import solver.efficiency as efficiency
 from solver import Reconstructor, SensorGrid, loads
-from solver.efficiency import Admissibility, ContactFit, Frame, NoShear
+from solver.efficiency import ContactFit, NoShear, nonnegative_fit
+from solver.kernels import stress_matrix
 
 
 @pytest.fixture(scope="module")
@@ -20,6 +23,8 @@ def sheared(reconstructor):
     contact = loads.hertz((0.5e-3, -0.3e-3), 5e-3, 1.0, shear_ratio=0.4, shear_direction=math.radians(120))
     return loads.simulate(reconstructor.grid, contact)
 
+
+# -- the contact region ------------------------------------------------------------------------
 
 def test_regular_region_equals_the_general_graph_path(reconstructor, sheared):
     grid = reconstructor.grid
@@ -44,50 +49,178 @@ def test_region_holds_the_contact_and_drops_isolated_spikes(reconstructor, shear
     assert not reconstructor.contact_region(np.full(reconstructor.grid.size, -1.0)).any()
 
 
+# -- what the contact fit sees and fits ----------------------------------------------------------
+
+def test_frame_columns_are_the_sub_cells_of_the_region(reconstructor, sheared):
+    # The frame is the sub-cell stress matrix restricted to the sensors near the contact
+    # and to the sub-cells of its region's nodes: built here independently of _frame.
+    r, b = reconstructor, np.asarray(sheared.stress)
+    assert r.subdivision == 2
+    frame, labels, nodes = r._frame(b)
+    m, cells = r.grid.size, 4
+    region = np.flatnonzero(labels)
+    assert frame.contacts == labels.max() == 1
+    distance = np.linalg.norm(r.grid.positions[:, None] - r.grid.positions[None, region], axis=2).min(axis=1)
+    rows = np.flatnonzero(distance <= r._rings * r.grid.pitch * 1.0001)
+    columns = (np.arange(cells)[:, None] * m + region).ravel()  # sub-cell q of node j: q m + j
+    full = stress_matrix(r.grid, r.kernel, subdivision=2)
+    width = cells * m
+    np.testing.assert_array_equal(frame.stress, b[rows])
+    for k, part in enumerate((frame.fit_x, frame.fit_y, frame.fit_z)):
+        np.testing.assert_array_equal(part, full[np.ix_(rows, columns + k * width)])
+    np.testing.assert_array_equal(nodes, np.tile(region, cells))
+    np.testing.assert_array_equal(frame.column_contact, np.zeros(columns.size, int))
+    assert frame.row_contact.shape == (rows.size, 1) and frame.row_contact.all()
+    # the answer is one force per node: the sum of its sub-cells' profile
+    choice = r.efficiency.choose(frame)
+    result = r.solve(b)
+    np.testing.assert_allclose(result.forces[:, 2], np.bincount(nodes, weights=choice.profile, minlength=m),
+                               rtol=1e-12, atol=0)
+    np.testing.assert_array_equal(result.contacts[0].nodes, labels == 1)
+
+
+def test_fit_is_the_nonnegative_least_squares_profile(reconstructor, sheared):
+    frame, _, _ = reconstructor._frame(np.asarray(sheared.stress))
+    fit = ContactFit()
+    shear = np.array([[0.1, -0.2]])
+    g, residual = fit.fit(frame, shear)
+    A = frame.fit_z + 0.1 * frame.fit_x - 0.2 * frame.fit_y
+    # the residual is the true residual vector of the template fit
+    np.testing.assert_allclose(residual, A @ g - frame.stress, rtol=0, atol=1e-12 * np.abs(frame.stress).max())
+    # KKT of min |A g - b| over g >= 0: gradient zero on the support, pointing outwards on the rest
+    assert g.min() >= 0 and (g > 0).any()
+    w = A.T @ (frame.stress - A @ g)
+    scale = np.abs(A.T @ frame.stress).max()
+    np.testing.assert_allclose(w[g > 0], 0, atol=1e-8 * scale)
+    assert w[g == 0].max() <= 1e-8 * scale
+    # the choice reports that residual's norm and the efficiency it gives
+    choice = fit.choose(frame, shear_ratio=math.hypot(0.1, 0.2), shear_direction=math.atan2(-0.2, 0.1))
+    np.testing.assert_allclose(choice.shear, shear, rtol=0, atol=1e-15)
+    assert choice.residual == pytest.approx(np.linalg.norm(choice.profile @ A.T - frame.stress), rel=1e-9)
+    assert choice.efficiency == pytest.approx(1 - choice.residual / np.linalg.norm(frame.stress), rel=1e-12)
+    assert math.isnan(choice.evidence[0]) and not choice.shear_detected[0]
+
+
+# -- the search over the shear parameters ----------------------------------------------------------
+
 def test_contact_fit_finds_free_direction_or_free_ratio(reconstructor, sheared):
     direction = reconstructor.solve(sheared.stress, shear_ratio=0.4)
     assert math.degrees(direction.shear_direction) == pytest.approx(120, abs=4)
+    assert math.isnan(direction.contacts[0].evidence) and not direction.shear_detected
     ratio = reconstructor.solve(sheared.stress, shear_direction=math.radians(120))
     assert ratio.shear_ratio == pytest.approx(0.4, abs=0.06)
+    assert ratio.contacts[0].evidence > 2  # the ratio was searched, so its evidence is measured
     both = reconstructor.solve(sheared.stress)
     assert both.shear_detected
     assert both.shear_ratio == pytest.approx(0.4, abs=0.06)
+    assert math.degrees(both.shear_direction) == pytest.approx(120, abs=4)
     assert both.efficiency > reconstructor.solve(sheared.stress, shear_ratio=0.0,
                                                  shear_direction=0.0).efficiency
 
 
-def test_gram_kept_or_formed_per_frame_give_the_same_fit(reconstructor, sheared):
-    frame = reconstructor._frame(np.asarray(sheared.stress))
-    assert frame.gram is not None
-    fresh = Frame(stress=frame.stress, normal=frame.normal, region=frame.region, matrix=frame.matrix,
-                  max_shear_ratio=frame.max_shear_ratio)
-    fit = ContactFit()
-    g1, rho1 = fit.fit(frame, 0.1, -0.2)
-    g2, rho2 = fit.fit(fresh, 0.1, -0.2)
-    np.testing.assert_allclose(g1, g2, rtol=1e-8, atol=1e-12)
-    assert rho1 == pytest.approx(rho2, rel=1e-8)
-    # rho is the true squared residual of the template fit
-    cx, cy, cz = (frame.matrix[:, k * frame.stress.size + frame.region_index] for k in range(3))
-    direct = np.sum(((cz + 0.1 * cx - 0.2 * cy) @ g1 - frame.stress) ** 2)
-    assert rho1 == pytest.approx(direct, rel=1e-6)
+# Two Hertz contacts far apart on a 20x20 grid, h = pitch, each with its own shear:
+# (centre, normal force, shear ratio, shear direction)
+TWO = [((-9e-3, -8e-3), 1.0, 0.4, math.radians(30)), ((9e-3, 8e-3), 0.7, 0.3, math.radians(-120))]
 
+
+@pytest.fixture(scope="module")
+def two_contacts():
+    grid = SensorGrid.regular(20, 20, 2e-3, 2e-3)
+    contacts = [loads.hertz(c, 4e-3, f, shear_ratio=mu, shear_direction=t) for c, f, mu, t in TWO]
+    return Reconstructor(grid), loads.simulate(grid, contacts)  # noise-free
+
+
+def nearest_node(grid, point):
+    return int(np.argmin(np.linalg.norm(grid.positions - np.asarray(point), axis=1)))
+
+
+def test_two_separated_contacts_get_their_own_directions(two_contacts):
+    r, frame = two_contacts
+    result = r.solve(frame.stress)
+    assert len(result.contacts) == 2 and result.shear_detected
+    # largest normal force first; the frame's parameters are the largest contact's
+    assert result.contacts[0].total_force[2] > result.contacts[1].total_force[2]
+    assert result.shear_ratio == result.contacts[0].shear_ratio
+    assert result.shear_direction == result.contacts[0].shear_direction
+    assert not (result.contacts[0].nodes & result.contacts[1].nodes).any()
+    np.testing.assert_array_equal(result.contacts[0].nodes | result.contacts[1].nodes, result.region)
+    for contact, (center, force, mu, theta) in zip(result.contacts, TWO, strict=True):
+        assert contact.nodes[nearest_node(r.grid, center)]
+        assert contact.shear_detected and not contact.at_edge
+        # measured 30.04 and -119.92 degrees, ratios 0.399 and 0.298
+        assert math.degrees(math.remainder(contact.shear_direction - theta, 2 * math.pi)) == \
+            pytest.approx(0, abs=3)
+        assert contact.shear_ratio == pytest.approx(mu, abs=0.03)
+        # each contact's own resultant against the truth on its nodes (measured within 0.16% of its force)
+        truth = frame.forces[contact.nodes].sum(axis=0)
+        np.testing.assert_allclose(contact.total_force, truth, rtol=0, atol=0.02 * force)
+
+
+def test_two_contacts_with_one_parameter_given(two_contacts):
+    r, frame = two_contacts
+    # only the ratio given: each contact still finds its own direction (measured 30.7 and -119.2 degrees)
+    result = r.solve(frame.stress, shear_ratio=0.35)
+    assert len(result.contacts) == 2 and result.exact
+    for contact, (center, _, _, theta) in zip(result.contacts, TWO, strict=True):
+        assert contact.nodes[nearest_node(r.grid, center)]
+        assert contact.shear_ratio == pytest.approx(0.35)
+        assert math.degrees(math.remainder(contact.shear_direction - theta, 2 * math.pi)) == \
+            pytest.approx(0, abs=3)
+    # only the direction given: each contact finds its own ratio along it; the second contact's
+    # shear points 150 degrees away, so the best ratio there is none (never a negative one)
+    result = r.solve(frame.stress, shear_direction=TWO[0][3])
+    first, second = result.contacts
+    assert first.shear_ratio == pytest.approx(TWO[0][2], abs=0.03)
+    assert first.shear_detected and first.shear_direction == pytest.approx(TWO[0][3])
+    assert second.shear_ratio == 0 and not second.shear_detected
+
+
+# -- pluggable functionals -----------------------------------------------------------------------------
 
 def test_alternative_functionals_plug_in(sheared):
     grid = sheared.grid
     none = Reconstructor(grid, efficiency=NoShear()).solve(sheared.stress)
-    assert none.shear_ratio == 0 and not none.shear_detected
-    admissible = Reconstructor(grid, efficiency=Admissibility(ratios=7, directions=12)).solve(sheared.stress)
-    assert np.isfinite(admissible.forces).all() and admissible.residual < 1e-9
+    assert none.shear_ratio == 0 and not none.shear_detected and not none.exact
+    assert np.all(none.forces[:, :2] == 0) and none.forces[:, 2].min() >= 0
 
+    class Fixed:
+        # any object with a name and choose() will do: this one always picks (0.2, 1.0)
+        name = "fixed"
+
+        def choose(self, frame, *, shear_ratio=None, shear_direction=None):
+            return ContactFit().choose(frame, shear_ratio=0.2, shear_direction=1.0)
+
+    plugged = Reconstructor(grid, efficiency=Fixed()).solve(sheared.stress)
+    given = Reconstructor(grid).solve(sheared.stress, shear_ratio=0.2, shear_direction=1.0, exact=False)
+    np.testing.assert_array_equal(plugged.forces, given.forces)
+    assert plugged.shear_ratio == pytest.approx(0.2) and plugged.shear_direction == pytest.approx(1.0)
+    assert set(efficiency.FUNCTIONALS) == {"contact_fit", "no_shear"}
+
+
+# -- argument checks ------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("kwargs, message", [
-    (dict(significance=-1), "significance must be finite and >= 0, got -1"),
-    (dict(max_iterations=-2), "max_iterations must be >= 0, got -2"),
-    (dict(tolerance=0), "tolerance must be > 0, got 0"),
-])
+    (dict(shrinkage=-1), "shrinkage must be finite and >= 0, got -1"),
+    (dict(shrinkage=math.inf), "shrinkage must be finite and >= 0, got inf"),
+    (dict(shrinkage=math.nan), "shrinkage must be finite and >= 0, got nan"),
+    (dict(model_error=-0.1), "model_error must be finite and >= 0, got -0.1"),
+    (dict(model_error=math.nan), "model_error must be finite and >= 0, got nan"),
+    (dict(max_iterations=-2), "max_iterations must be a whole number >= 0, got -2"),
+    (dict(max_iterations=1.5), "max_iterations must be a whole number >= 0, got 1.5"),
+    (dict(max_iterations=True), "max_iterations must be a whole number >= 0, got True"),
+    (dict(tolerance=0), "tolerance must be finite and > 0, got 0"),
+    (dict(tolerance=-1e-3), "tolerance must be finite and > 0, got -0.001"),
+    (dict(tolerance=math.inf), "tolerance must be finite and > 0, got inf"),
+], ids=["shrinkage", "shrinkage-inf", "shrinkage-nan", "model_error", "model_error-nan", "max_iterations",
+        "max_iterations-fraction", "max_iterations-bool", "tolerance", "tolerance-negative", "tolerance-inf"])
 def test_contact_fit_checks_its_arguments(kwargs, message):
     with pytest.raises(ValueError, match=message):
         ContactFit(**kwargs)
+
+
+def test_contact_fit_keeps_valid_arguments():
+    fit = ContactFit(shrinkage=0, model_error=0, max_iterations=0, tolerance=1e-6)
+    assert (fit.shrinkage, fit.model_error, fit.max_iterations, fit.tolerance) == (0.0, 0.0, 0, 1e-6)
 
 
 @pytest.mark.parametrize("kwargs, message", [
@@ -98,3 +231,89 @@ def test_contact_fit_checks_its_arguments(kwargs, message):
 def test_region_settings_are_checked(kwargs, message):
     with pytest.raises(ValueError, match=message):
         Reconstructor(SensorGrid.regular(3, 3, 1e-3, 1e-3), **kwargs)
+
+
+# -- nonnegative_fit ---------------------------------------------------------------------------------
+
+def random_problem(seed):
+    rng = np.random.default_rng(seed)  # one random problem per seed, some with more unknowns than rows
+    m, n = int(rng.integers(3, 60)), int(rng.integers(1, 30))
+    return rng, rng.standard_normal((m, n)), rng.standard_normal(m)
+
+
+def assert_kkt(A, b, g):
+    # the optimality conditions of min |A g - b| over g >= 0
+    assert g.shape == (A.shape[1],) and np.all(g >= 0)
+    w = A.T @ (b - A @ g)
+    scale = np.abs(A.T @ b).max()
+    np.testing.assert_allclose(w[g > 0], 0, atol=1e-8 * scale)
+    assert np.all(w[g == 0] <= 1e-8 * scale)
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_nonnegative_fit_matches_scipy_cold_and_warm(seed):
+    rng, A, b = random_problem(seed)
+    n = A.shape[1]
+    reference = nnls(A, b, maxiter=30 * n)[0]
+    objective = lambda v: np.sum((A @ v - b) ** 2)  # noqa: E731
+    supports = {"cold": None, "good": reference > 0, "bad": rng.random(n) < 0.5,
+                "empty": np.zeros(n, bool), "full": np.ones(n, bool), "complement": ~(reference > 0)}
+    for name, support in supports.items():
+        before = None if support is None else support.copy()
+        g = nonnegative_fit(A, b, support=support)
+        assert_kkt(A, b, g)
+        # measured excess at most 2e-16 of |b|^2 over these seeds
+        assert objective(g) <= objective(reference) + 1e-12 * (b @ b), name
+        if A.shape[0] >= n:  # full column rank: the minimizer is unique (measured 5e-15 apart)
+            np.testing.assert_allclose(g, reference, rtol=0, atol=1e-9 * max(np.abs(reference).max(), 1.0),
+                                       err_msg=name)
+        if support is not None:
+            np.testing.assert_array_equal(support, before)  # the caller's guess is not modified
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_nonnegative_fit_from_the_right_support_needs_no_scipy(seed, monkeypatch):
+    # the warm start really solves: scipy (the fallback) must not be reached from the answer's support
+    rng, A, b = random_problem(seed)
+    reference = nnls(A, b, maxiter=30 * A.shape[1])[0]
+
+    def forbidden(*args, **kwargs):
+        raise AssertionError("fell back to scipy")
+    monkeypatch.setattr(efficiency, "nnls", forbidden)
+    monkeypatch.setattr(efficiency, "lsq_linear", forbidden)
+    if not (reference > 0).any():
+        with pytest.raises(AssertionError, match="fell back to scipy"):  # an empty guess is a cold start
+            nonnegative_fit(A, b, support=reference > 0)
+        return
+    g = nonnegative_fit(A, b, support=reference > 0, max_swaps=0)
+    assert_kkt(A, b, g)
+
+
+def test_nonnegative_fit_falls_back_when_the_warm_start_cannot_settle(monkeypatch):
+    rng, A, b = random_problem(7)  # fixed seed
+    reference = nnls(A, b, maxiter=30 * A.shape[1])[0]
+    calls = []
+    original = efficiency.nnls
+    monkeypatch.setattr(efficiency, "nnls", lambda *a, **k: calls.append(1) or original(*a, **k))
+    # no swaps allowed from the wrong support: the answer comes from scipy
+    g = nonnegative_fit(A, b, support=~(reference > 0), max_swaps=0)
+    assert calls and np.allclose(g, reference, atol=1e-12)
+    assert_kkt(A, b, g)
+    # duplicated columns: the support's Cholesky factor is singular, so it falls back too
+    twin = np.hstack([A, A[:, :1]])
+    calls.clear()
+    g = nonnegative_fit(twin, b, support=np.ones(twin.shape[1], bool))
+    assert calls
+    assert_kkt(twin, b, g)
+
+
+def test_nonnegative_fit_survives_scipy_running_out_of_iterations(monkeypatch):
+    rng, A, b = random_problem(11)  # fixed seed
+    reference = nnls(A, b, maxiter=30 * A.shape[1])[0]
+
+    def exhausted(*args, **kwargs):
+        raise RuntimeError("Maximum number of iterations reached.")
+    monkeypatch.setattr(efficiency, "nnls", exhausted)
+    g = nonnegative_fit(A, b)  # cold: scipy's nnls fails, bounded least squares answers
+    np.testing.assert_allclose(g, reference, rtol=0, atol=1e-8 * max(np.abs(reference).max(), 1.0))
+    assert_kkt(A, b, g)

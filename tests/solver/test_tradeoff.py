@@ -81,5 +81,5 @@ def test_a_large_skin_is_solved_through_windows():
 
 
 def test_a_bad_path_is_rejected():
-    with pytest.raises(ValueError, match=r"path must be one of \('exact', 'constrained', 'normal', 'region'\)"):
+    with pytest.raises(ValueError, match=r"path must be one of \('fit', 'exact', 'normal', 'region'\)"):
         t.Configuration("x", path="fast")

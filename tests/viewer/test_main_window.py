@@ -229,7 +229,7 @@ def test_separate_contacts_are_reported_each_with_its_parameters(window, qtbot):
         window.show_recording(Recording(grid, np.stack([stress, stress]), [0.0, 0.1]))
     result = window.model.last.result
     assert len(result.contacts) == 2
-    directions = sorted(round(math.degrees(c.result.shear_direction)) for c in result.contacts)
+    directions = sorted(round(math.degrees(c.shear_direction)) for c in result.contacts)
     assert abs(directions[0] - math.degrees(-2.0)) < 10 and abs(directions[1] - math.degrees(0.5)) < 10
     assert "contact 1: mu" in window.status.text() and "contact 2: mu" in window.status.text()
 

@@ -412,10 +412,10 @@ def test_the_model_imports_neither_qt_nor_pyvista():
 
 def test_large_skins_are_solved_contact_by_contact():
     from solver import SensorGrid
-    from tactile_viewer.model import FULL_LIMIT
+    from solver.region import DENSE_LIMIT
 
     small = ViewerModel.build(SensorGrid.regular(8, 8, 2e-3, 2e-3), "cell")
     large = ViewerModel.build(SensorGrid.regular(80, 80, 2e-3, 2e-3), "cell")
     assert hasattr(small, "matrix")  # the full reconstructor
-    assert not hasattr(large, "matrix") and large.grid.size > FULL_LIMIT  # no dense matrix
+    assert not hasattr(large, "matrix") and large.grid.size > DENSE_LIMIT  # no dense matrix
     assert large.solve(np.zeros(large.grid.size)).forces.shape == (6400, 3)

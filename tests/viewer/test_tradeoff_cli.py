@@ -51,11 +51,12 @@ def test_configurations_move_to_the_kernel_asked(kernel):
     for c in CONFIGURATIONS:
         if c.kernel == default:  # follows --kernel, and its name says so
             twin = next(m for m in moved if m.path == c.path and m.iterations == c.iterations
+                        and m.subdivision == c.subdivision
                         and m.max_condition == c.max_condition and m.kernel == kernel)
             assert twin.name == (kernel + c.name[len(default):] if c.name.startswith(default + ",") else c.name)
         elif c.kernel != kernel:  # a comparison on another kernel stays
             assert c in moved
-    unnamed = [(c.kernel, c.path, c.iterations, c.tolerance, c.max_condition) for c in moved]
+    unnamed = [(c.kernel, c.path, c.subdivision, c.iterations, c.tolerance, c.max_condition) for c in moved]
     assert len(set(unnamed)) == len(unnamed)  # and a comparison that became a repeat is dropped
 
 
