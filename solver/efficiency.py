@@ -23,6 +23,8 @@ import numpy as np
 import scipy.linalg
 from scipy.optimize import lsq_linear, nnls
 
+from .checks import real_number, whole_number
+
 __all__ = ["Frame", "Choice", "ContactFit", "NoShear", "FUNCTIONALS", "nonnegative_fit"]
 
 
@@ -250,18 +252,13 @@ class ContactFit:
 
     def __init__(self, *, shrinkage: float = 2.0, model_error: float = 0.002,
                  max_iterations: int = 12, tolerance: float = 1e-3):
-        if not (math.isfinite(shrinkage) and shrinkage >= 0):
-            raise ValueError(f"shrinkage must be finite and >= 0, got {shrinkage!r}")
-        if not (math.isfinite(model_error) and model_error >= 0):
-            raise ValueError(f"model_error must be finite and >= 0, got {model_error!r}")
-        if isinstance(max_iterations, bool) or int(max_iterations) != max_iterations or max_iterations < 0:
-            raise ValueError(f"max_iterations must be a whole number >= 0, got {max_iterations!r}")
-        if not (math.isfinite(tolerance) and tolerance > 0):
-            raise ValueError(f"tolerance must be finite and > 0, got {tolerance!r}")
-        self.shrinkage = float(shrinkage)
-        self.model_error = float(model_error)
-        self.max_iterations = int(max_iterations)
-        self.tolerance = float(tolerance)
+        self.shrinkage = real_number("shrinkage", shrinkage, rule="finite and >= 0",
+                                     valid=lambda v: math.isfinite(v) and v >= 0)
+        self.model_error = real_number("model_error", model_error, rule="finite and >= 0",
+                                       valid=lambda v: math.isfinite(v) and v >= 0)
+        self.max_iterations = whole_number("max_iterations", max_iterations, low=0)
+        self.tolerance = real_number("tolerance", tolerance, rule="finite and > 0",
+                                     valid=lambda v: math.isfinite(v) and v > 0)
 
     # -- the profile at given parameters ---------------------------------------------
 

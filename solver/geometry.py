@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
 from .arrays import read_only
+from .checks import real, shown
 
 __all__ = ["SensorGrid", "check_poisson_ratio"]
 
@@ -24,33 +24,21 @@ def _positive_finite(name: str, value) -> float:
     return number
 
 
-def _shown(value) -> str:
-    # numpy scalars print as "np.float64(0.7)"; the user wrote 0.7
-    return repr(value.item()) if isinstance(value, np.generic) else repr(value)
-
-
-def _real(value) -> float | None:
-    """``value`` as a float if it is a real number (not a bool, not text), else None."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        return None
-    return float(value)
-
-
 def check_poisson_ratio(value) -> float:
     """``value`` as a Poisson ratio in [0, 0.5]; ValueError naming ``poisson_ratio`` otherwise."""
     # an isotropic solid has -1 < nu <= 0.5; elastomers are not auxetic, and 0.5 itself
     # (incompressible) must stay allowed because real silicones are within 1e-3 of it
-    number = _real(value)
+    number = real(value)
     if number is None or not math.isfinite(number) or not 0.0 <= number <= 0.5:
-        raise ValueError(f"poisson_ratio must be a finite number in [0, 0.5], got {_shown(value)}")
+        raise ValueError(f"poisson_ratio must be a finite number in [0, 0.5], got {shown(value)}")
     return number
 
 
 def _sensor_size(value, pitch: float) -> float:
-    number = _real(value)
+    number = real(value)
     if number is None or not math.isfinite(number) or number < 0.0:
         raise ValueError("sensor_size must be a finite number of metres >= 0 (0 for point sensors), "
-                         f"got {_shown(value)}")
+                         f"got {shown(value)}")
     if number > pitch:
         raise ValueError(f"sensor_size must be at most the pitch (taxels cannot overlap), got "
                          f"{number:g} m with pitch {pitch:g} m")

@@ -29,11 +29,13 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from .arrays import read_only
+from .checks import optional_flag, real_number, whole_number
 from .efficiency import ContactFit, Frame
 from .geometry import SensorGrid
 from .kernels import KERNELS, stress_matrix
 
-__all__ = ["Reconstructor", "Reconstruction", "Contact", "SymmetricFactor", "check_options"]
+__all__ = ["Reconstructor", "Reconstruction", "Contact", "SymmetricFactor", "check_options",
+           "check_parameters"]
 
 
 @dataclass(frozen=True)
@@ -351,52 +353,56 @@ class Reconstructor:
         Reconstruction
         """
         b = check_stress(stress, self.grid)
-        for name, value in (("shear_ratio", shear_ratio), ("shear_direction", shear_direction)):
-            if value is not None and not isinstance(value, (int, float, np.integer, np.floating)):
-                raise ValueError(f"{name} must be a real number (or None), got {type(value).__name__}")
-        if shear_ratio is not None and not (math.isfinite(shear_ratio) and shear_ratio >= 0):
-            raise ValueError(f"shear_ratio must be finite and >= 0 (or None), got {shear_ratio!r}")
-        if shear_direction is not None and not math.isfinite(shear_direction):
-            raise ValueError(f"shear_direction must be finite radians (or None), got {shear_direction!r}")
-        if exact is None:
-            exact = shear_ratio is not None or shear_direction is not None
+        exact = check_parameters(shear_ratio, shear_direction, exact)
         m = self.grid.size
         fallback = 0.0 if shear_direction is None else float(shear_direction)
         frame, labels, nodes = self._frame(b)
         if frame is None:  # nothing compressive anywhere: no contact to fit
-            forces = np.zeros((m, 3))
-            if exact:
-                forces[:, 2] = self._normal.solve(b)
-            return Reconstruction(
-                forces=read_only(forces), shear_ratio=0.0, shear_direction=_direction(0, 0, fallback),
-                efficiency=math.nan, residual=self._residual(forces.T.ravel(), b),
-                condition=self._gram.condition, regularized=exact and self._gram.shift > 0,
-                normal_only=False, shear_detected=False, region=read_only(np.zeros(m, bool), bool),
-                exact=bool(exact))
+            return self._without_contact(b, exact, fallback)
         choice = self.efficiency.choose(frame, shear_ratio=shear_ratio, shear_direction=shear_direction)
         # the answer stays one force per node: the sum of its sub-cells
         g = np.bincount(nodes, weights=choice.profile, minlength=m)
+        # a patch the compressive fit gives no load (tension read through a damped inverse
+        # on a thick layer) is not a contact
+        loaded = np.bincount(labels, weights=g, minlength=len(choice.shear) + 1)[1:] > 0
+        if not loaded.any():
+            return self._without_contact(b, exact, fallback)
         pair = np.zeros((m, 2))
         pair[labels > 0] = choice.shear[labels[labels > 0] - 1]
         template = np.concatenate([pair[:, 0] * g, pair[:, 1] * g, g])
         x = template + self.apply_pinv(b - self.matrix @ template) if exact else template
         forces = x.reshape(3, m).T
         contacts = []
-        for k, (sx, sy) in enumerate(choice.shear):
+        for k in np.flatnonzero(loaded):
+            sx, sy = choice.shear[k]
             mask = labels == k + 1
             contacts.append(Contact(
                 nodes=read_only(mask, bool), shear_ratio=math.hypot(sx, sy),
                 shear_direction=_direction(sx, sy, fallback), evidence=float(choice.evidence[k]),
                 shear_detected=bool(choice.shear_detected[k]), at_edge=bool(np.any(mask & self._border)),
                 total_force=read_only(forces[mask].sum(axis=0))))
+        region = np.isin(labels, 1 + np.flatnonzero(loaded))
         contacts.sort(key=lambda c: -c.total_force[2])
         main = contacts[0]
         return Reconstruction(
             forces=read_only(forces), shear_ratio=main.shear_ratio, shear_direction=main.shear_direction,
             efficiency=choice.efficiency, residual=self._residual(x, b),
             condition=self._gram.condition, regularized=exact and self._gram.shift > 0,
-            normal_only=False, shear_detected=bool(np.any(choice.shear_detected)),
-            region=read_only(labels > 0, bool), exact=bool(exact), contacts=tuple(contacts))
+            normal_only=False, shear_detected=any(c.shear_detected for c in contacts),
+            region=read_only(region, bool), exact=bool(exact), contacts=tuple(contacts))
+
+    def _without_contact(self, b, exact, fallback):
+        # no compressive load anywhere: the exact answer is the normal-only one, the fitted one zero
+        m = self.grid.size
+        forces = np.zeros((m, 3))
+        if exact:
+            forces[:, 2] = self._normal.solve(b)
+        return Reconstruction(
+            forces=read_only(forces), shear_ratio=0.0, shear_direction=_direction(0, 0, fallback),
+            efficiency=math.nan, residual=self._residual(forces.T.ravel(), b),
+            condition=self._gram.condition, regularized=exact and self._gram.shift > 0,
+            normal_only=False, shear_detected=False, region=read_only(np.zeros(m, bool), bool),
+            exact=bool(exact))
 
     # -- helpers ------------------------------------------------------------------
 
@@ -496,22 +502,40 @@ def check_options(grid, *, kernel="layer", max_condition=100.0, max_shear_ratio=
         raise ValueError(f"grid must be a SensorGrid, got {type(grid).__name__}")
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
-    for name, value in (("max_condition", max_condition), ("max_shear_ratio", max_shear_ratio),
-                        ("region_threshold", region_threshold), ("reach", reach)):
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-            raise ValueError(f"{name} must be a real number, got {type(value).__name__}")
-    if not (math.isfinite(max_condition) and max_condition > 1):
-        raise ValueError(f"max_condition must be a finite number > 1, got {max_condition!r}")
-    if not (math.isfinite(max_shear_ratio) and max_shear_ratio >= 0):
-        raise ValueError(f"max_shear_ratio must be finite and >= 0, got {max_shear_ratio!r}")
-    if not 0 < region_threshold < 1:
-        raise ValueError(f"region_threshold must be in (0, 1), got {region_threshold!r}")
-    if isinstance(region_margin, bool) or int(region_margin) != region_margin or region_margin < 0:
-        raise ValueError(f"region_margin must be a whole number of pitches >= 0, got {region_margin!r}")
-    if isinstance(subdivision, bool) or int(subdivision) != subdivision or not 1 <= subdivision <= 4:
-        raise ValueError(f"subdivision must be a whole number from 1 to 4, got {subdivision!r}")
-    if not (math.isfinite(reach) and reach >= 0):
-        raise ValueError(f"reach must be finite and >= 0 thicknesses, got {reach!r}")
+    real_number("max_condition", max_condition, rule="a finite number > 1",
+                valid=lambda v: math.isfinite(v) and v > 1)
+    real_number("max_shear_ratio", max_shear_ratio, rule="finite and >= 0",
+                valid=lambda v: math.isfinite(v) and v >= 0)
+    real_number("region_threshold", region_threshold, rule="in (0, 1)", valid=lambda v: 0 < v < 1)
+    whole_number("region_margin", region_margin, low=0, unit="of pitches ")
+    whole_number("subdivision", subdivision, low=1, high=4)
+    real_number("reach", reach, rule="finite and >= 0 thicknesses",
+                valid=lambda v: math.isfinite(v) and v >= 0)
+
+
+def check_parameters(shear_ratio, shear_direction, exact):
+    """Check the arguments of a solve: the shear parameters (each a real number or None) and ``exact``.
+
+    Returns
+    -------
+    exact : bool
+        ``exact``, or its default: True when a parameter is given (the
+        sliders), False when both are automatic.
+
+    Raises
+    ------
+    ValueError
+        Naming the argument, the rule and what was received.
+    """
+    if shear_ratio is not None:
+        real_number("shear_ratio", shear_ratio, rule="finite and >= 0 (or None)",
+                    valid=lambda v: math.isfinite(v) and v >= 0)
+    if shear_direction is not None:
+        real_number("shear_direction", shear_direction, rule="finite radians (or None)", valid=math.isfinite)
+    exact = optional_flag("exact", exact)
+    if exact is None:
+        exact = shear_ratio is not None or shear_direction is not None
+    return exact
 
 
 def check_stress(stress, grid: SensorGrid) -> np.ndarray:

@@ -24,8 +24,9 @@ import numpy as np
 from scipy import ndimage
 
 from .arrays import read_only
+from .checks import real_number, whole_number
 from .geometry import SensorGrid
-from .inverse import Reconstruction, Reconstructor, check_options, check_stress
+from .inverse import Reconstruction, Reconstructor, _direction, check_options, check_parameters, check_stress
 
 __all__ = ["RegionSolver", "make_solver", "DENSE_LIMIT"]
 
@@ -88,14 +89,11 @@ class RegionSolver:
                  spread: float = 2.0, step: int = 4, cache: int = 8, **options):
         if not isinstance(grid, SensorGrid) or not grid.is_regular:
             raise ValueError("grid must be a regular SensorGrid (RegionSolver cuts rectangular windows)")
-        if not 0 < threshold < 1:
-            raise ValueError(f"threshold must be in (0, 1), got {threshold!r}")
-        if not (math.isfinite(spread) and spread >= 0):
-            raise ValueError(f"spread must be finite and >= 0, got {spread!r}")
-        if isinstance(step, bool) or not isinstance(step, int) or step < 1:
-            raise ValueError(f"step must be a whole number >= 1, got {step!r}")
-        if isinstance(cache, bool) or not isinstance(cache, int) or cache < 1:
-            raise ValueError(f"cache must be a whole number >= 1, got {cache!r}")
+        real_number("threshold", threshold, rule="in (0, 1)", valid=lambda v: 0 < v < 1)
+        real_number("spread", spread, rule="finite and >= 0",
+                    valid=lambda v: math.isfinite(v) and v >= 0)
+        step = whole_number("step", step, low=1)
+        cache = whole_number("cache", cache, low=1)
         check_options(grid, kernel=kernel, **{k: v for k, v in options.items() if k != "efficiency"})
         self.grid = grid
         self.kernel = kernel
@@ -184,6 +182,7 @@ class RegionSolver:
         """
         grid = self.grid
         image = check_stress(stress, grid).reshape(grid.shape)
+        exact = check_parameters(shear_ratio, shear_direction, exact)
         forces = np.zeros(grid.shape + (3,))
         region = np.zeros(grid.shape, dtype=bool)
         contacts, results = [], []
@@ -212,10 +211,8 @@ class RegionSolver:
         norm = float(np.linalg.norm(image))
         unexplained += float(np.sum(image[~explained] ** 2))
         contacts.sort(key=lambda c: -c.total_force[2])
-        if exact is None:
-            exact = shear_ratio is not None or shear_direction is not None
         if not results:
-            direction = 0.0 if shear_direction is None else math.remainder(shear_direction, 2 * math.pi)
+            direction = _direction(0.0, 0.0, 0.0 if shear_direction is None else float(shear_direction))
             return Reconstruction(
                 forces=read_only(forces.reshape(-1, 3)), shear_ratio=0.0, shear_direction=direction,
                 efficiency=math.nan, residual=0.0 if norm == 0 else 1.0, condition=1.0, regularized=False,

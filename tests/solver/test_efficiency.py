@@ -211,8 +211,14 @@ def test_alternative_functionals_plug_in(sheared):
     (dict(tolerance=0), "tolerance must be finite and > 0, got 0"),
     (dict(tolerance=-1e-3), "tolerance must be finite and > 0, got -0.001"),
     (dict(tolerance=math.inf), "tolerance must be finite and > 0, got inf"),
+    (dict(shrinkage="2"), "shrinkage must be finite and >= 0, got '2'"),
+    (dict(max_iterations=math.nan), "max_iterations must be a whole number >= 0, got nan"),
+    (dict(max_iterations=math.inf), "max_iterations must be a whole number >= 0, got inf"),
+    (dict(max_iterations=None), "max_iterations must be a whole number >= 0, got None"),
+    (dict(tolerance=True), "tolerance must be finite and > 0, got True"),
 ], ids=["shrinkage", "shrinkage-inf", "shrinkage-nan", "model_error", "model_error-nan", "max_iterations",
-        "max_iterations-fraction", "max_iterations-bool", "tolerance", "tolerance-negative", "tolerance-inf"])
+        "max_iterations-fraction", "max_iterations-bool", "tolerance", "tolerance-negative", "tolerance-inf",
+        "shrinkage-text", "max_iterations-nan", "max_iterations-inf", "max_iterations-none", "tolerance-bool"])
 def test_contact_fit_checks_its_arguments(kwargs, message):
     with pytest.raises(ValueError, match=message):
         ContactFit(**kwargs)
@@ -227,6 +233,7 @@ def test_contact_fit_keeps_valid_arguments():
     (dict(region_threshold=1.5), r"region_threshold must be in \(0, 1\), got 1.5"),
     (dict(region_margin=-1), "region_margin must be a whole number of pitches >= 0, got -1"),
     (dict(region_margin=1.5), "region_margin must be a whole number of pitches >= 0, got 1.5"),
+    (dict(region_margin=math.inf), "region_margin must be a whole number of pitches >= 0, got inf"),
 ])
 def test_region_settings_are_checked(kwargs, message):
     with pytest.raises(ValueError, match=message):

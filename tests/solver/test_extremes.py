@@ -22,7 +22,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from solver import Reconstructor, SensorGrid, loads
+from solver import Reconstructor, RegionSolver, SensorGrid, loads
 
 KERNELS = ["layer", "cell", "point"]
 # each kernel meets data of its own physics here (the mismatch is measured in test_validation)
@@ -239,10 +239,12 @@ def test_all_negative_frame(kernel, ratio):
         else:
             # damped: measured residual 0.02 (three components) and 0.04 (normal only)
             assert result.residual < 0.2, name
-    if ratio == 1.0:
-        for name in ("auto", "fixed"):
-            result = all_solves(r)[name](tension)
-            assert result.contacts == () and math.isnan(result.efficiency), name
+    # no contact either, damped or not (a damped inverse reads positive patches into tension,
+    # which the compressive fit gives no load)
+    for name in ("auto", "fixed"):
+        result = all_solves(r)[name](tension)
+        assert result.contacts == () and math.isnan(result.efficiency), name
+        assert not result.region.any(), name
 
 
 @pytest.mark.parametrize("kernel", KERNELS)
@@ -482,14 +484,19 @@ def test_bad_stress_says_what_is_wrong(bad, message):
     (dict(shear_direction=math.nan), r"shear_direction must be finite radians \(or None\), got nan"),
     (dict(shear_ratio=0.3, shear_direction=math.inf), "shear_direction must be finite radians .* got inf"),
     (dict(shear_ratio=0.3, shear_direction=-math.inf), "shear_direction must be finite radians .* got -inf"),
-    (dict(shear_ratio="0.3", shear_direction=0.0), r"shear_ratio must be a real number \(or None\), got str"),
-    (dict(shear_ratio=0.3, shear_direction=[1.0]), r"shear_direction must be a real number \(or None\), got list"),
+    (dict(shear_ratio="0.3", shear_direction=0.0), r"shear_ratio must be finite and >= 0 \(or None\), got '0.3'"),
+    (dict(shear_ratio=0.3, shear_direction=[1.0]), r"shear_direction must be finite radians \(or None\), got \[1.0\]"),
+    (dict(exact="yes"), "exact must be True, False or None, got 'yes'"),
+    (dict(exact=1), "exact must be True, False or None, got 1"),
 ], ids=["negative", "tiny-negative", "nan-ratio", "inf-ratio", "nan-direction", "inf-direction", "minus-inf",
-        "text-ratio", "list-direction"])
+        "text-ratio", "list-direction", "exact-text", "exact-number"])
 def test_bad_parameters_say_what_is_wrong(kwargs, message):
     r = Reconstructor(SensorGrid.regular(4, 4, PITCH, PITCH))
-    with pytest.raises(ValueError, match=message):
-        r.solve(np.ones(16), **kwargs)
+    region = RegionSolver(SensorGrid.regular(4, 4, PITCH, PITCH))
+    # on a frame with a contact and on an empty one (no window to pass them to)
+    for solve, stress in ((r.solve, np.ones(16)), (region.solve, np.ones(16)), (region.solve, np.zeros(16))):
+        with pytest.raises(ValueError, match=message):
+            solve(stress, **kwargs)
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -209,12 +209,15 @@ def test_constructor_checks_its_arguments():
     (dict(subdivision=True), "subdivision must be a whole number from 1 to 4, got True"),
     (dict(reach=-1.0), "reach must be finite and >= 0 thicknesses, got -1.0"),
     (dict(reach=math.nan), "reach must be finite and >= 0 thicknesses, got nan"),
-    (dict(reach="2"), "reach must be a real number, got str"),
+    (dict(reach="2"), "reach must be finite and >= 0 thicknesses, got '2'"),
     (dict(max_shear_ratio=math.inf), "max_shear_ratio must be finite and >= 0, got inf"),
-    (dict(region_threshold=True), "region_threshold must be a real number, got bool"),
+    (dict(region_threshold=True), "region_threshold must be in \\(0, 1\\), got True"),
     (dict(max_condition=math.nan), "max_condition must be a finite number > 1, got nan"),
+    (dict(subdivision=math.inf), "subdivision must be a whole number from 1 to 4, got inf"),
+    (dict(subdivision=math.nan), "subdivision must be a whole number from 1 to 4, got nan"),
 ], ids=["subdivision-0", "subdivision-5", "subdivision-fraction", "subdivision-bool", "reach", "reach-nan",
-        "reach-text", "max_shear_ratio-inf", "region_threshold-bool", "max_condition-nan"])
+        "reach-text", "max_shear_ratio-inf", "region_threshold-bool", "max_condition-nan", "subdivision-inf",
+        "subdivision-nan"])
 def test_options_are_checked_before_any_matrix_is_built(kwargs, message, monkeypatch):
     import solver.inverse
 

@@ -156,6 +156,8 @@ def test_given_parameters_apply_to_every_contact():
     (dict(spread=-1.0), "spread must be finite and >= 0, got -1.0"),
     (dict(step=0), "step must be a whole number >= 1, got 0"),
     (dict(cache=1.5), "cache must be a whole number >= 1, got 1.5"),
+    (dict(threshold="0.1"), r"threshold must be in \(0, 1\), got '0.1'"),
+    (dict(step=math.inf), "step must be a whole number >= 1, got inf"),
     (dict(kernel="exact"), "kernel must be one of"),
 ])
 def test_bad_options_say_what_is_wrong(kwargs, message):
@@ -189,7 +191,7 @@ def test_make_solver_picks_the_path_by_skin_size():
     (dict(region_threshold=2.0), r"region_threshold must be in \(0, 1\), got 2.0"),
     (dict(subdivision=0), "subdivision must be a whole number from 1 to 4, got 0"),
     (dict(reach=-1.0), "reach must be finite and >= 0 thicknesses, got -1.0"),
-    (dict(max_condition="big"), "max_condition must be a real number, got str"),
+    (dict(max_condition="big"), "max_condition must be a finite number > 1, got 'big'"),
 ])
 def test_make_solver_checks_options_before_any_matrix(kwargs, message):
     # a 128x128 skin: a dense matrix would take 6 GB, so the check must come first
