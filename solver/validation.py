@@ -87,17 +87,17 @@ def standard_cases(*, n: int = 16, pitch: float = 2e-3, thickness_ratios=(0.5, 1
     return cases
 
 
-def tuning_cases(*, noise: float = 0.01) -> list[Case]:
+def tuning_cases(*, noise: float = 0.01, medium: str = "layer") -> list[Case]:
     """The tuning set: the standard set on layer data (seed 7, ``h / pitch`` 0.5, 1, 1.5).
 
     The contact fit's constants (``shrinkage``, ``model_error``) and the
     reconstructor's region threshold were chosen on these cases; accuracy is
     judged on :func:`validation_cases`.
     """
-    return standard_cases(noise=noise, seed=7)
+    return standard_cases(noise=noise, seed=7, medium=medium)
 
 
-def validation_cases(*, noise: float = 0.01) -> list[Case]:
+def validation_cases(*, noise: float = 0.01, medium: str = "layer") -> list[Case]:
     """The validation set: nothing was tuned on it.
 
     Other seed (31), other thicknesses (``h / pitch`` 0.6, 1.0, 1.4), contact
@@ -105,7 +105,7 @@ def validation_cases(*, noise: float = 0.01) -> list[Case]:
     the same shapes and shear ratios (12 shear-free loads, 24 with shear).
     """
     return standard_cases(noise=noise, seed=31, thickness_ratios=(0.6, 1.0, 1.4), offset=1.5,
-                          sizes=(0.8, 1.25))
+                          sizes=(0.8, 1.25), medium=medium)
 
 
 def counts(rows) -> dict:
@@ -260,6 +260,9 @@ def main(argv=None):
     parser.add_argument("--medium", choices=loads.MEDIA, default="layer",
                         help="physics of the simulated data (default layer)")
     parser.add_argument("--functional", choices=sorted(FUNCTIONALS), action="append")
+    parser.add_argument("--set", choices=("validation", "tuning"), default="validation",
+                        help="validation: nothing was tuned on it (default); tuning: the constants "
+                             "were chosen on it")
     parser.add_argument("--cases", action="store_true", help="print the per-case table too")
     parser.add_argument("--mismatch", action="store_true",
                         help="every kernel on half-space and layer data (the physics set, h/p 0.5 to 2)")
@@ -268,18 +271,21 @@ def main(argv=None):
         print(f"physics set: 48 cases per medium, 16x16, noise {args.noise:g}, automatic parameters")
         print(format_mismatch(mismatch(noise=args.noise)))
         return
-    cases = standard_cases(noise=args.noise, medium=args.medium)
-    print(f"{len(cases)} cases, 16x16, {args.medium} data, noise {args.noise:g}, kernel {args.kernel}")
+    cases = (validation_cases if args.set == "validation" else tuning_cases)(noise=args.noise,
+                                                                             medium=args.medium)
+    print(f"{args.set} set: {len(cases)} cases, 16x16, {args.medium} data, noise {args.noise:g}, "
+          f"kernel {args.kernel}")
     print(f"{'functional':<15} {'normal':>8} {'tangential':>10} {'direction':>9} "
-          f"{'false mu':>8} {'ms':>7}")
+          f"{'false shear':>11} {'missed':>6} {'ms':>7}")
     for name in args.functional or sorted(FUNCTIONALS):
         functional = FUNCTIONALS[name]
         rows = evaluate(cases, lambda g, f=functional: Reconstructor(g, kernel=args.kernel, efficiency=f()))
         if args.cases:
             print(format_table(rows))
-        s = summarize(rows)
+        s, decided = summarize(rows), counts(rows)
         print(f"{name:<15} {100 * s['normal_total']:7.2f}% {100 * s['tangential_total']:9.1f}% "
-              f"{s['direction_deg']:8.1f}d {s['false_shear']:8.3f} {s['ms']:7.2f}")
+              f"{s['direction_deg']:8.1f}d {decided['false']:>6}/{decided['free']:<4} "
+              f"{decided['missed']:>3}/{decided['sheared']:<2} {s['ms']:7.2f}")
 
 
 if __name__ == "__main__":
