@@ -136,9 +136,16 @@ def main(argv=None):
 def run_window(path=None, *, kernel=KERNELS[0]):
     from PyQt6 import QtWidgets
 
+    from . import errors
     from .main_window import MainWindow
 
     app = QtWidgets.QApplication.instance() or QtWidgets.QApplication(sys.argv[:1])
+    app.setApplicationName("tactile-viewer")
+    # before any window exists: an error while building it is reported, not fatal
+    log_path = errors.setup_logging()
+    app.reporter = errors.Reporter(log_path, app)
+    errors.install(app.reporter)
+    errors.log.info("tactile-viewer started (log %s)", log_path)
     window = MainWindow()
     window.model.kernel = kernel
     window.kernel_box.blockSignals(True)  # nothing is open yet: nothing to rebuild

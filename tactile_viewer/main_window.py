@@ -9,6 +9,7 @@ thread behind a progress dialog.
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import time
@@ -28,6 +29,8 @@ from .model import KERNEL_HELP, MAX_SHEAR_RATIO, ViewerModel, geometry_text  # n
 from .recording import Recording, RecordingError, load  # noqa: E402
 from .scene import Scene  # noqa: E402
 from .sources import LayoutError, SensorLayout, SerialReader, load_layout  # noqa: E402
+
+log = logging.getLogger(__name__)
 
 __all__ = ["MainWindow"]
 
@@ -714,6 +717,7 @@ class MainWindow(QtWidgets.QMainWindow):
         return task
 
     def _error(self, title, message):
+        log.warning("%s: %s", title, message)
         QtWidgets.QMessageBox.critical(self, title, message)
 
     # -- live ------------------------------------------------------------------------------------

@@ -1,0 +1,30 @@
+"""Architecture contracts (import-linter, configured in pyproject.toml)."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+LINT_IMPORTS = Path(sys.executable).with_name("lint-imports")
+
+
+def lint_imports(*args):
+    return subprocess.run([str(LINT_IMPORTS), "--no-cache", *args], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_the_contracts_are_kept():
+    run = lint_imports()
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "2 kept, 0 broken" in run.stdout
+
+
+def test_a_broken_contract_is_caught(tmp_path):
+    # the checker itself must be able to fail: the window does import Qt
+    config = tmp_path / "contracts.toml"
+    config.write_text(
+        '[tool.importlinter]\nroot_packages = ["tactile_viewer"]\ninclude_external_packages = true\n\n'
+        '[[tool.importlinter.contracts]]\nname = "window without Qt"\ntype = "forbidden"\n'
+        'source_modules = ["tactile_viewer.main_window"]\nforbidden_modules = ["PyQt6"]\n')
+    run = lint_imports("--config", str(config))
+    assert run.returncode != 0 and "BROKEN" in run.stdout, run.stdout + run.stderr
