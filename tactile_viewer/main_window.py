@@ -36,7 +36,6 @@ __all__ = ["MainWindow"]
 
 MAP_CHOICES = (("normal pressure", "pressure"), ("sensor stress", "stress"), ("none", "none"))
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)
-SOLVE_EVENT = QtCore.QEvent.Type(QtCore.QEvent.registerEventType())
 PRESET_LIMIT = 32 * 32  # skins whose quality presets are measured automatically
 
 
@@ -68,6 +67,26 @@ class Task(QtCore.QThread):
             self.succeeded.emit(result)
 
 
+class Dispatcher(QtCore.QObject):
+    """Runs callables on the thread that owns it (the GUI thread), posted from any thread.
+
+    The model's ``dispatch``: its worker thread hands results back through it.
+    """
+
+    _posted = QtCore.pyqtSignal(object)
+
+    def __init__(self, parent=None):
+        super().__init__(parent)
+        self._posted.connect(self._call, QtCore.Qt.ConnectionType.QueuedConnection)
+
+    def post(self, fn):
+        self._posted.emit(fn)
+
+    @staticmethod
+    def _call(fn):
+        fn()
+
+
 class MainWindow(QtWidgets.QMainWindow):
     """The viewer window.
 
@@ -90,7 +109,9 @@ class MainWindow(QtWidgets.QMainWindow):
         super().__init__(parent)
         self.setWindowTitle("tactile-viewer")
         self.resize(1280, 820)
-        self.model = ViewerModel()
+        self._dispatcher = Dispatcher(self)
+        self.model = ViewerModel(dispatch=self._dispatcher.post)  # solves on its own worker thread
+        self._first_frame = False  # a recording was installed and its first frame is not drawn yet
         self._tasks: list[Task] = []
         self._measured_for = None  # the geometry the quality presets were measured on
 
@@ -119,8 +140,6 @@ class MainWindow(QtWidgets.QMainWindow):
         self._live_timer = QtCore.QTimer(self, interval=250)
         self._live_timer.timeout.connect(self._update_live_status)
 
-        # Coalesce solve requests: many slider moves, one solve of the latest value.
-        self._solve_pending = False
         self._play_timer = QtCore.QTimer(self, interval=15)
         self._play_timer.timeout.connect(self._play_tick)
         self._play_origin = (0.0, 0.0)  # (wall clock, recording time) when playback started
@@ -130,6 +149,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model.parameters_changed.connect(self._sync_parameters)
         self.model.display_changed.connect(self._sync_display)
         self.model.solved.connect(self._on_solved)
+        self.model.solve_failed.connect(self._on_solve_failed)
         self._set_enabled(False)
 
     # -- widgets -----------------------------------------------------------------------
@@ -450,8 +470,10 @@ class MainWindow(QtWidgets.QMainWindow):
             name = self.model.path.name if self.model.path else "recording"
             self.setWindowTitle(f"tactile-viewer - {name}")
         self._set_enabled(True)
-        self._solve_now()
-        self.ready.emit()
+        if self.model.live and self.model.live_frame is None:
+            self.ready.emit()  # no frame yet: the first to arrive is solved and drawn as it comes
+        else:
+            self._first_frame = True  # ready follows with its first solve
         # the quality presets of this geometry, measured in the background once things settle
         QtCore.QTimer.singleShot(1000, self._measure_if_open)
 
@@ -461,11 +483,9 @@ class MainWindow(QtWidgets.QMainWindow):
         if not self.model.is_open:
             return
         self.model.set_parameters(**changes)
-        self.request_solve()
 
     def _auto_toggled(self, on):
         self.model.set_auto(on)
-        self.request_solve()
 
     def _sync_parameters(self):
         # model -> widgets, without echoing back
@@ -473,10 +493,15 @@ class MainWindow(QtWidgets.QMainWindow):
                    self.direction_spin)
         for w in widgets:
             w.blockSignals(True)
-        degrees = math.degrees(self.model.shear_direction)
+        ratio, direction = self.model.shear_ratio, self.model.shear_direction
+        last = self.model.last
+        if self.model.auto and last is not None and last.auto:
+            # Auto shows what it found; the user's manual values stay in the model
+            ratio, direction = last.result.shear_ratio, last.result.shear_direction
+        degrees = math.degrees(direction)
         self.auto_box.setChecked(self.model.auto)
-        self.ratio_slider.setValue(round(self.model.shear_ratio * 100))
-        self.ratio_spin.setValue(self.model.shear_ratio)
+        self.ratio_slider.setValue(round(ratio * 100))
+        self.ratio_spin.setValue(ratio)
         self.direction_slider.setValue(round(degrees))
         self.direction_spin.setValue(degrees)
         for w in widgets:
@@ -510,28 +535,13 @@ class MainWindow(QtWidgets.QMainWindow):
 
     # -- solving -------------------------------------------------------------------------------
 
-    def request_solve(self):
-        """Ask for a re-solve of the current state; repeated requests before it runs merge into one."""
-        if self.model.is_open and not self._solve_pending:
-            self._solve_pending = True
-            # A posted event, not a zero timer: it runs before Qt's repaint
-            # (posted at low priority), so the moved slider and the new frame
-            # reach the screen in one window update instead of two.
-            QtCore.QCoreApplication.postEvent(self, QtCore.QEvent(SOLVE_EVENT))
-
-    def event(self, event):
-        if event.type() == SOLVE_EVENT:
-            if self._solve_pending:
-                self._solve_now()
-            return True
-        return super().event(event)
-
-    def _solve_now(self):
-        self._solve_pending = False
-        self.model.solve()
+    def _on_solve_failed(self, message):
+        self.statusBar().showMessage(message, 10000)
 
     def _on_solved(self, solved):
         self.scene.update(solved.stress, solved.result, self.model.display, render=False)
+        if solved.auto:
+            self._sync_parameters()
         r = solved.result
         total = r.total_force
         if r.normal_only:
@@ -557,6 +567,9 @@ class MainWindow(QtWidgets.QMainWindow):
             self.time_label.setText(f"frame {solved.frame + 1} of {len(self.model.recording)},  "
                                     f"t = {solved.time:.3f} s")
         self._draw()
+        if self._first_frame:
+            self._first_frame = False
+            self.ready.emit()
 
     def _draw(self):
         # Ask Qt to repaint the scene widget rather than rendering here: its
@@ -578,7 +591,6 @@ class MainWindow(QtWidgets.QMainWindow):
         self.frame_slider.blockSignals(True)
         self.frame_slider.setValue(index)
         self.frame_slider.blockSignals(False)
-        self.request_solve()
 
     def _frame_slider_moved(self, value):
         self.model.set_frame(value)
@@ -817,7 +829,6 @@ class MainWindow(QtWidgets.QMainWindow):
         frame = self.reader.take_latest() if self.reader is not None else None
         if frame is not None and self.model.live:
             self.model.show_live(frame)
-            self.request_solve()
 
     def _update_live_status(self):
         reader = self.reader
@@ -849,7 +860,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def closeEvent(self, event):
         self._stop_reader()
         self._play_timer.stop()
-        self._solve_pending = False
+        self.model.close()
         for task in list(self._tasks):
             task.cancel()
             task.wait()

@@ -1,11 +1,17 @@
 """The viewer's state in plain Python: what is open, which frame, which parameters.
 
 No Qt and no pyvista here (napari's split): the window and the scene only
-follow this model's signals. The model calls the solver; it never draws.
+follow this model's signals and set its fields. The model calls the solver; it
+never draws. Given a ``dispatch`` function it schedules its own solves: every
+change that alters what is shown (a frame, a live frame, the parameters, a new
+solver) submits a solve to one latest-wins worker thread that owns the solver,
+and the result comes back through ``dispatch`` (the Qt layer posts it to the
+GUI thread) as the ``solved`` signal.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass, replace
@@ -17,6 +23,9 @@ from solver import Reconstruction, Reconstructor, SensorGrid, make_solver
 from solver.kernels import KERNELS
 
 from .recording import Recording
+from .worker import LatestWorker
+
+log = logging.getLogger(__name__)
 
 __all__ = ["Signal", "Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO", "KERNEL_HELP", "geometry_text"]
 
@@ -112,6 +121,19 @@ class Solved:
     auto: bool
 
 
+@dataclass(frozen=True)
+class _Job:
+    # one solve as the model stood when it was asked for
+    generation: int
+    solver: object
+    frame: int
+    time: float
+    stress: np.ndarray
+    auto: bool
+    shear_ratio: float
+    shear_direction: float
+
+
 class ViewerModel:
     """State of one viewer window.
 
@@ -125,9 +147,19 @@ class ViewerModel:
     display_changed()
     solved(Solved)
         A frame was reconstructed.
+    solve_failed(str)
+        A solve raised; the message (the error is logged with its traceback).
+
+    Parameters
+    ----------
+    dispatch : callable, optional
+        ``dispatch(fn)`` runs ``fn()`` on the thread that owns the model. Given,
+        the model solves on its own worker thread whenever what is shown
+        changes; None (the default: command line, tests), it solves only
+        when :meth:`solve` is called.
     """
 
-    def __init__(self):
+    def __init__(self, *, dispatch=None):
         self.recording: Recording | None = None
         self.live = False  # showing a live source instead of a recording
         self.live_frame = None
@@ -147,6 +179,10 @@ class ViewerModel:
         self.parameters_changed = Signal()
         self.display_changed = Signal()
         self.solved = Signal()
+        self.solve_failed = Signal()
+        self._dispatch = dispatch
+        self._generation = 0  # grows with each installed solver: results of older ones are dropped
+        self._worker = None if dispatch is None else LatestWorker(self._work, name="tactile-solver")
 
     # -- building -----------------------------------------------------------------
 
@@ -185,6 +221,7 @@ class ViewerModel:
         grid = reconstructor.grid
         width = float(np.ptp(grid.positions[:, 0])) + grid.pitch
         self.display = replace(self.display, arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3)
+        self._generation += 1
         self.recording_changed.emit()
         self.display_changed.emit()
 
@@ -196,6 +233,7 @@ class ViewerModel:
             raise ValueError(f"live frame must have {self.reconstructor.grid.size} values, "
                              f"got shape {frame.stress.shape}")
         self.live_frame = frame
+        self._schedule()
 
     def install(self, recording: Recording, reconstructor: Reconstructor, path=None):
         """Show a recording with its ready reconstructor; starts at frame 0.
@@ -232,8 +270,10 @@ class ViewerModel:
                                resultant_scale=width / 3 / total,
                                range_max=max(float(np.abs(recording.frames).max()),
                                              peak / recording.grid.pitch**2, 1.0))
+        self._generation += 1
         self.recording_changed.emit()
         self.display_changed.emit()
+        self._schedule()
 
     # -- state changes ---------------------------------------------------------------
 
@@ -246,11 +286,13 @@ class ViewerModel:
         if index != self.frame:
             self.frame = index
             self.frame_changed.emit(index)
+            self._schedule()
 
     def set_auto(self, auto: bool):
         if bool(auto) != self.auto:
             self.auto = bool(auto)
             self.parameters_changed.emit()
+            self._schedule()
 
     def set_parameters(self, *, shear_ratio: float | None = None, shear_direction: float | None = None):
         """Manual parameters (a slider was touched): switches Auto off.
@@ -270,6 +312,7 @@ class ViewerModel:
         if (ratio, direction, False) != (self.shear_ratio, self.shear_direction, self.auto):
             self.shear_ratio, self.shear_direction, self.auto = ratio, direction, False
             self.parameters_changed.emit()
+            self._schedule()
 
     def set_display(self, **changes):
         display = replace(self.display, **changes)
@@ -296,8 +339,7 @@ class ViewerModel:
 
     # -- the work ------------------------------------------------------------------------
 
-    def solve(self) -> Solved | None:
-        """Reconstruct the current frame with the current parameters and announce it."""
+    def _job(self) -> _Job | None:
         if self.live:
             if self.live_frame is None:
                 return None
@@ -308,18 +350,78 @@ class ViewerModel:
             time_s = float(self.recording.t[self.frame])
         else:
             return None
+        return _Job(self._generation, self.reconstructor, index, time_s, stress, self.auto,
+                    self.shear_ratio, self.shear_direction)
+
+    @staticmethod
+    def _compute(job: _Job) -> Solved:
         start = time.perf_counter()
-        if self.auto:
-            result = self.reconstructor.solve(stress)
+        if job.auto:
+            result = job.solver.solve(job.stress)
         else:
-            result = self.reconstructor.solve(stress, shear_ratio=self.shear_ratio,
-                                              shear_direction=self.shear_direction)
+            result = job.solver.solve(job.stress, shear_ratio=job.shear_ratio,
+                                      shear_direction=job.shear_direction)
         elapsed = 1e3 * (time.perf_counter() - start)
-        if self.auto:
-            # Auto moves the sliders to what the efficiency maximum found.
-            self.shear_ratio = result.shear_ratio
-            self.shear_direction = result.shear_direction
-            self.parameters_changed.emit()
-        self.last = Solved(index, time_s, stress, result, elapsed, self.auto)
+        return Solved(job.frame, job.time, job.stress, result, elapsed, job.auto)
+
+    def solve(self) -> Solved | None:
+        """Reconstruct the current frame with the current parameters, here and now, and announce it.
+
+        In Auto mode the parameters found are in the result; the manual
+        values (``shear_ratio``, ``shear_direction``) stay the user's.
+        """
+        job = self._job()
+        if job is None:
+            return None
+        self.last = self._compute(job)
         self.solved.emit(self.last)
         return self.last
+
+    def _schedule(self):
+        # what is shown changed: solve it on the worker (newest request wins)
+        if self._worker is None:
+            return
+        job = self._job()
+        if job is not None:
+            self._worker.submit(job)
+
+    def _work(self, job: _Job):
+        # on the worker thread: solve, then hand the outcome to the model's own thread
+        try:
+            solved = self._compute(job)
+        except Exception as exc:
+            log.exception("solve of frame %s failed", job.frame)
+            message = f"solve of frame {job.frame} failed: {exc}"
+            self._dispatch(lambda: self._failed(job, message))
+            return
+        self._dispatch(lambda: self._deliver(job, solved))
+
+    def _deliver(self, job: _Job, solved: Solved):
+        if job.generation != self._generation:
+            return  # solved with a solver that has been replaced since
+        self.last = solved
+        self.solved.emit(solved)
+
+    def _failed(self, job: _Job, message: str):
+        if job.generation == self._generation:
+            self.solve_failed.emit(message)
+
+    def worker_stats(self) -> dict:
+        """Solves the worker ran (``done``) and requests it dropped for a newer one (``dropped``)."""
+        worker = self._worker
+        return dict(done=worker.done if worker else 0, dropped=worker.dropped if worker else 0)
+
+    @property
+    def solving(self) -> bool:
+        """A scheduled solve is waiting or running."""
+        return self._worker is not None and self._worker.busy
+
+    def wait_idle(self, timeout: float | None = None) -> bool:
+        """Block until the worker has nothing waiting or running (True at once without a worker)."""
+        return self._worker is None or self._worker.wait_idle(timeout)
+
+    def close(self):
+        """End the worker thread (the running solve finishes; its result is dropped)."""
+        self._generation += 1
+        if self._worker is not None:
+            self._worker.close()

@@ -297,17 +297,19 @@ def test_display_accepts_zero_and_every_map():
 
 # -- solving -------------------------------------------------------------------------------------
 
-def test_auto_solve_moves_the_parameters_to_what_it_found(model, recording, reconstructor):
+def test_auto_solve_reports_what_it_found_and_keeps_the_manual_values(model, recording, reconstructor):
+    model.set_parameters(shear_ratio=0.7, shear_direction=-2.0)
+    model.set_auto(True)
     model.set_frame(1)
     events = listen(model)
     solved = model.solve()
-    # the parameters are announced first, so the sliders sit right when the frame is drawn
-    assert names(events) == ["parameters_changed", "solved"] and events[1][1] == (solved,)
+    assert events == [("solved", (solved,))]
     expected = reconstructor.solve(recording.frames[1])
     np.testing.assert_array_equal(solved.result.forces, expected.forces)
     assert model.auto and solved.auto
-    assert model.shear_ratio == expected.shear_ratio and model.shear_direction == expected.shear_direction
-    assert expected.shear_ratio > 0.2  # found the simulated shear (0.4), so copying it is visible
+    assert expected.shear_ratio > 0.2  # found the simulated shear (0.4): the result says so
+    # the user's manual values are still there for when Auto is switched off
+    assert (model.shear_ratio, model.shear_direction) == (0.7, -2.0)
     assert model.last is solved
 
 
@@ -364,8 +366,8 @@ def test_describe_carries_frame_mode_and_parameters(model, recording):
     assert model.describe()["mode"] == "manual" and model.describe()["frame"] == 2
     model.solve()
     info = model.describe()
-    assert info["mode"] == "auto" and info["shear_ratio"] == model.shear_ratio
-    assert info["shear_direction_deg"] == pytest.approx(math.degrees(model.shear_direction))
+    assert info["mode"] == "auto" and info["shear_ratio"] == model.last.result.shear_ratio
+    assert info["shear_direction_deg"] == pytest.approx(math.degrees(model.last.result.shear_direction))
 
 
 def test_describe_names_the_material_solved_with(recording):
@@ -405,3 +407,131 @@ def test_large_skins_are_solved_contact_by_contact():
     assert hasattr(small, "matrix")  # the full reconstructor
     assert not hasattr(large, "matrix") and large.grid.size > DENSE_LIMIT  # no dense matrix
     assert large.solve(np.zeros(large.grid.size)).forces.shape == (6400, 3)
+
+
+# -- the model schedules its own solves (a worker thread, results through dispatch) ---------------
+
+class Posted:
+    """A dispatch that queues what the worker hands back, run by the test as the GUI loop would."""
+
+    def __init__(self):
+        self.calls = []
+
+    def __call__(self, fn):
+        self.calls.append(fn)
+
+    def run(self, model):
+        assert model.wait_idle(timeout=30)
+        calls, self.calls = self.calls, []
+        for fn in calls:
+            fn()
+        return len(calls)
+
+
+@pytest.fixture
+def threaded(recording, reconstructor):
+    posted = Posted()
+    model = ViewerModel(dispatch=posted)
+    yield model, posted
+    model.close()
+
+
+def test_changes_schedule_a_solve_on_the_worker(threaded, recording, reconstructor):
+    model, posted = threaded
+    events = listen(model)
+    model.install(recording, reconstructor)
+    assert posted.run(model) == 1  # the first frame, solved without being asked
+    assert names(events) == ["recording_changed", "display_changed", "solved"]
+    np.testing.assert_array_equal(model.last.result.forces, reconstructor.solve(recording.frames[0]).forces)
+    events.clear()
+    model.set_frame(2)
+    posted.run(model)
+    assert names(events) == ["frame_changed", "solved"] and model.last.frame == 2
+    events.clear()
+    model.set_parameters(shear_ratio=0.3, shear_direction=1.0)
+    posted.run(model)
+    assert names(events) == ["parameters_changed", "solved"]
+    expected = reconstructor.solve(recording.frames[2], shear_ratio=0.3, shear_direction=1.0)
+    np.testing.assert_array_equal(model.last.result.forces, expected.forces)
+    events.clear()
+    model.set_display(map="stress")  # drawing only: nothing to solve
+    assert posted.run(model) == 0 and names(events) == ["display_changed"]
+
+
+class SlowSolver:
+    """Holds every solve until released, so a test controls what the worker is doing."""
+
+    def __init__(self, inner):
+        import threading
+
+        self.inner, self.grid, self.kernel = inner, inner.grid, inner.kernel
+        self.release = threading.Event()
+        self.started = threading.Semaphore(0)
+        self.frames = []
+
+    def solve(self, stress, **kwargs):
+        self.started.release()
+        assert self.release.wait(30)
+        self.frames.append(stress)
+        return self.inner.solve(stress, **kwargs)
+
+    def solve_normal(self, stress):
+        return self.inner.solve_normal(stress)
+
+
+def test_the_newest_request_wins(threaded, recording, reconstructor):
+    model, posted = threaded
+    slow = SlowSolver(reconstructor)
+    model.install(recording, slow)
+    assert slow.started.acquire(timeout=30)  # frame 0 is being solved
+    for index in (1, 2, 3):  # three frames while it runs: only the last is worth solving
+        model.set_frame(index)
+    slow.release.set()
+    posted.run(model)
+    assert [s.frame for s in [model.last]] == [3]
+    assert len(slow.frames) == 2  # frame 0 (already running) and frame 3; 1 and 2 were dropped
+    np.testing.assert_array_equal(slow.frames[1], recording.frames[3])
+
+
+def test_results_of_a_replaced_solver_are_dropped(threaded, recording, reconstructor):
+    model, posted = threaded
+    slow = SlowSolver(reconstructor)
+    model.install(recording, slow)
+    assert slow.started.acquire(timeout=30)
+    model.install(recording, reconstructor)  # the user changed the kernel meanwhile
+    slow.release.set()
+    events = listen(model)
+    posted.run(model)
+    solved = [args[0] for name, args in events if name == "solved"]
+    assert len(solved) == 1  # only the new solver's
+    np.testing.assert_array_equal(solved[0].result.forces, reconstructor.solve(recording.frames[0]).forces)
+
+
+def test_a_failing_solve_is_reported_and_the_model_goes_on(threaded, recording, reconstructor):
+    model, posted = threaded
+
+    class Broken(SlowSolver):
+        def solve(self, stress, **kwargs):
+            raise FloatingPointError("the solver blew up")
+    broken = Broken(reconstructor)
+    events = listen(model)
+    failures = []
+    model.solve_failed.connect(failures.append)
+    model.install(recording, broken)
+    posted.run(model)
+    assert failures == ["solve of frame 0 failed: the solver blew up"]
+    assert model.last is None and "solved" not in names(events)
+    model.install(recording, reconstructor)  # and the next solver works
+    posted.run(model)
+    assert model.last is not None and model.last.frame == 0
+
+
+def test_closing_ends_the_worker_thread(recording, reconstructor):
+    import threading
+
+    model = ViewerModel(dispatch=Posted())
+    model.install(recording, reconstructor)
+    model.close()
+    assert not [t for t in threading.enumerate() if t.name == "tactile-solver" and t.is_alive()]
+    with pytest.raises(RuntimeError, match="the worker is closed"):
+        model.set_frame(1)
