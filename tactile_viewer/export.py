@@ -27,7 +27,7 @@ from solver.arrays import read_only
 
 from .recording import Recording
 
-__all__ = ["ForceTable", "reconstruct_frames", "save_forces", "load_forces", "write_sidecar",
+__all__ = ["ForceTable", "reconstruct_frames", "force_table", "save_forces", "load_forces", "write_sidecar",
            "ExportCancelled"]
 
 CSV_COLUMNS = ("frame", "t", "node", "x", "y", "Fx", "Fy", "Fz", "shear_ratio", "shear_direction_deg")
@@ -82,26 +82,30 @@ def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frame
     frames = np.arange(len(recording)) if frames is None else np.atleast_1d(np.asarray(frames, dtype=int))
     if frames.size and (frames.min() < 0 or frames.max() >= len(recording)):
         raise ValueError(f"frames must be in [0, {len(recording) - 1}], got {frames.tolist()}")
-    m = recording.grid.size
-    out = {k: np.zeros(frames.size) for k in ("shear_ratio", "shear_direction", "efficiency",
-                                               "residual", "condition")}
-    forces = np.zeros((frames.size, m, 3))
+    results = []
     for i, k in enumerate(frames):
-        result = reconstructor.solve(recording.frames[k], shear_ratio=shear_ratio,
-                                     shear_direction=shear_direction)
-        forces[i] = result.forces
-        for name in out:
-            out[name][i] = getattr(result, name)
+        results.append(reconstructor.solve(recording.frames[k], shear_ratio=shear_ratio,
+                                           shear_direction=shear_direction))
         if progress is not None and progress(i + 1, frames.size) is False:
             raise ExportCancelled(f"cancelled after {i + 1} of {frames.size} frames")
     auto = shear_ratio is None and shear_direction is None
-    return ForceTable(forces=forces, frames=frames, t=recording.t[frames], positions=recording.grid.positions,
-                      shape=tuple(recording.grid.shape), pitch=recording.grid.pitch,
-                      thickness=recording.grid.thickness, kernel=reconstructor.kernel,
-                      mode="auto" if auto else "manual", source=recording.description,
+    return force_table(results, frames, recording.t[frames], recording.grid, solver=reconstructor,
+                       mode="auto" if auto else "manual", source=recording.description)
+
+
+def force_table(results, frames, t, grid, *, solver, mode: str, source: str = "") -> ForceTable:
+    """The table of already solved frames: ``results[i]`` is frame ``frames[i]`` at time ``t[i]``.
+
+    ``solver`` is what solved them: its kernel and its geometry's material are recorded.
+    """
+    fields = ("shear_ratio", "shear_direction", "efficiency", "residual", "condition")
+    return ForceTable(forces=np.array([r.forces for r in results]).reshape(len(results), grid.size, 3),
+                      frames=np.asarray(frames), t=np.asarray(t, dtype=float), positions=grid.positions,
+                      shape=tuple(grid.shape), pitch=grid.pitch, thickness=grid.thickness,
+                      kernel=solver.kernel, mode=mode, source=source,
                       # the material the forces were solved with, which is the solver's
-                      poisson_ratio=reconstructor.grid.poisson_ratio,
-                      sensor_size=reconstructor.grid.sensor_size, **out)
+                      poisson_ratio=solver.grid.poisson_ratio, sensor_size=solver.grid.sensor_size,
+                      **{name: np.array([getattr(r, name) for r in results], dtype=float) for name in fields})
 
 
 def save_forces(table: ForceTable, path, *, source: str = "") -> Path:

@@ -37,6 +37,7 @@ __all__ = ["MainWindow"]
 MAP_CHOICES = (("normal pressure", "pressure"), ("sensor stress", "stress"), ("none", "none"))
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)
 PRESET_LIMIT = 32 * 32  # skins whose quality presets are measured automatically
+SETTLE_S = 0.03  # the longest a control waits for its solve (docs/architecture.md)
 
 
 class Task(QtCore.QThread):
@@ -110,7 +111,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.setWindowTitle("tactile-viewer")
         self.resize(1280, 820)
         self._dispatcher = Dispatcher(self)
-        self.model = ViewerModel(dispatch=self._dispatcher.post)  # solves on its own worker thread
+        # the model solves on its own worker thread; a solve done within SETTLE_S is drawn in the
+        # same repaint as the slider or frame change that asked for it
+        self.model = ViewerModel(dispatch=self._dispatcher.post, settle=SETTLE_S)
         self._first_frame = False  # a recording was installed and its first frame is not drawn yet
         self._tasks: list[Task] = []
         self._measured_for = None  # the geometry the quality presets were measured on
@@ -663,12 +666,20 @@ class MainWindow(QtWidgets.QMainWindow):
         path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Save screenshot", "screenshot.png",
                                                         "PNG (*.png)")
         if path:
-            self.export_screenshot(path, scale=int(scale.currentText()[0]),
-                                   transparent=transparent.isChecked())
+            try:
+                self.export_screenshot(path, scale=int(scale.currentText()[0]),
+                                       transparent=transparent.isChecked())
+            except OSError as exc:
+                self._error("Cannot save screenshot", f"{path}: {exc.strerror or exc}")
 
     def export_screenshot(self, path, *, scale: int = 1, transparent: bool = False) -> Path:
         """Save the scene as PNG plus a JSON sidecar naming the recording, frame and parameters."""
         path = Path(path).with_suffix(".png")
+        # VTK would only print a warning and write nothing
+        if not path.parent.is_dir():
+            raise FileNotFoundError(2, "the folder does not exist", str(path.parent))
+        if not os.access(path.parent, os.W_OK):
+            raise PermissionError(13, "the folder cannot be written", str(path.parent))
         self.scene.screenshot(path, scale=scale, transparent=transparent)
         export.write_sidecar(path, **self.model.describe(), scale=scale, transparent=transparent)
         self.statusBar().showMessage(f"saved {path}", 5000)
@@ -681,17 +692,34 @@ class MainWindow(QtWidgets.QMainWindow):
             self.export_forces(path, whole=whole)
 
     def export_forces(self, path, *, whole: bool):
-        """Write reconstructed forces of this frame or all frames (in a worker, with progress)."""
-        model = self.model
-        recording, reconstructor = model.recording, model.reconstructor
-        frames = None if whole else [model.frame]
-        given = {} if model.auto else dict(shear_ratio=model.shear_ratio,
-                                           shear_direction=model.shear_direction)
-        source = str(model.path) if model.path else recording.description
+        """Write reconstructed forces of the frame on screen or of all frames (in a worker, with progress).
 
-        def work(progress):
-            table = export.reconstruct_frames(recording, reconstructor, frames, progress=progress, **given)
-            return export.save_forces(table, path, source=source)
+        The frame on screen is written as it was solved (a live frame too); the whole recording
+        is solved again frame by frame with the current parameters.
+        """
+        model = self.model
+        if not whole:
+            last = model.last
+            if last is None:
+                self._error("Nothing to export", "no frame has been reconstructed yet")
+                return
+            source = model.live_label if model.live else (str(model.path) if model.path else
+                                                          model.recording.description)
+
+            def work(progress):
+                table = export.force_table([last.result], [last.frame], [last.time], model.grid,
+                                           solver=model.reconstructor, source=source,
+                                           mode="auto" if last.auto else "manual")
+                return export.save_forces(table, path, source=source)
+        else:
+            recording, reconstructor = model.recording, model.reconstructor
+            given = {} if model.auto else dict(shear_ratio=model.shear_ratio,
+                                               shear_direction=model.shear_direction)
+            source = str(model.path) if model.path else recording.description
+
+            def work(progress):
+                table = export.reconstruct_frames(recording, reconstructor, None, progress=progress, **given)
+                return export.save_forces(table, path, source=source)
 
         def done(written):
             self.statusBar().showMessage(f"saved {written}", 5000)
@@ -780,7 +808,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def _stop_reader(self):
         reader, self.reader = self.reader, None
         if reader is not None:
-            written = reader.stop_recording()
+            written = self._close_recording(reader)
             reader.stop()
             if written is not None:
                 self.statusBar().showMessage(f"recording saved: {written}", 10000)
@@ -813,8 +841,19 @@ class MainWindow(QtWidgets.QMainWindow):
         self._set_enabled(True)
         return True
 
+    def _close_recording(self, reader) -> Path | None:
+        # a full disk or a vanished folder must not lose the session: say what is kept
+        recorder = reader.recorder
+        try:
+            return reader.stop_recording()
+        except (OSError, ValueError) as exc:
+            self._error("Recording not completed",
+                        f"{recorder.path}: {getattr(exc, 'strerror', None) or exc}. The frames written "
+                        f"before the error ({recorder.written}) are in the file; the live view goes on.")
+            return None
+
     def stop_recording(self) -> Path | None:
-        written = self.reader.stop_recording() if self.reader is not None else None
+        written = self._close_recording(self.reader) if self.reader is not None else None
         if written is not None:
             self.statusBar().showMessage(f"recording saved: {written}", 10000)
         self._set_enabled(self.model.is_open)

@@ -157,9 +157,15 @@ class ViewerModel:
         the model solves on its own worker thread whenever what is shown
         changes; None (the default: command line, tests), it solves only
         when :meth:`solve` is called.
+    settle : float, optional
+        Seconds a change waits for its own solve before returning (with
+        ``dispatch``). Default 0. A window passes a few hundredths: a fast
+        solve is then posted before the window repaints, so the control that
+        asked for it and the new frame reach the screen in one repaint
+        instead of two, while a slow solve still leaves the window free.
     """
 
-    def __init__(self, *, dispatch=None):
+    def __init__(self, *, dispatch=None, settle: float = 0.0):
         self.recording: Recording | None = None
         self.live = False  # showing a live source instead of a recording
         self.live_frame = None
@@ -181,6 +187,7 @@ class ViewerModel:
         self.solved = Signal()
         self.solve_failed = Signal()
         self._dispatch = dispatch
+        self.settle = float(settle)
         self._generation = 0  # grows with each installed solver: results of older ones are dropped
         self._worker = None if dispatch is None else LatestWorker(self._work, name="tactile-solver")
 
@@ -384,6 +391,8 @@ class ViewerModel:
         job = self._job()
         if job is not None:
             self._worker.submit(job)
+            if self.settle > 0:
+                self._worker.wait_idle(self.settle)
 
     def _work(self, job: _Job):
         # on the worker thread: solve, then hand the outcome to the model's own thread

@@ -1,16 +1,19 @@
 """Recordings: a sensor grid, frames of stress and their timestamps, in NPZ or CSV.
 
-NPZ keys: ``frames (T, m)`` pascals, ``t (T,)`` seconds, ``nx``, ``ny``,
-``pitch``, ``thickness`` (metres), optional ``poisson_ratio`` (the
-elastomer's nu, default 0.5), optional ``sensor_size`` (side of a square
-taxel, metres, default 0: point sensors), optional ``positions (m, 2)``, optional
-``truth_forces (T, m, 3)`` newtons, optional ``seq (T,)`` sequence numbers of
-live frames, ``units``, ``description``. A live recording that was never
-closed (a crash) holds its frames in chunks ``chunkNNNNNN_frames``,
-``chunkNNNNNN_t``, ``chunkNNNNNN_seq``; they load as one recording.
+NPZ keys: ``frames (T, m)`` pascals, ``t (T,)`` seconds, ``nx``, ``ny`` (or
+``taxels`` and ``positions`` for an irregular layout), ``pitch``, ``thickness``
+(metres), optional ``poisson_ratio`` (the elastomer's nu, default 0.5),
+optional ``sensor_size`` (side of a square taxel, metres, default 0: point
+sensors), optional ``positions (m, 2)``, optional ``truth_forces (T, m, 3)``
+newtons, optional ``seq (T,)`` sequence numbers of live frames, ``units``,
+``description``. A live recording that was never closed (a crash) holds its
+frames in chunks ``chunkNNNNNN_frames``, ``chunkNNNNNN_t``,
+``chunkNNNNNN_seq``; they load as one recording.
 
 CSV: ``#`` header lines of ``key=value`` (nx, ny, pitch, thickness, optional
-poisson_ratio and sensor_size, units, description, optional ``columns=seq,t``),
+poisson_ratio and sensor_size, units, description, optional ``columns=seq,t``;
+an irregular layout has ``taxels`` and ``positions=x,y;x,y;...`` metres instead
+of nx and ny),
 then one frame per row: ``t, v0, v1, ...`` (or ``seq, t, v0, v1, ...``).
 
 Files written before nu and the taxel size were recorded have neither key:
@@ -33,9 +36,76 @@ import numpy as np
 from solver import SensorGrid
 from solver.arrays import read_only
 
-__all__ = ["Recording", "RecordingError", "load", "save"]
+__all__ = ["Recording", "RecordingError", "load", "save", "grid_from_fields", "geometry_fields",
+           "csv_geometry_header", "MAX_TAXELS"]
 
 UNIT_SCALES = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
+
+# A 1000x1000 skin. A header declaring more is far likelier damaged than real, and believing it
+# would allocate gigabytes before anything could say so.
+MAX_TAXELS = 1_000_000
+
+
+def grid_from_fields(*, pitch, thickness, nx=None, ny=None, taxels=None, positions=None,
+                     poisson_ratio=0.5, sensor_size=0.0, width=None) -> SensorGrid:
+    """The geometry a file declares: ``nx`` by ``ny`` (optionally moved to ``positions``), or
+    ``taxels`` at ``positions`` (an irregular layout). Every format reads through this.
+
+    ``width``, the values per frame the file actually holds, is checked against the declared
+    size before any array of that size is made.
+
+    Raises
+    ------
+    ValueError
+        Naming the field that is wrong and what it holds.
+    """
+    if taxels is None:
+        if nx is None or ny is None:
+            raise ValueError("missing 'nx' and 'ny' (or 'taxels' and 'positions')")
+        declared, label = nx * ny, f"a {nx}x{ny} grid"
+    else:
+        declared, label = taxels, f"{taxels} taxels"
+    if declared > MAX_TAXELS:
+        raise ValueError(f"{label} is not a skin this viewer opens (1 to {MAX_TAXELS} taxels)")
+    if width is not None and width != declared:
+        size = label if taxels is not None else f"{label} ({declared} taxels)"
+        raise ValueError(f"declares {size} but its frames have {width} values each")
+    if taxels is not None:
+        if positions is None:
+            raise ValueError("an irregular layout ('taxels') needs 'positions'")
+        return SensorGrid(np.asarray(positions, dtype=float), thickness, pitch, (taxels,),
+                          poisson_ratio=poisson_ratio, sensor_size=sensor_size)
+    grid = SensorGrid.regular(nx, ny, pitch, thickness, poisson_ratio=poisson_ratio, sensor_size=sensor_size)
+    if positions is not None:
+        grid = grid.replace(positions=np.asarray(positions, dtype=float))
+    return grid
+
+
+def csv_geometry_header(grid: SensorGrid) -> str:
+    """The ``# key=value`` lines of a CSV recording that declare ``grid`` (read by :func:`load`)."""
+    fields = geometry_fields(grid)
+    positions = fields.pop("positions", None)
+    lines = [f"# {key}={value!r}\n" for key, value in fields.items()]
+    if positions is not None:
+        lines.append("# positions=" + ";".join(f"{x!r},{y!r}" for x, y in positions.tolist()) + "\n")
+    return "".join(lines)
+
+
+def geometry_fields(grid: SensorGrid) -> dict:
+    """What every format writes for ``grid`` (the inverse of :func:`grid_from_fields`).
+
+    ``positions`` is present for an irregular layout and for a regular one
+    that does not sit where ``SensorGrid.regular`` puts it.
+    """
+    fields = dict(pitch=grid.pitch, thickness=grid.thickness, poisson_ratio=grid.poisson_ratio,
+                  sensor_size=grid.sensor_size)
+    if len(grid.shape) == 1:
+        return dict(fields, taxels=grid.size, positions=grid.positions)
+    ny, nx = grid.shape
+    regular = SensorGrid.regular(nx, ny, grid.pitch, grid.thickness).positions
+    if not np.allclose(grid.positions, regular, rtol=0, atol=1e-12):
+        fields["positions"] = grid.positions
+    return dict(fields, nx=nx, ny=ny)
 
 
 class RecordingError(ValueError):
@@ -135,20 +205,20 @@ def _scalar(data, key, path, cast=float, default=None):
     return value
 
 
-def _grid(meta, path, positions=None) -> SensorGrid:
-    nx, ny = _scalar(meta, "nx", path, int), _scalar(meta, "ny", path, int)
+def _grid(meta, path, positions=None, width=None) -> SensorGrid:
+    if "taxels" in meta:
+        counts = dict(taxels=_scalar(meta, "taxels", path, int))
+    else:
+        counts = dict(nx=_scalar(meta, "nx", path, int), ny=_scalar(meta, "ny", path, int))
     pitch, thickness = _scalar(meta, "pitch", path), _scalar(meta, "thickness", path)
     # absent from files written before they were recorded: an incompressible layer, point sensors
     poisson_ratio = _scalar(meta, "poisson_ratio", path, default=0.5)
     sensor_size = _scalar(meta, "sensor_size", path, default=0.0)
     try:
-        grid = SensorGrid.regular(nx, ny, pitch, thickness, poisson_ratio=poisson_ratio,
-                                  sensor_size=sensor_size)
-        if positions is not None:
-            grid = grid.replace(positions=np.asarray(positions, dtype=float))
+        return grid_from_fields(pitch=pitch, thickness=thickness, positions=positions,
+                                poisson_ratio=poisson_ratio, sensor_size=sensor_size, width=width, **counts)
     except ValueError as exc:
         raise RecordingError(f"{path}: impossible geometry: {exc}") from None
-    return grid
 
 
 def _scale(units: str, path) -> float:
@@ -182,7 +252,8 @@ def _load_npz(path) -> Recording:
                                                                     if k in data}
         if "frames" not in arrays:
             raise RecordingError(f"{path}: missing 'frames'")
-        grid = _grid(data, path, data["positions"] if "positions" in data else None)
+        grid = _grid(data, path, data["positions"] if "positions" in data else None,
+                     width=np.shape(arrays["frames"])[-1] if np.ndim(arrays["frames"]) == 2 else None)
         units = str(data["units"]) if "units" in data else "Pa"
         frames = _checked_frames(np.asarray(arrays["frames"], dtype=float), grid, path) * _scale(units, path)
         t = np.asarray(arrays["t"], dtype=float) if "t" in arrays else np.arange(len(frames), dtype=float)
@@ -223,7 +294,6 @@ def _load_csv(path) -> Recording:
             if len(rows[-1]) != len(rows[0]):
                 raise RecordingError(f"{path}: line {number}: {len(rows[-1]) - 1} values, "
                                      f"earlier rows have {len(rows[0]) - 1}")
-    grid = _grid(meta, path)
     if not rows:
         raise RecordingError(f"{path}: no frames")
     table = np.asarray(rows, dtype=float)
@@ -231,6 +301,13 @@ def _load_csv(path) -> Recording:
     if columns not in ("t", "seq,t"):
         raise RecordingError(f"{path}: columns must be 't' or 'seq,t', got {columns!r}")
     first = 2 if columns == "seq,t" else 1
+    positions = None
+    if "positions" in meta:
+        try:
+            positions = [[float(v) for v in pair.split(",")] for pair in meta["positions"].split(";")]
+        except ValueError:
+            raise RecordingError(f"{path}: positions must be x,y pairs of metres separated by ';'") from None
+    grid = _grid(meta, path, positions, width=table.shape[1] - first)
     frames = _checked_frames(table[:, first:], grid, path) * _scale(meta.get("units", "Pa"), path)
     seq = table[:, 0] if first == 2 else None
     try:
@@ -242,22 +319,19 @@ def _load_csv(path) -> Recording:
 def save(recording: Recording, path) -> Path:
     """Write a recording as ``.npz`` (everything) or ``.csv`` (frames and geometry, nu included)."""
     path = Path(path)
-    grid = recording.grid
-    ny, nx = grid.shape
+    fields = geometry_fields(recording.grid)
     if path.suffix.lower() == ".npz":
         extra = {} if recording.truth_forces is None else {"truth_forces": recording.truth_forces}
         if recording.seq is not None:
             extra["seq"] = recording.seq
+        fields.setdefault("positions", recording.grid.positions)
         # through a handle: np.savez would append ".npz" to a name ending ".NPZ"
         with open(path, "wb") as handle:
-            np.savez_compressed(handle, frames=recording.frames, t=recording.t, nx=nx, ny=ny,
-                                pitch=grid.pitch, thickness=grid.thickness, poisson_ratio=grid.poisson_ratio,
-                                sensor_size=grid.sensor_size, positions=grid.positions,
-                                units="Pa", description=recording.description, **extra)
+            np.savez_compressed(handle, frames=recording.frames, t=recording.t, units="Pa",
+                                description=recording.description, **fields, **extra)
     elif path.suffix.lower() == ".csv":
         buffer = io.StringIO()
-        buffer.write(f"# nx={nx}\n# ny={ny}\n# pitch={grid.pitch!r}\n# thickness={grid.thickness!r}\n")
-        buffer.write(f"# poisson_ratio={grid.poisson_ratio!r}\n# sensor_size={grid.sensor_size!r}\n")
+        buffer.write(csv_geometry_header(recording.grid))
         buffer.write("# units=Pa\n")
         if recording.description:
             buffer.write(f"# description={' '.join(recording.description.split())}\n")

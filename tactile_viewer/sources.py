@@ -25,7 +25,7 @@ from solver import SensorGrid
 from solver.arrays import read_only
 
 from .protocol import Frame, make_decoder
-from .recording import UNIT_SCALES
+from .recording import UNIT_SCALES, csv_geometry_header, geometry_fields, grid_from_fields
 
 __all__ = ["LayoutError", "SensorLayout", "load_layout", "save_layout", "Calibration", "LiveStats",
            "Recorder", "LiveFrame", "SerialReader"]
@@ -108,22 +108,21 @@ def load_layout(path) -> SensorLayout:
         raise LayoutError(f"{path}: not JSON ({exc})") from None
     if not isinstance(spec, dict):
         raise LayoutError(f"{path}: expected a JSON object, got {type(spec).__name__}")
-    missing = [k for k in ("nx", "ny", "pitch", "thickness") if k not in spec]
+    counts = ("taxels",) if "taxels" in spec else ("nx", "ny")
+    missing = [k for k in (*counts, "pitch", "thickness") if k not in spec]
     if missing:
         raise LayoutError(f"{path}: missing {', '.join(repr(k) for k in missing)}")
     try:
-        nx, ny = spec["nx"], spec["ny"]
-        if not all(isinstance(n, int) and not isinstance(n, bool) for n in (nx, ny)):
-            raise ValueError(f"nx and ny must be whole numbers, got {nx!r} and {ny!r}")
+        if not all(isinstance(spec[k], int) and not isinstance(spec[k], bool) for k in counts):
+            raise ValueError(f"{' and '.join(counts)} must be whole numbers, got "
+                             f"{' and '.join(repr(spec[k]) for k in counts)}")
         for key in ("pitch", "thickness"):
             if isinstance(spec[key], bool) or not isinstance(spec[key], (int, float)):
                 raise ValueError(f"{key} must be a number of metres, got {spec[key]!r}")
         # SensorGrid checks nu and the taxel size (a string or a bool is no number there either)
-        grid = SensorGrid.regular(nx, ny, float(spec["pitch"]), float(spec["thickness"]),
-                                  poisson_ratio=spec.get("poisson_ratio", 0.5),
-                                  sensor_size=spec.get("sensor_size", 0.0))
-        if "positions" in spec:
-            grid = grid.replace(positions=np.asarray(spec["positions"], dtype=float))
+        grid = grid_from_fields(pitch=float(spec["pitch"]), thickness=float(spec["thickness"]),
+                                positions=spec.get("positions"), poisson_ratio=spec.get("poisson_ratio", 0.5),
+                                sensor_size=spec.get("sensor_size", 0.0), **{k: spec[k] for k in counts})
         return SensorLayout(grid, spec.get("units", "Pa"), spec.get("gain", 1.0), spec.get("offset", 0.0))
     except (ValueError, TypeError) as exc:
         raise LayoutError(f"{path}: {exc}") from None
@@ -138,16 +137,10 @@ def save_layout(layout: SensorLayout, path) -> Path:
         ``path``.
     """
     path = Path(path)
-    grid = layout.grid
-    ny, nx = grid.shape[0], grid.shape[-1]
     one = lambda a: float(a[0]) if np.all(a == a[0]) else a.tolist()  # noqa: E731
-    spec = {"nx": nx, "ny": ny, "pitch": grid.pitch, "thickness": grid.thickness,
-            "poisson_ratio": grid.poisson_ratio, "sensor_size": grid.sensor_size, "units": layout.units,
-            "gain": one(layout.gain), "offset": one(layout.offset)}
-    # is_regular ignores where the grid sits: keep positions unless they are exactly regular()'s
-    regular = SensorGrid.regular(nx, ny, grid.pitch, grid.thickness).positions
-    if grid.positions.shape != regular.shape or not np.allclose(grid.positions, regular, rtol=0, atol=1e-12):
-        spec["positions"] = grid.positions.tolist()
+    spec = {key: value.tolist() if isinstance(value, np.ndarray) else value
+            for key, value in geometry_fields(layout.grid).items()}
+    spec.update(units=layout.units, gain=one(layout.gain), offset=one(layout.offset))
     path.write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
     return path
 
@@ -269,17 +262,15 @@ class Recorder:
         self._last_flush: float | None = None
         self._lock = threading.Lock()
         grid = layout.grid
-        ny, nx = grid.shape[0], grid.shape[-1]
-        self._meta = dict(nx=nx, ny=ny, pitch=grid.pitch, thickness=grid.thickness,
-                          poisson_ratio=grid.poisson_ratio, sensor_size=grid.sensor_size, units="Pa")
+        # the geometry as every recording declares it (recording.geometry_fields), positions always
+        self._meta = dict(geometry_fields(grid), units="Pa")
+        self._meta["positions"] = grid.positions
         if self.kind == ".npz":
             with zipfile.ZipFile(path, "w") as archive:
-                for key, value in (*self._meta.items(), ("positions", grid.positions),
-                                   ("description", self.description)):
+                for key, value in (*self._meta.items(), ("description", self.description)):
                     _write_member(archive, key, np.asarray(value))
         else:
-            header = "".join(f"# {k}={v!r}\n" if isinstance(v, float) else f"# {k}={v}\n"
-                             for k, v in self._meta.items())
+            header = csv_geometry_header(grid) + "# units=Pa\n"
             header += f"# description={' '.join(self.description.split())}\n# columns=seq,t\n"
             path.write_text(header, encoding="utf-8")
 
@@ -337,8 +328,7 @@ class Recorder:
                 with open(temporary, "wb") as handle:
                     np.savez(handle, frames=recording.frames, t=recording.t,
                              seq=recording.seq if recording.seq is not None else np.zeros(0, np.int64),
-                             positions=recording.grid.positions, description=self.description,
-                             **self._meta)
+                             description=self.description, **self._meta)
                 os.replace(temporary, self.path)
         return self.path
 

@@ -171,3 +171,31 @@ def test_the_connect_dialog_remembers_and_checks(qtbot, tmp_path, monkeypatch):
     chosen = again.connection()
     assert (chosen.url, chosen.baudrate, chosen.fmt, chosen.layout) == (
         "socket://localhost:7777", 921600, "text", str(layout))
+
+
+def test_exporting_the_live_frame_on_screen(live, qtbot, tmp_path):
+    # "Export forces of this frame" in live mode used to end the app (no recording to read)
+    from tactile_viewer.export import load_forces
+
+    shown = live.model.last
+    with qtbot.waitSignal(live.task_finished, timeout=30000):
+        live.export_forces(tmp_path / "live.npz", whole=False)
+    assert live.errors == []
+    back = load_forces(tmp_path / "live.npz")
+    assert back["forces"].shape == (1, live.model.grid.size, 3)
+    assert int(back["frames"][0]) == shown.frame and float(back["t"][0]) == pytest.approx(shown.time)
+    np.testing.assert_array_equal(back["forces"][0], shown.result.forces)  # what was on screen
+
+
+def test_a_recording_that_fails_to_close_is_reported_and_live_goes_on(live, qtbot, tmp_path):
+    assert live.start_recording(tmp_path / "full.npz")
+    qtbot.waitUntil(lambda: live.reader.recorder.written > 0 or bool(live.reader.recorder._rows), timeout=5000)
+
+    def full_disk():
+        raise OSError(28, "No space left on device")
+    live.reader.recorder.close = full_disk
+    assert live.stop_recording() is None
+    assert live.errors and live.errors[-1][0] == "Recording not completed"
+    assert "No space left on device" in live.errors[-1][1] and "the live view goes on" in live.errors[-1][1]
+    seen = live.model.last.frame
+    qtbot.waitUntil(lambda: live.model.last.frame > seen, timeout=5000)  # still live

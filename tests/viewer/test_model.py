@@ -535,3 +535,25 @@ def test_closing_ends_the_worker_thread(recording, reconstructor):
     assert not [t for t in threading.enumerate() if t.name == "tactile-solver" and t.is_alive()]
     with pytest.raises(RuntimeError, match="the worker is closed"):
         model.set_frame(1)
+
+
+def test_a_change_waits_for_a_fast_solve_up_to_settle(recording, reconstructor):
+    # the window's settle: a change returns with its solve already handed back, so the new frame
+    # can be drawn in the same repaint as the control that asked for it
+    posted = Posted()
+    model = ViewerModel(dispatch=posted, settle=30.0)
+    try:
+        model.install(recording, reconstructor)
+        assert len(posted.calls) == 1  # no wait_idle needed: install returned after the solve
+        model.set_frame(2)
+        assert len(posted.calls) == 2
+    finally:
+        model.close()
+    slow = SlowSolver(reconstructor)  # never released within settle: the change returns anyway
+    model = ViewerModel(dispatch=Posted(), settle=0.05)
+    try:
+        model.install(recording, slow)
+        assert model.solving
+    finally:
+        slow.release.set()
+        model.close()

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from solver import SensorGrid
-from tactile_viewer.recording import Recording, RecordingError, load, save
+from tactile_viewer.recording import Recording, RecordingError, grid_from_fields, load, save
 
 HEADER = "# nx=2\n# ny=1\n# pitch=1e-3\n# thickness=1e-3\n"  # a 2x1 grid: rows of t, v0, v1
 
@@ -164,7 +164,7 @@ MALFORMED = [
     ("nopitch.npz", lambda p: write_npz(p, pitch=None), "missing 'pitch'"),
     ("nonx.npz", lambda p: write_npz(p, nx=None), "missing 'nx'"),
     ("count.npz", lambda p: write_npz(p, frames=np.ones((2, 5))),
-     r"frames must have 4 values each for a 2x2 grid, got shape \(2, 5\)"),
+     r"declares a 2x2 grid \(4 taxels\) but its frames have 5 values each"),
     ("flat.npz", lambda p: write_npz(p, frames=np.ones(4)), r"frames must have 4 values each .* got shape \(4,\)"),
     ("noframes.npz", lambda p: write_npz(p, frames=np.ones((0, 4)), t=[]), "no frames"),
     ("nan.npz", lambda p: write_npz(p, frames=np.array([[1, 2, 3, 4], [1, np.nan, 3, 4]])),
@@ -213,7 +213,7 @@ MALFORMED = [
     ("cell.csv", write_csv("0, 1, 2\n\n1, 1, x2\n"), "line 7: not a row of numbers: '1, 1, x2'"),
     ("trailing.csv", write_csv("0, 1, 2,\n"), "line 5: not a row of numbers"),
     ("count.csv", write_csv("0, 1, 2, 3\n1, 1, 2, 3\n"),
-     r"frames must have 2 values each for a 2x1 grid, got shape \(2, 3\)"),
+     r"declares a 2x1 grid \(2 taxels\) but its frames have 3 values each"),
     ("nan.csv", write_csv("0, 1, 2\n1, nan, 2\n"), "frame 1 taxel 0 is not a finite number"),
     ("inf.csv", write_csv("0, 1, 2\n1, 2, -inf\n"), "frame 1 taxel 1 is not a finite number"),
     ("nan_t.csv", write_csv("nan, 1, 2\n"), "t must be finite and non-decreasing"),
@@ -320,3 +320,57 @@ def test_recording_rejects_inconsistent_arrays(kwargs, message):
     arguments.update(kwargs)
     with pytest.raises(ValueError, match=message):
         Recording(**arguments)
+
+
+# -- irregular layouts (shape (m,)) and declared sizes ------------------------------------------
+
+def scattered(count=7):
+    # a skin whose taxels follow no grid: shape (m,)
+    rng = np.random.default_rng(11)  # fixed seed: the same layout every run
+    return SensorGrid(rng.uniform(-5e-3, 5e-3, (count, 2)), 1.5e-3, 2e-3, (count,), poisson_ratio=0.45,
+                      sensor_size=1e-3)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_an_irregular_layout_round_trips(tmp_path, suffix):
+    grid = scattered()
+    rng = np.random.default_rng(12)  # fixed seed
+    recording = Recording(grid, rng.uniform(0, 1e3, (3, 7)), [0.0, 0.1, 0.2], description="scattered")
+    back = load(save(recording, tmp_path / f"scattered{suffix}"))
+    assert back.grid.shape == (7,) and not back.grid.is_regular
+    np.testing.assert_array_equal(back.grid.positions, grid.positions)  # repr round-trips floats exactly
+    assert (back.grid.pitch, back.grid.thickness, back.grid.poisson_ratio, back.grid.sensor_size) == \
+        (2e-3, 1.5e-3, 0.45, 1e-3)
+    np.testing.assert_allclose(back.frames, recording.frames, rtol=1e-8)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_a_regular_grid_moved_off_centre_keeps_its_place(tmp_path, suffix):
+    grid = SensorGrid.regular(3, 2, 2e-3, 1e-3)
+    moved = grid.replace(positions=grid.positions + [4e-3, -1e-3])
+    back = load(save(Recording(moved, np.ones((1, 6)), [0.0]), tmp_path / f"moved{suffix}"))
+    assert back.grid.shape == (2, 3)
+    np.testing.assert_allclose(back.grid.positions, moved.positions, rtol=0, atol=1e-15)
+
+
+def test_a_huge_declared_grid_is_refused_before_anything_is_allocated(tmp_path):
+    # 1.6 KB on disk, 74 GiB if the header were believed
+    path = tmp_path / "huge.npz"
+    np.savez(path, frames=np.zeros((1, 4)), t=[0.0], nx=100000, ny=100000, pitch=2e-3, thickness=2e-3)
+    with pytest.raises(RecordingError, match=r"a 100000x100000 grid is not a skin this viewer opens"):
+        load(path)
+    csv = tmp_path / "huge.csv"
+    csv.write_text("# nx=100000\n# ny=100000\n# pitch=0.002\n# thickness=0.002\n0,1,2,3,4\n")
+    with pytest.raises(RecordingError, match=r"huge.csv: impossible geometry: a 100000x100000 grid"):
+        load(csv)
+
+
+@pytest.mark.parametrize("fields, message", [
+    (dict(taxels=3), r"an irregular layout \('taxels'\) needs 'positions'"),
+    (dict(taxels=3, positions=[[0.0, 0.0]] * 2), r"shape \(3,\) does not hold the 2 positions given"),
+    (dict(taxels=3, positions=[[0.0, 0.0]] * 3, width=4), r"declares 3 taxels but its frames have 4 values each"),
+    (dict(nx=2), r"missing 'nx' and 'ny' \(or 'taxels' and 'positions'\)"),
+], ids=["no-positions", "too-few-positions", "width", "no-ny"])
+def test_declared_geometries_are_checked(fields, message):
+    with pytest.raises(ValueError, match=message):
+        grid_from_fields(pitch=1e-3, thickness=1e-3, **fields)

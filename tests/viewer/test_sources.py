@@ -599,3 +599,38 @@ def test_reader_reads_a_socket_url_and_reconnects_to_it():
         for connection in accepted:
             connection.close()
         server.close()
+
+
+def test_an_irregular_layout_round_trips(tmp_path):
+    rng = np.random.default_rng(13)  # fixed seed: the same scattered taxels every run
+    grid = SensorGrid(rng.uniform(-4e-3, 4e-3, (36, 2)), 1.5e-3, 2e-3, (36,))
+    path = save_layout(SensorLayout(grid, "Pa"), tmp_path / "scattered.json")
+    spec = json.loads(path.read_text())
+    assert spec["taxels"] == 36 and "nx" not in spec and len(spec["positions"]) == 36
+    back = load_layout(path)
+    assert back.grid.shape == (36,)
+    np.testing.assert_array_equal(back.grid.positions, grid.positions)
+
+
+def test_a_layout_declaring_a_huge_grid_is_refused(tmp_path):
+    path = tmp_path / "huge.json"
+    path.write_text('{"nx": 100000, "ny": 100000, "pitch": 0.002, "thickness": 0.002}')
+    with pytest.raises(LayoutError, match=r"huge.json: a 100000x100000 grid is not a skin this viewer opens"):
+        load_layout(path)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_recorder_records_an_irregular_layout(tmp_path, suffix):
+    rng = np.random.default_rng(14)  # fixed seed: the same scattered taxels and frames every run
+    grid = SensorGrid(rng.uniform(-4e-3, 4e-3, (9, 2)), 1.5e-3, 2e-3, (9,))
+    path = tmp_path / f"scattered{suffix}"
+    recorder = Recorder(path, SensorLayout(grid), flush_interval=0.1)
+    stress = rng.uniform(0, 1e3, (4, 9))
+    for k in range(4):
+        recorder.add(k, k / 10, stress[k])
+    assert recording.load(path).grid.shape == (9,)  # unclosed, as after a crash
+    recorder.close()
+    back = recording.load(path)
+    assert back.grid.shape == (9,) and len(back) == 4
+    np.testing.assert_array_equal(back.grid.positions, grid.positions)
+    np.testing.assert_allclose(back.frames, stress, rtol=1e-8)
