@@ -88,7 +88,7 @@ def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear
         scene = Scene(plotter, smooth=True)
         scene.set_grid(recording.grid)
         scene.camera(camera)
-        scene.update(solved.stress, solved.result, model.display, render=False)
+        scene.update(solved, model.display, render=False)
         scene.screenshot(out, scale=scale, transparent=transparent)
     finally:
         plotter.close()
@@ -148,9 +148,9 @@ def run_window(path=None, *, kernel=KERNELS[0]):
     errors.log.info("tactile-viewer started (log %s)", log_path)
     window = MainWindow()
     window.model.kernel = kernel
-    window.kernel_box.blockSignals(True)  # nothing is open yet: nothing to rebuild
-    window.kernel_box.setCurrentText(kernel)
-    window.kernel_box.blockSignals(False)
+    window.parameters.kernel_box.blockSignals(True)  # nothing is open yet: nothing to rebuild
+    window.parameters.kernel_box.setCurrentText(kernel)
+    window.parameters.kernel_box.blockSignals(False)
     window.show()
     if path:
         window.open(path)

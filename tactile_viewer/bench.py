@@ -74,14 +74,14 @@ def playback_rate(window, app, speed_index, seconds):
     drawn = []
     slot = lambda: drawn.append(time.perf_counter())  # noqa: E731
     window.rendered.connect(slot)
-    window.loop_box.setChecked(True)
-    window.speed_box.setCurrentIndex(speed_index)
-    window.set_playing(True)
+    window.playback.loop_box.setChecked(True)
+    window.playback.speed_box.setCurrentIndex(speed_index)
+    window.playback.set_playing(True)
     start = time.perf_counter()
     while time.perf_counter() - start < seconds:
         app.processEvents()
     elapsed = time.perf_counter() - start
-    window.set_playing(False)
+    window.playback.set_playing(False)
     window.rendered.disconnect(slot)
     return len(drawn) / elapsed
 
@@ -90,7 +90,8 @@ def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     out = sys.stdout if out is None else out
     os.environ.setdefault("QT_API", "pyqt6")
 
-    from .main_window import SPEEDS, MainWindow
+    from .main_window import MainWindow
+    from .panels import SPEEDS
 
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise SystemExit("tactile_viewer.bench needs a display: run it as `xvfb-run -a python -m "
@@ -111,12 +112,13 @@ def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     print(f"OpenGL: {renderer}; scene {width}x{height} px; {Path(path).name}: "
           f"{recording.grid.shape[1]}x{recording.grid.shape[0]} grid, {len(recording)} frames", file=out)
 
-    ratio = latencies(window, app, lambda k: window.ratio_slider.setValue(10 + (k * 37) % 130), count)
-    direction = latencies(window, app, lambda k: window.direction_slider.setValue(-170 + (k * 47) % 340),
+    panel = window.parameters
+    ratio = latencies(window, app, lambda k: panel.ratio_slider.setValue(10 + (k * 37) % 130), count)
+    direction = latencies(window, app, lambda k: panel.direction_slider.setValue(-170 + (k * 47) % 340),
                           count)
-    window.auto_box.setChecked(True)
+    window.parameters.auto_box.setChecked(True)
     _wait(app, window.rendered)
-    stepped = latencies(window, app, lambda k: window.step(1 if (k // 10) % 2 == 0 else -1), count)
+    stepped = latencies(window, app, lambda k: window.playback.step(1 if (k // 10) % 2 == 0 else -1), count)
     print(f"{'slider to rendered frame':<42} {'median ms':>9} {'p90 ms':>7}", file=out)
     rows = (("shear ratio slider (manual)", ratio), ("shear direction slider (manual)", direction),
             ("frame step (auto parameters)", stepped))

@@ -1,10 +1,10 @@
-"""The main window: controls, playback, status, exports; wires recording -> solver -> scene.
+"""The main window: composes the panels, the scene, the menus; opens, exports, connects.
 
-Data flows one way: the widgets change the :class:`~tactile_viewer.model.ViewerModel`,
-the model solves and announces, the :class:`~tactile_viewer.scene.Scene` draws.
-Solves are coalesced (a slider drag re-solves only the latest value); slow work
-(factoring a large geometry, exporting a whole recording) runs in a worker
-thread behind a progress dialog.
+Data flows one way: the panels set fields of the :class:`~tactile_viewer.model.ViewerModel`,
+the model schedules its own solve on its worker thread and announces the result, the
+:class:`~tactile_viewer.scene.Scene` draws it. Slow one-off work (factoring a large geometry,
+exporting a whole recording, measuring the quality presets) runs in a
+:class:`~tactile_viewer.tasks.Task` behind a progress dialog.
 """
 
 from __future__ import annotations
@@ -12,7 +12,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import time
 from pathlib import Path
 
 os.environ.setdefault("QT_API", "pyqt6")
@@ -21,71 +20,22 @@ from PyQt6 import QtCore, QtGui, QtWidgets  # noqa: E402
 from pyvistaqt import QtInteractor  # noqa: E402
 
 from solver import tradeoff  # noqa: E402
-from solver.kernels import KERNELS  # noqa: E402
 
 from . import export  # noqa: E402
 from .connect_dialog import ConnectDialog  # noqa: E402
-from .model import KERNEL_HELP, MAX_SHEAR_RATIO, ViewerModel, geometry_text  # noqa: E402
+from .model import ViewerModel  # noqa: E402
+from .panels import DisplayPanel, LivePanel, ParametersPanel, PlaybackPanel, status_text  # noqa: E402
 from .recording import Recording, RecordingError, load  # noqa: E402
 from .scene import Scene  # noqa: E402
 from .sources import LayoutError, SensorLayout, SerialReader, load_layout  # noqa: E402
+from .tasks import Dispatcher, Task  # noqa: E402
 
 log = logging.getLogger(__name__)
 
 __all__ = ["MainWindow"]
 
-MAP_CHOICES = (("normal pressure", "pressure"), ("sensor stress", "stress"), ("none", "none"))
-SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)
 PRESET_LIMIT = 32 * 32  # skins whose quality presets are measured automatically
 SETTLE_S = 0.03  # the longest a control waits for its solve (docs/architecture.md)
-
-
-class Task(QtCore.QThread):
-    """Runs ``fn(progress)`` in a worker thread; ``progress(done, total)`` returns False to cancel."""
-
-    progressed = QtCore.pyqtSignal(int, int)
-    succeeded = QtCore.pyqtSignal(object)
-    failed = QtCore.pyqtSignal(object)
-
-    def __init__(self, fn, parent=None):
-        super().__init__(parent)
-        self._fn = fn
-        self._cancelled = False
-
-    def cancel(self):
-        self._cancelled = True
-
-    def _progress(self, done, total):
-        self.progressed.emit(int(done), int(total))
-        return not self._cancelled
-
-    def run(self):
-        try:
-            result = self._fn(self._progress)
-        except Exception as exc:  # handed to the GUI thread, which shows it
-            self.failed.emit(exc)
-        else:
-            self.succeeded.emit(result)
-
-
-class Dispatcher(QtCore.QObject):
-    """Runs callables on the thread that owns it (the GUI thread), posted from any thread.
-
-    The model's ``dispatch``: its worker thread hands results back through it.
-    """
-
-    _posted = QtCore.pyqtSignal(object)
-
-    def __init__(self, parent=None):
-        super().__init__(parent)
-        self._posted.connect(self._call, QtCore.Qt.ConnectionType.QueuedConnection)
-
-    def post(self, fn):
-        self._posted.emit(fn)
-
-    @staticmethod
-    def _call(fn):
-        fn()
 
 
 class MainWindow(QtWidgets.QMainWindow):
@@ -134,7 +84,25 @@ class MainWindow(QtWidgets.QMainWindow):
         self._live_waiting = False  # a live frame arrived while the last one was being drawn
         self.plotter.interactor.frameSwapped.connect(self._frame_swapped)
 
-        self._build_controls()
+        self.parameters = ParametersPanel(self.model)
+        self.parameters.kernel_chosen.connect(self._kernel_changed)
+        self.parameters.quality_chosen.connect(self._quality_changed)
+        self.display_panel = DisplayPanel(self.model)
+        self.display_panel.camera.connect(self._camera)
+        self.playback = PlaybackPanel(self.model)
+        self.live_panel = LivePanel()
+        actions = {"tare": lambda: self.tare(50), "record": self.record_dialog,
+                   "stop_recording": self.stop_recording, "disconnect": self.disconnect_live}
+        self.live_panel.action.connect(lambda name: actions[name]())
+        self._controls = QtWidgets.QWidget()
+        column = QtWidgets.QVBoxLayout(self._controls)
+        for panel in (self.parameters, self.display_panel, self.playback, self.live_panel):
+            column.addWidget(panel)
+        column.addStretch(1)
+        dock = QtWidgets.QDockWidget("Controls", self)
+        dock.setFeatures(QtWidgets.QDockWidget.DockWidgetFeature.NoDockWidgetFeatures)
+        dock.setWidget(self._controls)
+        self.addDockWidget(QtCore.Qt.DockWidgetArea.RightDockWidgetArea, dock)
         self._build_menus()
         self.status = QtWidgets.QLabel("open a recording (File > Open) or connect a board (Live > Connect)")
         self.statusBar().addPermanentWidget(self.status, 1)
@@ -143,159 +111,13 @@ class MainWindow(QtWidgets.QMainWindow):
         self._live_timer = QtCore.QTimer(self, interval=250)
         self._live_timer.timeout.connect(self._update_live_status)
 
-        self._play_timer = QtCore.QTimer(self, interval=15)
-        self._play_timer.timeout.connect(self._play_tick)
-        self._play_origin = (0.0, 0.0)  # (wall clock, recording time) when playback started
-
         self.model.recording_changed.connect(self._on_recording)
-        self.model.frame_changed.connect(self._on_frame)
-        self.model.parameters_changed.connect(self._sync_parameters)
-        self.model.display_changed.connect(self._sync_display)
+        self.model.display_changed.connect(self._redraw)
         self.model.solved.connect(self._on_solved)
         self.model.solve_failed.connect(self._on_solve_failed)
         self._set_enabled(False)
 
     # -- widgets -----------------------------------------------------------------------
-
-    def _build_controls(self):
-        panel = QtWidgets.QWidget()
-        form = QtWidgets.QVBoxLayout(panel)
-
-        params = QtWidgets.QGroupBox("Parameters")
-        grid = QtWidgets.QGridLayout(params)
-        self.auto_box = QtWidgets.QCheckBox("Auto (efficiency maximum)")
-        self.auto_box.setChecked(True)
-        self.auto_box.toggled.connect(self._auto_toggled)
-        grid.addWidget(self.auto_box, 0, 0, 1, 3)
-        self.ratio_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
-        self.ratio_slider.setRange(0, round(MAX_SHEAR_RATIO * 100))
-        self.ratio_spin = QtWidgets.QDoubleSpinBox(decimals=2, singleStep=0.01, maximum=MAX_SHEAR_RATIO)
-        self.direction_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
-        self.direction_slider.setRange(-180, 180)
-        self.direction_spin = QtWidgets.QDoubleSpinBox(decimals=1, singleStep=1.0, minimum=-180.0,
-                                                       maximum=180.0, wrapping=True, suffix=" deg")
-        grid.addWidget(QtWidgets.QLabel("shear ratio"), 1, 0)
-        grid.addWidget(self.ratio_slider, 1, 1)
-        grid.addWidget(self.ratio_spin, 1, 2)
-        grid.addWidget(QtWidgets.QLabel("direction"), 2, 0)
-        grid.addWidget(self.direction_slider, 2, 1)
-        grid.addWidget(self.direction_spin, 2, 2)
-        self.ratio_slider.valueChanged.connect(lambda v: self._manual(shear_ratio=v / 100))
-        self.ratio_spin.valueChanged.connect(lambda v: self._manual(shear_ratio=v))
-        self.direction_slider.valueChanged.connect(lambda v: self._manual(shear_direction=math.radians(v)))
-        self.direction_spin.valueChanged.connect(lambda v: self._manual(shear_direction=math.radians(v)))
-        self.kernel_box = QtWidgets.QComboBox()
-        # the solver's list, its default first: a kernel added there appears here
-        self.kernel_box.addItems(list(KERNELS))
-        self.kernel_box.setCurrentText(self.model.kernel)
-        self.kernel_box.setToolTip(KERNEL_HELP)
-        self.kernel_box.currentTextChanged.connect(self._kernel_changed)
-        grid.addWidget(QtWidgets.QLabel("kernel"), 3, 0)
-        grid.addWidget(self.kernel_box, 3, 1, 1, 2)
-        self.quality_box = QtWidgets.QComboBox()
-        self.quality_box.addItem("standard (exact, efficiency maximum)", None)
-        self.quality_box.setToolTip("Presets from the measured speed/accuracy front of this geometry "
-                                    "(tactile-tradeoff): time per frame and median error")
-        self.quality_box.currentIndexChanged.connect(self._quality_changed)
-        grid.addWidget(QtWidgets.QLabel("quality"), 4, 0)
-        grid.addWidget(self.quality_box, 4, 1, 1, 2)
-        # the geometry the forces are solved on, nu included: the layer kernel depends on it
-        self.geometry_label = QtWidgets.QLabel("")
-        self.geometry_label.setWordWrap(True)
-        self.geometry_label.setToolTip("From the recording or the sensor layout file: taxels, pitch, "
-                                       "elastomer thickness, Poisson ratio nu, taxel size")
-        grid.addWidget(self.geometry_label, 5, 0, 1, 3)
-        form.addWidget(params)
-
-        shown = QtWidgets.QGroupBox("Display")
-        grid = QtWidgets.QGridLayout(shown)
-        self.map_box = QtWidgets.QComboBox()
-        for label, _ in MAP_CHOICES:
-            self.map_box.addItem(label)
-        self.map_box.currentIndexChanged.connect(lambda i: self.model.set_display(map=MAP_CHOICES[i][1]))
-        self.arrows_box = QtWidgets.QCheckBox("force arrows")
-        self.arrows_box.setChecked(True)
-        self.arrows_box.toggled.connect(lambda on: self.model.set_display(arrows=on))
-        self.resultant_box = QtWidgets.QCheckBox("resultant")
-        self.resultant_box.setChecked(True)
-        self.resultant_box.toggled.connect(lambda on: self.model.set_display(resultant=on))
-        self.scale_spin = QtWidgets.QDoubleSpinBox(decimals=1, maximum=1e6, singleStep=5.0, suffix=" mm/N")
-        self.scale_spin.valueChanged.connect(lambda v: self.model.set_display(arrow_scale=v / 1e3))
-        self.threshold_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=1.0, suffix=" mN")
-        self.threshold_spin.valueChanged.connect(lambda v: self.model.set_display(threshold=v / 1e3))
-        self.range_box = QtWidgets.QCheckBox("automatic colour range")
-        self.range_box.setChecked(True)
-        self.range_box.toggled.connect(lambda on: self.model.set_display(auto_range=on))
-        self.range_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=1.0, suffix=" kPa")
-        self.range_spin.valueChanged.connect(lambda v: self.model.set_display(range_max=v * 1e3))
-        top = QtWidgets.QPushButton("Top")
-        top.clicked.connect(lambda: self._camera("top"))
-        iso = QtWidgets.QPushButton("Iso")
-        iso.clicked.connect(lambda: self._camera("iso"))
-        grid.addWidget(QtWidgets.QLabel("map"), 0, 0)
-        grid.addWidget(self.map_box, 0, 1, 1, 2)
-        grid.addWidget(self.arrows_box, 1, 0, 1, 2)
-        grid.addWidget(self.resultant_box, 1, 2)
-        grid.addWidget(QtWidgets.QLabel("arrow scale"), 2, 0)
-        grid.addWidget(self.scale_spin, 2, 1, 1, 2)
-        grid.addWidget(QtWidgets.QLabel("hide below"), 3, 0)
-        grid.addWidget(self.threshold_spin, 3, 1, 1, 2)
-        grid.addWidget(self.range_box, 4, 0, 1, 3)
-        grid.addWidget(QtWidgets.QLabel("range max"), 5, 0)
-        grid.addWidget(self.range_spin, 5, 1, 1, 2)
-        grid.addWidget(QtWidgets.QLabel("camera"), 6, 0)
-        grid.addWidget(top, 6, 1)
-        grid.addWidget(iso, 6, 2)
-        form.addWidget(shown)
-
-        playback = QtWidgets.QGroupBox("Playback")
-        grid = QtWidgets.QGridLayout(playback)
-        self.play_button = QtWidgets.QPushButton("Play")
-        self.play_button.setCheckable(True)
-        self.play_button.toggled.connect(self._play_toggled)
-        back = QtWidgets.QPushButton("<")
-        back.clicked.connect(lambda: self.step(-1))
-        forward = QtWidgets.QPushButton(">")
-        forward.clicked.connect(lambda: self.step(1))
-        self.frame_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
-        self.frame_slider.valueChanged.connect(self._frame_slider_moved)
-        self.speed_box = QtWidgets.QComboBox()
-        self.speed_box.addItems([f"{s:g}x" for s in SPEEDS])
-        self.speed_box.setCurrentIndex(SPEEDS.index(1.0))
-        self.speed_box.currentIndexChanged.connect(lambda _: self._restart_clock())
-        self.loop_box = QtWidgets.QCheckBox("loop")
-        self.time_label = QtWidgets.QLabel("-")
-        grid.addWidget(back, 0, 0)
-        grid.addWidget(self.play_button, 0, 1)
-        grid.addWidget(forward, 0, 2)
-        grid.addWidget(self.speed_box, 0, 3)
-        grid.addWidget(self.loop_box, 0, 4)
-        grid.addWidget(self.frame_slider, 1, 0, 1, 5)
-        grid.addWidget(self.time_label, 2, 0, 1, 5)
-        form.addWidget(playback)
-        self._playback = playback
-
-        self._live_box = QtWidgets.QGroupBox("Live")
-        box = QtWidgets.QVBoxLayout(self._live_box)
-        self.live_status = QtWidgets.QLabel("")
-        self.live_status.setWordWrap(True)
-        box.addWidget(self.live_status)
-        buttons = QtWidgets.QHBoxLayout()
-        for label, slot in (("Tare", lambda: self.tare(50)), ("Record...", self.record_dialog),
-                            ("Stop recording", self.stop_recording), ("Disconnect", self.disconnect_live)):
-            button = QtWidgets.QPushButton(label)
-            button.clicked.connect(slot)
-            buttons.addWidget(button)
-        box.addLayout(buttons)
-        self._live_box.hide()
-        form.addWidget(self._live_box)
-        form.addStretch(1)
-
-        dock = QtWidgets.QDockWidget("Controls", self)
-        dock.setFeatures(QtWidgets.QDockWidget.DockWidgetFeature.NoDockWidgetFeatures)
-        dock.setWidget(panel)
-        self.addDockWidget(QtCore.Qt.DockWidgetArea.RightDockWidgetArea, dock)
-        self._controls = panel
 
     def _build_menus(self):
         menu = self.menuBar().addMenu("&File")
@@ -324,11 +146,11 @@ class MainWindow(QtWidgets.QMainWindow):
     def _set_enabled(self, on: bool):
         live = self.model.live
         self._controls.setEnabled(on)
-        self._playback.setEnabled(on and not live)
+        self.playback.setEnabled(on and not live)
         for action in self._exports:
             action.setEnabled(on)
         self._exports[2].setEnabled(on and not live)  # a live source has no "whole recording"
-        self._live_box.setVisible(live)
+        self.live_panel.setVisible(live)
         for action in self._live_actions:
             action.setEnabled(live)
         recording = self.reader is not None and self.reader.recorder is not None
@@ -362,7 +184,7 @@ class MainWindow(QtWidgets.QMainWindow):
             return ViewerModel.build(recording.grid, kernel, self.model.configuration)
 
         def done(reconstructor):
-            self.set_playing(False)
+            self.playback.stop()
             self._stop_reader()
             self.model.install(recording, reconstructor, path)
 
@@ -395,13 +217,13 @@ class MainWindow(QtWidgets.QMainWindow):
 
         self._run(work, done, label, determinate=False)
 
-    def _quality_changed(self, index):
-        configuration = self.quality_box.itemData(index)
+    def _quality_changed(self, configuration):
         if configuration == self.model.configuration or not self.model.is_open:
             self.model.configuration = configuration
             return
         self.model.configuration = configuration
-        self._rebuild(self.model.kernel, f"Setting up '{self.quality_box.currentText().split(':')[0]}'...")
+        label = self.parameters.quality_box.currentText().split(":")[0]
+        self._rebuild(self.model.kernel, f"Setting up '{label}'...")
 
     def _measure_if_open(self):
         # measuring builds every configuration, full ones included: keep it to skins where
@@ -432,13 +254,8 @@ class MainWindow(QtWidgets.QMainWindow):
             return tradeoff.presets(measured)
 
         def done(chosen):
-            self.quality_box.blockSignals(True)
-            while self.quality_box.count() > 1:
-                self.quality_box.removeItem(1)
-            for label, m in chosen.items():
-                self.quality_box.addItem(f"{label}: {m.name}, {m.frame_ms:.2f} ms/frame, "
-                                         f"error {100 * tradeoff.error_of(m):.1f}% of |F|", m.configuration)
-            self.quality_box.blockSignals(False)
+            self.parameters.set_presets(chosen, lambda m: f"{m.name}, {m.frame_ms:.2f} ms/frame, "
+                                                          f"error {100 * tradeoff.error_of(m):.1f}% of |F|")
             self._measured_for = (key, "done")
             self.presets_measured.emit()
 
@@ -457,19 +274,9 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _on_recording(self):
         self.scene.set_grid(self.model.grid)
-        self.geometry_label.setText(geometry_text(self.model.grid))
-        self.kernel_box.blockSignals(True)
-        self.kernel_box.setCurrentText(self.model.kernel)
-        self.kernel_box.blockSignals(False)
         if self.model.live:
             self.setWindowTitle(f"tactile-viewer - live: {self.model.live_label}")
-            self.time_label.setText("live")
         else:
-            recording = self.model.recording
-            self.frame_slider.blockSignals(True)
-            self.frame_slider.setRange(0, len(recording) - 1)
-            self.frame_slider.setValue(0)
-            self.frame_slider.blockSignals(False)
             name = self.model.path.name if self.model.path else "recording"
             self.setWindowTitle(f"tactile-viewer - {name}")
         self._set_enabled(True)
@@ -480,55 +287,10 @@ class MainWindow(QtWidgets.QMainWindow):
         # the quality presets of this geometry, measured in the background once things settle
         QtCore.QTimer.singleShot(1000, self._measure_if_open)
 
-    # -- parameters ---------------------------------------------------------------------------
-
-    def _manual(self, **changes):
-        if not self.model.is_open:
-            return
-        self.model.set_parameters(**changes)
-
-    def _auto_toggled(self, on):
-        self.model.set_auto(on)
-
-    def _sync_parameters(self):
-        # model -> widgets, without echoing back
-        widgets = (self.auto_box, self.ratio_slider, self.ratio_spin, self.direction_slider,
-                   self.direction_spin)
-        for w in widgets:
-            w.blockSignals(True)
-        ratio, direction = self.model.shear_ratio, self.model.shear_direction
-        last = self.model.last
-        if self.model.auto and last is not None and last.auto:
-            # Auto shows what it found; the user's manual values stay in the model
-            ratio, direction = last.result.shear_ratio, last.result.shear_direction
-        degrees = math.degrees(direction)
-        self.auto_box.setChecked(self.model.auto)
-        self.ratio_slider.setValue(round(ratio * 100))
-        self.ratio_spin.setValue(ratio)
-        self.direction_slider.setValue(round(degrees))
-        self.direction_spin.setValue(degrees)
-        for w in widgets:
-            w.blockSignals(False)
-
-    def _sync_display(self):
-        d = self.model.display
-        widgets = (self.map_box, self.arrows_box, self.resultant_box, self.scale_spin, self.threshold_spin,
-                   self.range_box, self.range_spin)
-        for w in widgets:
-            w.blockSignals(True)
-        self.map_box.setCurrentIndex([key for _, key in MAP_CHOICES].index(d.map))
-        self.arrows_box.setChecked(d.arrows)
-        self.resultant_box.setChecked(d.resultant)
-        self.scale_spin.setValue(d.arrow_scale * 1e3)
-        self.threshold_spin.setValue(d.threshold * 1e3)
-        self.range_box.setChecked(d.auto_range)
-        self.range_spin.setValue(d.range_max / 1e3)
-        self.range_spin.setEnabled(not d.auto_range)
-        for w in widgets:
-            w.blockSignals(False)
+    def _redraw(self):
+        # the display settings changed: draw the last result again
         if self.model.last is not None:
-            last = self.model.last
-            self.scene.update(last.stress, last.result, d, render=False)
+            self.scene.update(self.model.last, self.model.display, render=False)
             self._draw()
 
     def _camera(self, preset):
@@ -542,33 +304,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self.statusBar().showMessage(message, 10000)
 
     def _on_solved(self, solved):
-        self.scene.update(solved.stress, solved.result, self.model.display, render=False)
-        if solved.auto:
-            self._sync_parameters()
-        r = solved.result
-        total = r.total_force
-        if r.normal_only:
-            shear = "normal only"  # the fast preset
-        elif solved.auto and not r.shear_detected:
-            shear = "auto: no shear signature"
-        else:
-            shear = (f"{'auto' if solved.auto else 'manual'}: mu {r.shear_ratio:.2f}, "
-                     f"theta {math.degrees(r.shear_direction):+.0f} deg")
-        if len(r.contacts) > 1:  # solved contact by contact: each has its own parameters
-            shear += "  (" + "; ".join(
-                f"contact {k + 1}: mu {c.shear_ratio:.2f}, theta "
-                f"{math.degrees(c.shear_direction):+.0f}" for k, c in enumerate(r.contacts)) + ")"
-        where = (f"seq {solved.frame}" if solved.frame >= 0 else "live") if self.model.live \
-            else f"frame {solved.frame + 1}/{len(self.model.recording)}"
-        self.status.setText(
-            f"{where}  t {solved.time:.3f} s  |  "
-            f"solve {solved.solve_ms:.2f} ms  |  {shear}  |  efficiency {r.efficiency:.3f}  "
-            f"residual {r.residual:.1e}  condition {r.condition:.3g}"
-            f"{' (damped)' if r.regularized else ''}  |  "
-            f"Fz {total[2] * 1e3:.1f} mN  Ft {math.hypot(total[0], total[1]) * 1e3:.1f} mN")
-        if not self.model.live:
-            self.time_label.setText(f"frame {solved.frame + 1} of {len(self.model.recording)},  "
-                                    f"t = {solved.time:.3f} s")
+        self.scene.update(solved, self.model.display, render=False)
+        self.status.setText(status_text(solved, self.model))
         self._draw()
         if self._first_frame:
             self._first_frame = False
@@ -587,63 +324,6 @@ class MainWindow(QtWidgets.QMainWindow):
         if self._live_waiting:
             self._live_waiting = False
             self._take_live_frame()
-
-    # -- playback ------------------------------------------------------------------------------
-
-    def _on_frame(self, index):
-        self.frame_slider.blockSignals(True)
-        self.frame_slider.setValue(index)
-        self.frame_slider.blockSignals(False)
-
-    def _frame_slider_moved(self, value):
-        self.model.set_frame(value)
-        self._restart_clock()
-
-    def step(self, delta: int):
-        if self.model.recording is None:
-            return
-        self.model.set_frame(min(max(self.model.frame + delta, 0), len(self.model.recording) - 1))
-        self._restart_clock()
-
-    @property
-    def speed(self) -> float:
-        return SPEEDS[self.speed_box.currentIndex()]
-
-    def set_playing(self, on: bool):
-        self.play_button.setChecked(on)
-
-    def _play_toggled(self, on):
-        self.play_button.setText("Pause" if on else "Play")
-        if on and self.model.recording is not None:
-            if self.model.frame == len(self.model.recording) - 1:
-                self.model.set_frame(0)
-            self._restart_clock()
-            self._play_timer.start()
-        else:
-            self._play_timer.stop()
-
-    def _restart_clock(self):
-        if self.model.recording is not None:
-            self._play_origin = (time.perf_counter(), float(self.model.recording.t[self.model.frame]))
-
-    def _play_tick(self):
-        # Show the frame whose time has come: slow rendering skips frames
-        # rather than slowing the recording down.
-        recording = self.model.recording
-        t = recording.t
-        wall, start = self._play_origin
-        now = start + (time.perf_counter() - wall) * self.speed
-        looping = self.loop_box.isChecked() and len(recording) > 1
-        if looping and now > t[-1]:
-            # the recording repeats with one mean frame interval after its last frame
-            period = (t[-1] - t[0]) * len(recording) / (len(recording) - 1)
-            if period > 0:
-                now = t[0] + (now - t[0]) % period
-        index = int(min(max(t.searchsorted(now, side="right") - 1, 0), len(recording) - 1))
-        if index != self.model.frame:
-            self.model.set_frame(index)
-        if index == len(recording) - 1 and not looping:
-            self.set_playing(False)
 
     # -- exports ---------------------------------------------------------------------------------
 
@@ -785,7 +465,7 @@ class MainWindow(QtWidgets.QMainWindow):
         kernel, grid = self.model.kernel, layout.grid
 
         def done(reconstructor):
-            self.set_playing(False)
+            self.playback.stop()
             self._stop_reader()
             self.reader = reader
             self.model.install_live(reconstructor, f"{url} ({fmt})")
@@ -814,7 +494,7 @@ class MainWindow(QtWidgets.QMainWindow):
                 self.statusBar().showMessage(f"recording saved: {written}", 10000)
         self._live_timer.stop()
         self.banner.hide()
-        self.live_status.setText("")
+        self.live_panel.status.setText("")
 
     def tare(self, frames: int = 50):
         """Average the next ``frames`` frames as the zero of every taxel."""
@@ -880,25 +560,11 @@ class MainWindow(QtWidgets.QMainWindow):
             since = "no frame received yet" if silence == math.inf else f"no frame for {silence:.1f} s"
             state = reader.state + (f": {reader.error}" if reader.error else "")
             self.banner.setText(f"NO DATA: {since} ({state})")
-        rejected = reader.rejected()
-        parts = [f"{reader.url} ({reader.fmt}): {reader.state}", f"{stats.rate(reader.now()):.0f} fps",
-                 f"received {stats.received}", f"lost {stats.lost}"]
-        if rejected or reader.decoder.skipped_bytes:
-            parts.append("rejected " + (", ".join(f"{k} {v}" for k, v in sorted(rejected.items())) or "0")
-                         + f"; skipped {reader.decoder.skipped_bytes} B")
-        if reader.reconnects:
-            parts.append(f"reconnected {reader.reconnects}x")
-        if reader.failures:
-            parts.append(f"{reader.failures} chunks failed: {reader.error}")
-        if reader.calibration.taring:
-            parts.append("taring")
-        if reader.recorder is not None:
-            parts.append(f"recording {reader.recorder.path.name} ({reader.recorder.written} frames saved)")
-        self.live_status.setText("\n".join(parts))
+        self.live_panel.show_reader(reader)
 
     def closeEvent(self, event):
         self._stop_reader()
-        self._play_timer.stop()
+        self.playback.stop()
         self.model.close()
         for task in list(self._tasks):
             task.cancel()

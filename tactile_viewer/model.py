@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from solver import Reconstruction, Reconstructor, SensorGrid, make_solver
+from solver.arrays import read_only
 from solver.kernels import KERNELS
 
 from .recording import Recording
@@ -107,10 +108,19 @@ class Display:
 
 @dataclass(frozen=True)
 class Solved:
-    """One reconstructed frame and how it was made.
+    """One reconstructed frame, how it was made, and what the scene shows of it.
 
     ``frame`` is the index in the recording, or for a live source the frame's
     sequence number (-1 for text frames, which carry none); ``time`` seconds.
+    The scene draws these fields and computes no physics itself.
+
+    Attributes
+    ----------
+    pressure : (m,) ndarray
+        Reconstructed normal pressure ``Fz / pitch^2``, pascals.
+    centroid : (2,) ndarray or None
+        Where the compressive normal load is centred, metres (None when
+        nothing presses).
     """
 
     frame: int
@@ -119,6 +129,18 @@ class Solved:
     result: Reconstruction
     solve_ms: float
     auto: bool
+    pressure: np.ndarray
+    centroid: np.ndarray | None
+
+    @classmethod
+    def of(cls, grid: SensorGrid, stress, result: Reconstruction, *, frame: int = 0, time: float = 0.0,
+           solve_ms: float = 0.0, auto: bool = True) -> Solved:
+        """A solved frame of ``grid`` with its pressure map and load centroid."""
+        forces = result.forces
+        push = np.clip(forces[:, 2], 0.0, None)
+        centroid = grid.positions.T @ push / push.sum() if push.sum() > 0 else None
+        return cls(frame, time, np.asarray(stress, dtype=float), result, solve_ms, auto,
+                   read_only(forces[:, 2] / grid.pitch**2), None if centroid is None else read_only(centroid))
 
 
 @dataclass(frozen=True)
@@ -369,7 +391,8 @@ class ViewerModel:
             result = job.solver.solve(job.stress, shear_ratio=job.shear_ratio,
                                       shear_direction=job.shear_direction)
         elapsed = 1e3 * (time.perf_counter() - start)
-        return Solved(job.frame, job.time, job.stress, result, elapsed, job.auto)
+        return Solved.of(job.solver.grid, job.stress, result, frame=job.frame, time=job.time,
+                         solve_ms=elapsed, auto=job.auto)
 
     def solve(self) -> Solved | None:
         """Reconstruct the current frame with the current parameters, here and now, and announce it.

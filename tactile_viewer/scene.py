@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pyvista as pv
 
-from solver import Reconstruction, SensorGrid
+from solver import SensorGrid
 
-from .model import Display
+from .model import Display, Solved
 
 __all__ = ["Scene"]
 
@@ -129,25 +129,20 @@ class Scene:
 
     # -- per frame -------------------------------------------------------------------
 
-    def update(self, stress: np.ndarray, result: Reconstruction, display: Display, *, render=True):
+    def update(self, solved: Solved, display: Display, *, render=True):
         """Show one reconstructed frame.
 
         Parameters
         ----------
-        stress : (m,) ndarray
-            Measured sensor stress, pascals.
-        result : Reconstruction
+        solved : Solved
+            The frame: measured stress, the result, its pressure map and load centroid.
         display : Display
         """
         if self.grid is None:
             raise RuntimeError("set_grid must come before update")
-        grid = self.grid
-        forces = result.forces
+        forces = solved.result.forces
         # the map
-        if display.map == "stress":
-            values = np.asarray(stress, dtype=float)
-        else:
-            values = forces[:, 2] / grid.pitch**2
+        values = np.asarray(solved.stress if display.map == "stress" else solved.pressure, dtype=float)
         self._map.cell_data["kPa"] = values / 1e3
         if display.auto_range:
             high = max(float(values.max()) / 1e3, 1e-9)
@@ -178,10 +173,9 @@ class Scene:
         self._bars["arrows"].SetVisibility(bool(shown.size))
 
         # the resultant at the centroid of the compressive load
-        total = forces.sum(axis=0)
-        push = np.clip(forces[:, 2], 0, None)
-        if display.resultant and push.sum() > 0 and np.linalg.norm(total) > 0:
-            centroid = np.append(grid.positions.T @ push / push.sum() * MM, 0.0)
+        total = solved.result.total_force
+        if display.resultant and solved.centroid is not None and np.linalg.norm(total) > 0:
+            centroid = np.append(solved.centroid * MM, 0.0)
             vector = np.array([total[0], total[1], -total[2]]) * display.resultant_scale * MM
             self._actors["resultant"].user_matrix = _placement(centroid - vector, vector)
             self._actors["resultant"].SetVisibility(True)

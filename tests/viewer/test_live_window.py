@@ -54,16 +54,16 @@ def test_the_window_shows_live_frames(live, qtbot):
     assert live.model.last.stress.max() > 1e3  # kPa on the wire, pascals on screen
     assert live.status.text().startswith("seq ")
     assert live.scene.arrows.n_points > 0
-    assert not live._playback.isEnabled() and live._live_box.isVisible()
-    qtbot.waitUntil(lambda: "fps" in live.live_status.text(), timeout=3000)
-    assert "lost 0" in live.live_status.text()
+    assert not live.playback.isEnabled() and live.live_panel.isVisible()
+    qtbot.waitUntil(lambda: "fps" in live.live_panel.status.text(), timeout=3000)
+    assert "lost 0" in live.live_panel.status.text()
 
 
 def test_injected_garbage_is_counted_and_no_frame_is_lost(live, qtbot):
     reader = live.reader
     qtbot.waitUntil(lambda: reader.decoder.skipped_bytes > 0 and reader.stats.received > 200, timeout=10000)
     assert reader.stats.lost == 0 and reader.stats.out_of_order == 0
-    qtbot.waitUntil(lambda: "skipped" in live.live_status.text(), timeout=3000)
+    qtbot.waitUntil(lambda: "skipped" in live.live_panel.status.text(), timeout=3000)
 
 
 def test_a_disconnect_shows_no_data_and_a_reconnect_recovers(live, board, qtbot):
@@ -136,7 +136,7 @@ def test_opening_a_recording_disconnects(live, qtbot):
     with qtbot.waitSignal(live.ready, timeout=20000):
         live.open(Path(__file__).resolve().parents[2] / "sample_data" / "hertz_static.npz")
     assert live.reader is None and reader.state == "stopped" and not live.model.live
-    assert live._playback.isEnabled() and not live._live_box.isVisible()
+    assert live.playback.isEnabled() and not live.live_panel.isVisible()
 
 
 def test_the_connect_dialog_remembers_and_checks(qtbot, tmp_path, monkeypatch):

@@ -33,14 +33,14 @@ def test_window_opens_on_each_sample(window, qtbot, name):
 def test_moving_either_slider_changes_the_arrows(opened, qtbot):
     before = arrow_points(opened)
     with qtbot.waitSignal(opened.rendered, timeout=5000):
-        opened.ratio_slider.setValue(80)
-    assert not opened.model.auto and not opened.auto_box.isChecked()
+        opened.parameters.ratio_slider.setValue(80)
+    assert not opened.model.auto and not opened.parameters.auto_box.isChecked()
     assert opened.model.shear_ratio == pytest.approx(0.8)
-    assert opened.ratio_spin.value() == pytest.approx(0.8)
+    assert opened.parameters.ratio_spin.value() == pytest.approx(0.8)
     after_ratio = arrow_points(opened)
     assert after_ratio.shape != before.shape or not np.allclose(after_ratio, before)
     with qtbot.waitSignal(opened.rendered, timeout=5000):
-        opened.direction_slider.setValue(-90)
+        opened.parameters.direction_slider.setValue(-90)
     assert opened.model.last.result.shear_direction == pytest.approx(-math.pi / 2)
     after_direction = arrow_points(opened)
     assert after_direction.shape != after_ratio.shape or not np.allclose(after_direction, after_ratio)
@@ -73,7 +73,7 @@ def test_a_slider_drag_solves_only_the_latest_value(opened, qtbot):
     solved = []
     model.solved.connect(solved.append)
     for value in range(10, 60, 5):  # ten moves, each faster than a solve
-        opened.ratio_slider.setValue(value)
+        opened.parameters.ratio_slider.setValue(value)
     qtbot.waitUntil(lambda: bool(solved) and solved[-1].result.shear_ratio == pytest.approx(0.55), timeout=5000)
     # each move waits at most the window's settle time (0.03 s) for its solve, so the ten moves take
     # about 0.3 s: the worker solves the first and the newest, perhaps one in between, never all ten
@@ -95,7 +95,7 @@ def test_the_window_keeps_responding_while_a_solve_runs(opened, qtbot):
     timer.timeout.connect(lambda: ticks.append(time.perf_counter()))
     timer.start()
     try:
-        opened.step(1)
+        opened.playback.step(1)
         assert held.running.wait(5)
         start = time.perf_counter()
         qtbot.waitUntil(lambda: model.last.frame == 1, timeout=5000)
@@ -109,14 +109,14 @@ def test_the_window_keeps_responding_while_a_solve_runs(opened, qtbot):
 
 def test_auto_moves_the_sliders_to_the_maximum(opened, qtbot):
     with qtbot.waitSignal(opened.rendered, timeout=5000):
-        opened.ratio_slider.setValue(0)
-    assert opened.ratio_slider.value() == 0
+        opened.parameters.ratio_slider.setValue(0)
+    assert opened.parameters.ratio_slider.value() == 0
     with qtbot.waitSignal(opened.rendered, timeout=5000):
-        opened.auto_box.setChecked(True)
+        opened.parameters.auto_box.setChecked(True)
     found = opened.model.last.result
     assert found.shear_detected and found.shear_ratio > 0.2  # the sample has 0.4
-    assert opened.ratio_slider.value() == round(found.shear_ratio * 100)
-    assert opened.direction_slider.value() == round(math.degrees(found.shear_direction))
+    assert opened.parameters.ratio_slider.value() == round(found.shear_ratio * 100)
+    assert opened.parameters.direction_slider.value() == round(math.degrees(found.shear_direction))
 
 
 def test_a_malformed_file_shows_the_error_and_keeps_the_state(opened, tmp_path):
@@ -180,29 +180,29 @@ def test_force_export_round_trips(opened, qtbot, tmp_path):
 def test_playback_advances(opened, qtbot):
     frames = []
     opened.model.frame_changed.connect(frames.append)
-    opened.speed_box.setCurrentIndex(2)  # 1x: 60 frames over 2 s
-    opened.set_playing(True)
+    opened.playback.speed_box.setCurrentIndex(2)  # 1x: 60 frames over 2 s
+    opened.playback.set_playing(True)
     qtbot.waitUntil(lambda: len(frames) >= 5, timeout=10000)
-    opened.set_playing(False)
+    opened.playback.set_playing(False)
     assert frames == sorted(frames) and frames[-1] > 4
-    assert opened.frame_slider.value() == opened.model.frame
+    assert opened.playback.frame_slider.value() == opened.model.frame
 
 
 def test_step_and_kernel_switch(opened, qtbot):
     with qtbot.waitSignal(opened.rendered, timeout=5000):
-        opened.step(3)
+        opened.playback.step(3)
     assert opened.model.frame == 3
     with qtbot.waitSignal(opened.ready, timeout=20000):
-        opened.kernel_box.setCurrentText("point")
+        opened.parameters.kernel_box.setCurrentText("point")
     assert opened.model.kernel == "point" and opened.model.reconstructor.kernel == "point"
 
 
 def test_display_toggles(opened, qtbot):
     with qtbot.waitSignal(opened.rendered, timeout=5000):
-        opened.threshold_spin.setValue(1e5)  # hide every arrow
+        opened.display_panel.threshold_spin.setValue(1e5)  # hide every arrow
     assert opened.scene.arrows.n_points == 0
     with qtbot.waitSignal(opened.rendered, timeout=5000):
-        opened.map_box.setCurrentIndex(1)
+        opened.display_panel.map_box.setCurrentIndex(1)
     assert opened.model.display.map == "stress"
     np.testing.assert_allclose(opened.scene._map.cell_data["kPa"], opened.model.last.stress / 1e3)
 
@@ -240,29 +240,29 @@ def test_an_irregular_layout_is_drawn_taxel_by_taxel(window, qtbot):
 def test_looped_playback_wraps_to_the_start(opened, qtbot):
     frames = []
     opened.model.frame_changed.connect(frames.append)
-    opened.loop_box.setChecked(True)
-    opened.speed_box.setCurrentIndex(4)  # 4x: the 2 s sample lasts 0.5 s
-    opened.set_playing(True)
+    opened.playback.loop_box.setChecked(True)
+    opened.playback.speed_box.setCurrentIndex(4)  # 4x: the 2 s sample lasts 0.5 s
+    opened.playback.set_playing(True)
     qtbot.waitUntil(lambda: any(b < a for a, b in zip(frames, frames[1:], strict=False)), timeout=10000)
-    assert opened.play_button.isChecked()  # still playing after the wrap
-    opened.set_playing(False)
+    assert opened.playback.play_button.isChecked()  # still playing after the wrap
+    opened.playback.set_playing(False)
 
 
 def test_quality_presets_are_measured_for_the_geometry_and_applied(opened, qtbot):
     with qtbot.waitSignal(opened.presets_measured, timeout=60000):
         opened.measure_presets()
-    labels = [opened.quality_box.itemText(k) for k in range(opened.quality_box.count())]
+    labels = [opened.parameters.quality_box.itemText(k) for k in range(opened.parameters.quality_box.count())]
     assert labels[0].startswith("standard") and [label.split(":")[0] for label in labels[1:]] == [
         "fast", "balanced", "accurate"]
     assert all("ms/frame" in label and "% of |F|" in label for label in labels[1:])
-    fast = opened.quality_box.itemData(1)
+    fast = opened.parameters.quality_box.itemData(1)
     with qtbot.waitSignal(opened.ready, timeout=20000):
-        opened.quality_box.setCurrentIndex(1)
+        opened.parameters.quality_box.setCurrentIndex(1)
     assert opened.model.configuration == fast
     if fast.path == "normal":  # measured: the normal-only path is the front's fastest point
         assert opened.model.last.result.normal_only
     with qtbot.waitSignal(opened.ready, timeout=20000):
-        opened.quality_box.setCurrentIndex(0)
+        opened.parameters.quality_box.setCurrentIndex(0)
     assert opened.model.configuration is None
 
 
@@ -288,9 +288,9 @@ def test_separate_contacts_are_reported_each_with_its_parameters(window, qtbot):
 def test_kernels_come_from_the_solver_with_its_default_first(window):
     from solver.kernels import KERNELS
 
-    assert [window.kernel_box.itemText(k) for k in range(window.kernel_box.count())] == list(KERNELS)
-    assert window.kernel_box.currentText() == KERNELS[0] == window.model.kernel
-    assert "layer: elastomer layer bonded to a rigid hull" in window.kernel_box.toolTip()
+    assert [window.parameters.kernel_box.itemText(k) for k in range(window.parameters.kernel_box.count())] == list(KERNELS)
+    assert window.parameters.kernel_box.currentText() == KERNELS[0] == window.model.kernel
+    assert "layer: elastomer layer bonded to a rigid hull" in window.parameters.kernel_box.toolTip()
 
 
 def test_the_geometry_shown_names_poisson_ratio_and_taxel_size(window, qtbot):
@@ -302,7 +302,7 @@ def test_the_geometry_shown_names_poisson_ratio_and_taxel_size(window, qtbot):
     stress = 5e3 * np.exp(-r2 / (3e-3) ** 2)  # a smooth press in the middle, pascals
     with qtbot.waitSignal(window.ready, timeout=20000):
         window.show_recording(Recording(grid, np.stack([stress, stress]), [0.0, 0.1], description="soft"))
-    assert window.geometry_label.text() == "6x5 taxels, pitch 2 mm, thickness 2 mm, nu 0.45, taxel 1 mm"
+    assert window.parameters.geometry_label.text() == "6x5 taxels, pitch 2 mm, thickness 2 mm, nu 0.45, taxel 1 mm"
     assert window.model.reconstructor.grid.poisson_ratio == 0.45  # solved on the recording's material
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from solver import Reconstructor, SensorGrid, loads
 from solver.kernels import KERNELS
-from tactile_viewer.model import MAX_SHEAR_RATIO, Display, Signal, ViewerModel, geometry_text
+from tactile_viewer.model import MAX_SHEAR_RATIO, Display, Signal, Solved, ViewerModel, geometry_text
 from tactile_viewer.recording import Recording
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -557,3 +557,17 @@ def test_a_change_waits_for_a_fast_solve_up_to_settle(recording, reconstructor):
     finally:
         slow.release.set()
         model.close()
+
+
+def test_solved_carries_the_pressure_map_and_the_load_centroid(model, recording, reconstructor):
+    # the scene draws these; it computes no physics
+    solved = model.solve()
+    grid = recording.grid
+    fz = solved.result.forces[:, 2]
+    np.testing.assert_allclose(solved.pressure, fz / PITCH**2)
+    push = np.clip(fz, 0, None)
+    np.testing.assert_allclose(solved.centroid, grid.positions.T @ push / push.sum())
+    assert -2e-3 - PITCH < solved.centroid[0] < -2e-3 + PITCH  # frame 0: the contact sits at x = -2 mm
+    assert not solved.pressure.flags.writeable
+    nothing = Solved.of(grid, np.zeros(grid.size), reconstructor.solve(np.zeros(grid.size)))
+    assert nothing.centroid is None and not np.any(nothing.pressure)

@@ -13,7 +13,7 @@ import pytest
 import pyvista as pv
 
 from solver import Reconstructor, SensorGrid, loads
-from tactile_viewer.model import Display
+from tactile_viewer.model import Display, Solved
 from tactile_viewer.scene import Scene
 
 MM = 1e3  # metres -> scene millimetres
@@ -82,7 +82,7 @@ def scene(plotter):
 def show(scene, frame, display=None):
     grid, stress, result = frame
     scene.set_grid(grid)
-    scene.update(stress, result, display or Display(arrow_scale=0.02), render=False)
+    scene.update(Solved.of(grid, stress, result), display or Display(arrow_scale=0.02), render=False)
     return grid, stress, result
 
 
@@ -207,7 +207,7 @@ def test_arrows_off_draws_none_and_on_again_draws_all(scene, regular_frame):
     grid, stress, result = show(scene, regular_frame, Display(arrows=False))
     assert scene.arrow_nodes.size == 0 and scene.arrows.n_points == 0
     assert not scene._actors["arrows"].GetVisibility()
-    scene.update(stress, result, Display(arrows=True), render=False)
+    scene.update(Solved.of(grid, stress, result), Display(arrows=True), render=False)
     assert scene.arrow_nodes.size == grid.size and scene._actors["arrows"].GetVisibility()
 
 
@@ -296,7 +296,7 @@ def test_resultant_ends_on_the_compressive_centroid_along_the_total_force(scene,
 def test_resultant_hides_when_switched_off_and_returns(scene, regular_frame):
     grid, stress, result = show(scene, regular_frame, Display(resultant=False))
     assert not scene._actors["resultant"].GetVisibility()
-    scene.update(stress, result, Display(resultant=True), render=False)
+    scene.update(Solved.of(grid, stress, result), Display(resultant=True), render=False)
     assert scene._actors["resultant"].GetVisibility()
 
 
@@ -308,7 +308,7 @@ def test_an_all_zero_frame_shows_no_arrow_and_no_resultant(scene, regular_frame)
     result = Reconstructor(grid).solve(zero)  # the automatic path, as the viewer runs it
     assert not np.any(result.forces)
     for kind in ("pressure", "stress"):
-        scene.update(zero, result, Display(map=kind), render=True)  # renders an empty arrow set
+        scene.update(Solved.of(grid, zero, result), Display(map=kind), render=True)  # renders an empty arrow set
         assert scene.arrow_nodes.size == 0 and scene.arrows.n_points == 0
         assert not scene._actors["arrows"].GetVisibility()
         assert not scene._actors["resultant"].GetVisibility()
@@ -320,16 +320,16 @@ def test_an_all_zero_frame_shows_no_arrow_and_no_resultant(scene, regular_frame)
 def test_a_first_frame_of_zeros_does_not_raise(scene):
     grid = regular_grid()
     scene.set_grid(grid)
-    scene.update(np.zeros(grid.size), Reconstructor(grid).solve_normal(np.zeros(grid.size)), Display())
+    scene.update(Solved.of(grid, np.zeros(grid.size), Reconstructor(grid).solve_normal(np.zeros(grid.size))), Display())
     assert scene.arrows.n_points == 0 and not scene._actors["resultant"].GetVisibility()
 
 
 # -- building and rebuilding ---------------------------------------------------------------------
 
 def test_update_before_set_grid_raises(scene, regular_frame):
-    _, stress, result = regular_frame
+    grid, stress, result = regular_frame
     with pytest.raises(RuntimeError, match="set_grid must come before update"):
-        scene.update(stress, result, Display())
+        scene.update(Solved.of(grid, stress, result), Display())
 
 
 def test_a_second_grid_replaces_the_actors(scene, plotter, regular_frame):
@@ -344,7 +344,7 @@ def test_a_second_grid_replaces_the_actors(scene, plotter, regular_frame):
     drawn = list(plotter.renderer.actors.values())
     assert not any(actor in drawn for actor in first.values())
     assert scene.grid is small and scene._map.n_cells == small.size
-    scene.update(stress, result, Display())
+    scene.update(Solved.of(small, stress, result), Display())
     assert scene.arrow_nodes.max() < small.size and scene._map.cell_data["kPa"].shape == (small.size,)
 
 
@@ -400,5 +400,5 @@ def test_a_display_change_alone_redraws_the_same_forces(scene, regular_frame):
     # the window re-runs update with the last result when a display setting changes
     grid, stress, result = show(scene, regular_frame, Display(arrow_scale=0.02))
     before = np.array(scene.arrows.points, copy=True)
-    scene.update(stress, result, replace(Display(arrow_scale=0.02), map="stress"), render=False)
+    scene.update(Solved.of(grid, stress, result), replace(Display(arrow_scale=0.02), map="stress"), render=False)
     np.testing.assert_array_equal(scene.arrows.points, before)

@@ -1,0 +1,393 @@
+"""The window's control panels: each sets model fields and follows the model's events.
+
+No panel solves, draws or reads files: :class:`ParametersPanel` and
+:class:`DisplayPanel` edit the :class:`~tactile_viewer.model.ViewerModel`;
+:class:`PlaybackPanel` moves its frame on the recording's clock;
+:class:`LivePanel` shows a live source's state. Requests that need the window
+(a new kernel to factor, a camera preset, a live action) leave as Qt signals.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+from PyQt6 import QtCore, QtWidgets
+
+from solver.kernels import KERNELS
+
+from .model import KERNEL_HELP, MAX_SHEAR_RATIO, Solved, ViewerModel, geometry_text
+
+__all__ = ["ParametersPanel", "DisplayPanel", "PlaybackPanel", "LivePanel", "status_text", "MAP_CHOICES",
+           "SPEEDS"]
+
+MAP_CHOICES = (("normal pressure", "pressure"), ("sensor stress", "stress"), ("none", "none"))
+SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)
+
+
+def _quietly(widgets, apply):
+    # model -> widgets without echoing back into the model
+    for w in widgets:
+        w.blockSignals(True)
+    try:
+        apply()
+    finally:
+        for w in widgets:
+            w.blockSignals(False)
+
+
+def status_text(solved: Solved, model: ViewerModel) -> str:
+    """The status line of a solved frame: where, how fast, the parameters, the fit, the forces."""
+    r = solved.result
+    total = r.total_force
+    if r.normal_only:
+        shear = "normal only"  # the fast preset
+    elif solved.auto and not r.shear_detected:
+        shear = "auto: no shear signature"
+    else:
+        shear = (f"{'auto' if solved.auto else 'manual'}: mu {r.shear_ratio:.2f}, "
+                 f"theta {math.degrees(r.shear_direction):+.0f} deg")
+    if len(r.contacts) > 1:  # each contact has its own parameters
+        shear += "  (" + "; ".join(
+            f"contact {k + 1}: mu {c.shear_ratio:.2f}, theta "
+            f"{math.degrees(c.shear_direction):+.0f}" for k, c in enumerate(r.contacts)) + ")"
+    where = (f"seq {solved.frame}" if solved.frame >= 0 else "live") if model.live \
+        else f"frame {solved.frame + 1}/{len(model.recording)}"
+    return (f"{where}  t {solved.time:.3f} s  |  "
+            f"solve {solved.solve_ms:.2f} ms  |  {shear}  |  efficiency {r.efficiency:.3f}  "
+            f"residual {r.residual:.1e}  condition {r.condition:.3g}"
+            f"{' (damped)' if r.regularized else ''}  |  "
+            f"Fz {total[2] * 1e3:.1f} mN  Ft {math.hypot(total[0], total[1]) * 1e3:.1f} mN")
+
+
+class ParametersPanel(QtWidgets.QGroupBox):
+    """Auto, shear ratio and direction, kernel and quality preset, the geometry line.
+
+    Signals
+    -------
+    kernel_chosen(str)
+        The user picked another kernel (the window factors it).
+    quality_chosen(object)
+        The user picked a quality preset (a ``solver.tradeoff.Configuration`` or None).
+    """
+
+    kernel_chosen = QtCore.pyqtSignal(str)
+    quality_chosen = QtCore.pyqtSignal(object)
+
+    def __init__(self, model: ViewerModel, parent=None):
+        super().__init__("Parameters", parent)
+        self.model = model
+        grid = QtWidgets.QGridLayout(self)
+        self.auto_box = QtWidgets.QCheckBox("Auto (efficiency maximum)")
+        self.auto_box.setChecked(True)
+        self.auto_box.toggled.connect(model.set_auto)
+        grid.addWidget(self.auto_box, 0, 0, 1, 3)
+        self.ratio_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
+        self.ratio_slider.setRange(0, round(MAX_SHEAR_RATIO * 100))
+        self.ratio_spin = QtWidgets.QDoubleSpinBox(decimals=2, singleStep=0.01, maximum=MAX_SHEAR_RATIO)
+        self.direction_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
+        self.direction_slider.setRange(-180, 180)
+        self.direction_spin = QtWidgets.QDoubleSpinBox(decimals=1, singleStep=1.0, minimum=-180.0,
+                                                       maximum=180.0, wrapping=True, suffix=" deg")
+        grid.addWidget(QtWidgets.QLabel("shear ratio"), 1, 0)
+        grid.addWidget(self.ratio_slider, 1, 1)
+        grid.addWidget(self.ratio_spin, 1, 2)
+        grid.addWidget(QtWidgets.QLabel("direction"), 2, 0)
+        grid.addWidget(self.direction_slider, 2, 1)
+        grid.addWidget(self.direction_spin, 2, 2)
+        self.ratio_slider.valueChanged.connect(lambda v: self._manual(shear_ratio=v / 100))
+        self.ratio_spin.valueChanged.connect(lambda v: self._manual(shear_ratio=v))
+        self.direction_slider.valueChanged.connect(lambda v: self._manual(shear_direction=math.radians(v)))
+        self.direction_spin.valueChanged.connect(lambda v: self._manual(shear_direction=math.radians(v)))
+        self.kernel_box = QtWidgets.QComboBox()
+        # the solver's list, its default first: a kernel added there appears here
+        self.kernel_box.addItems(list(KERNELS))
+        self.kernel_box.setCurrentText(model.kernel)
+        self.kernel_box.setToolTip(KERNEL_HELP)
+        self.kernel_box.currentTextChanged.connect(self.kernel_chosen)
+        grid.addWidget(QtWidgets.QLabel("kernel"), 3, 0)
+        grid.addWidget(self.kernel_box, 3, 1, 1, 2)
+        self.quality_box = QtWidgets.QComboBox()
+        self.quality_box.addItem("standard (exact, efficiency maximum)", None)
+        self.quality_box.setToolTip("Presets from the measured speed/accuracy front of this geometry "
+                                    "(tactile-tradeoff): time per frame and median error")
+        self.quality_box.currentIndexChanged.connect(
+            lambda i: self.quality_chosen.emit(self.quality_box.itemData(i)))
+        grid.addWidget(QtWidgets.QLabel("quality"), 4, 0)
+        grid.addWidget(self.quality_box, 4, 1, 1, 2)
+        # the geometry the forces are solved on, nu included: the layer kernel depends on it
+        self.geometry_label = QtWidgets.QLabel("")
+        self.geometry_label.setWordWrap(True)
+        self.geometry_label.setToolTip("From the recording or the sensor layout file: taxels, pitch, "
+                                       "elastomer thickness, Poisson ratio nu, taxel size")
+        grid.addWidget(self.geometry_label, 5, 0, 1, 3)
+        model.parameters_changed.connect(self.follow)
+        model.recording_changed.connect(self._on_recording)
+        model.solved.connect(lambda solved: self.follow() if solved.auto else None)
+
+    def _manual(self, **changes):
+        if self.model.is_open:
+            self.model.set_parameters(**changes)
+
+    def _on_recording(self):
+        self.geometry_label.setText(geometry_text(self.model.grid))
+        _quietly([self.kernel_box], lambda: self.kernel_box.setCurrentText(self.model.kernel))
+
+    def follow(self):
+        """Show the model's parameters: in Auto what the last solve found, else the manual values."""
+        ratio, direction = self.model.shear_ratio, self.model.shear_direction
+        last = self.model.last
+        if self.model.auto and last is not None and last.auto:
+            # Auto shows what it found; the user's manual values stay in the model
+            ratio, direction = last.result.shear_ratio, last.result.shear_direction
+        degrees = math.degrees(direction)
+
+        def apply():
+            self.auto_box.setChecked(self.model.auto)
+            self.ratio_slider.setValue(round(ratio * 100))
+            self.ratio_spin.setValue(ratio)
+            self.direction_slider.setValue(round(degrees))
+            self.direction_spin.setValue(degrees)
+        _quietly([self.auto_box, self.ratio_slider, self.ratio_spin, self.direction_slider,
+                  self.direction_spin], apply)
+
+    def set_presets(self, chosen: dict, describe):
+        """Offer measured presets: ``chosen`` label -> measurement, ``describe(m)`` its text."""
+        def apply():
+            while self.quality_box.count() > 1:
+                self.quality_box.removeItem(1)
+            for label, m in chosen.items():
+                self.quality_box.addItem(f"{label}: {describe(m)}", m.configuration)
+        _quietly([self.quality_box], apply)
+
+
+class DisplayPanel(QtWidgets.QGroupBox):
+    """Map, arrows, resultant, scales, colour range, camera.
+
+    Signals
+    -------
+    camera(str)
+        "top" or "iso" was asked for.
+    """
+
+    camera = QtCore.pyqtSignal(str)
+
+    def __init__(self, model: ViewerModel, parent=None):
+        super().__init__("Display", parent)
+        self.model = model
+        grid = QtWidgets.QGridLayout(self)
+        self.map_box = QtWidgets.QComboBox()
+        for label, _ in MAP_CHOICES:
+            self.map_box.addItem(label)
+        self.map_box.currentIndexChanged.connect(lambda i: model.set_display(map=MAP_CHOICES[i][1]))
+        self.arrows_box = QtWidgets.QCheckBox("force arrows")
+        self.arrows_box.setChecked(True)
+        self.arrows_box.toggled.connect(lambda on: model.set_display(arrows=on))
+        self.resultant_box = QtWidgets.QCheckBox("resultant")
+        self.resultant_box.setChecked(True)
+        self.resultant_box.toggled.connect(lambda on: model.set_display(resultant=on))
+        self.scale_spin = QtWidgets.QDoubleSpinBox(decimals=1, maximum=1e6, singleStep=5.0, suffix=" mm/N")
+        self.scale_spin.valueChanged.connect(lambda v: model.set_display(arrow_scale=v / 1e3))
+        self.threshold_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=1.0, suffix=" mN")
+        self.threshold_spin.valueChanged.connect(lambda v: model.set_display(threshold=v / 1e3))
+        self.range_box = QtWidgets.QCheckBox("automatic colour range")
+        self.range_box.setChecked(True)
+        self.range_box.toggled.connect(lambda on: model.set_display(auto_range=on))
+        self.range_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=1.0, suffix=" kPa")
+        self.range_spin.valueChanged.connect(lambda v: model.set_display(range_max=v * 1e3))
+        top = QtWidgets.QPushButton("Top")
+        top.clicked.connect(lambda: self.camera.emit("top"))
+        iso = QtWidgets.QPushButton("Iso")
+        iso.clicked.connect(lambda: self.camera.emit("iso"))
+        grid.addWidget(QtWidgets.QLabel("map"), 0, 0)
+        grid.addWidget(self.map_box, 0, 1, 1, 2)
+        grid.addWidget(self.arrows_box, 1, 0, 1, 2)
+        grid.addWidget(self.resultant_box, 1, 2)
+        grid.addWidget(QtWidgets.QLabel("arrow scale"), 2, 0)
+        grid.addWidget(self.scale_spin, 2, 1, 1, 2)
+        grid.addWidget(QtWidgets.QLabel("hide below"), 3, 0)
+        grid.addWidget(self.threshold_spin, 3, 1, 1, 2)
+        grid.addWidget(self.range_box, 4, 0, 1, 3)
+        grid.addWidget(QtWidgets.QLabel("range max"), 5, 0)
+        grid.addWidget(self.range_spin, 5, 1, 1, 2)
+        grid.addWidget(QtWidgets.QLabel("camera"), 6, 0)
+        grid.addWidget(top, 6, 1)
+        grid.addWidget(iso, 6, 2)
+        model.display_changed.connect(self.follow)
+
+    def follow(self):
+        d = self.model.display
+
+        def apply():
+            self.map_box.setCurrentIndex([key for _, key in MAP_CHOICES].index(d.map))
+            self.arrows_box.setChecked(d.arrows)
+            self.resultant_box.setChecked(d.resultant)
+            self.scale_spin.setValue(d.arrow_scale * 1e3)
+            self.threshold_spin.setValue(d.threshold * 1e3)
+            self.range_box.setChecked(d.auto_range)
+            self.range_spin.setValue(d.range_max / 1e3)
+        _quietly([self.map_box, self.arrows_box, self.resultant_box, self.scale_spin, self.threshold_spin,
+                  self.range_box, self.range_spin], apply)
+        self.range_spin.setEnabled(not d.auto_range)
+
+
+class PlaybackPanel(QtWidgets.QGroupBox):
+    """Play, step, frame slider, speed, loop: the recording's clock drives the model's frame.
+
+    Playback shows the frame whose time has come, so slow drawing skips
+    frames rather than slowing the recording down.
+    """
+
+    def __init__(self, model: ViewerModel, parent=None):
+        super().__init__("Playback", parent)
+        self.model = model
+        grid = QtWidgets.QGridLayout(self)
+        self.play_button = QtWidgets.QPushButton("Play")
+        self.play_button.setCheckable(True)
+        self.play_button.toggled.connect(self._play_toggled)
+        back = QtWidgets.QPushButton("<")
+        back.clicked.connect(lambda: self.step(-1))
+        forward = QtWidgets.QPushButton(">")
+        forward.clicked.connect(lambda: self.step(1))
+        self.frame_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
+        self.frame_slider.valueChanged.connect(self._frame_slider_moved)
+        self.speed_box = QtWidgets.QComboBox()
+        self.speed_box.addItems([f"{s:g}x" for s in SPEEDS])
+        self.speed_box.setCurrentIndex(SPEEDS.index(1.0))
+        self.speed_box.currentIndexChanged.connect(lambda _: self._restart_clock())
+        self.loop_box = QtWidgets.QCheckBox("loop")
+        self.time_label = QtWidgets.QLabel("-")
+        grid.addWidget(back, 0, 0)
+        grid.addWidget(self.play_button, 0, 1)
+        grid.addWidget(forward, 0, 2)
+        grid.addWidget(self.speed_box, 0, 3)
+        grid.addWidget(self.loop_box, 0, 4)
+        grid.addWidget(self.frame_slider, 1, 0, 1, 5)
+        grid.addWidget(self.time_label, 2, 0, 1, 5)
+        self._timer = QtCore.QTimer(self, interval=15)
+        self._timer.timeout.connect(self._tick)
+        self._origin = (0.0, 0.0)  # (wall clock, recording time) when playback started
+        model.recording_changed.connect(self._on_recording)
+        model.frame_changed.connect(self._on_frame)
+        model.solved.connect(self._on_solved)
+
+    @property
+    def speed(self) -> float:
+        return SPEEDS[self.speed_box.currentIndex()]
+
+    def set_playing(self, on: bool):
+        self.play_button.setChecked(on)
+
+    def stop(self):
+        self.set_playing(False)
+        self._timer.stop()
+
+    def step(self, delta: int):
+        recording = self.model.recording
+        if recording is None:
+            return
+        self.model.set_frame(min(max(self.model.frame + delta, 0), len(recording) - 1))
+        self._restart_clock()
+
+    def _on_recording(self):
+        if self.model.live:
+            self.time_label.setText("live")
+            return
+        recording = self.model.recording
+
+        def apply():
+            self.frame_slider.setRange(0, len(recording) - 1)
+            self.frame_slider.setValue(0)
+        _quietly([self.frame_slider], apply)
+
+    def _on_frame(self, index):
+        _quietly([self.frame_slider], lambda: self.frame_slider.setValue(index))
+
+    def _on_solved(self, solved):
+        if not self.model.live:
+            self.time_label.setText(f"frame {solved.frame + 1} of {len(self.model.recording)},  "
+                                    f"t = {solved.time:.3f} s")
+
+    def _frame_slider_moved(self, value):
+        self.model.set_frame(value)
+        self._restart_clock()
+
+    def _play_toggled(self, on):
+        self.play_button.setText("Pause" if on else "Play")
+        if on and self.model.recording is not None:
+            if self.model.frame == len(self.model.recording) - 1:
+                self.model.set_frame(0)
+            self._restart_clock()
+            self._timer.start()
+        else:
+            self._timer.stop()
+
+    def _restart_clock(self):
+        if self.model.recording is not None:
+            self._origin = (time.perf_counter(), float(self.model.recording.t[self.model.frame]))
+
+    def _tick(self):
+        recording = self.model.recording
+        if recording is None:
+            self.stop()
+            return
+        t = recording.t
+        wall, start = self._origin
+        now = start + (time.perf_counter() - wall) * self.speed
+        looping = self.loop_box.isChecked() and len(recording) > 1
+        if looping and now > t[-1]:
+            # the recording repeats with one mean frame interval after its last frame
+            period = (t[-1] - t[0]) * len(recording) / (len(recording) - 1)
+            if period > 0:
+                now = t[0] + (now - t[0]) % period
+        index = int(min(max(t.searchsorted(now, side="right") - 1, 0), len(recording) - 1))
+        if index != self.model.frame:
+            self.model.set_frame(index)
+        if index == len(recording) - 1 and not looping:
+            self.set_playing(False)
+
+
+class LivePanel(QtWidgets.QGroupBox):
+    """A live source's state and its actions (tare, record, stop recording, disconnect).
+
+    Signals
+    -------
+    action(str)
+        "tare", "record", "stop_recording" or "disconnect" was asked for.
+    """
+
+    action = QtCore.pyqtSignal(str)
+
+    def __init__(self, parent=None):
+        super().__init__("Live", parent)
+        box = QtWidgets.QVBoxLayout(self)
+        self.status = QtWidgets.QLabel("")
+        self.status.setWordWrap(True)
+        box.addWidget(self.status)
+        buttons = QtWidgets.QHBoxLayout()
+        for label, name in (("Tare", "tare"), ("Record...", "record"), ("Stop recording", "stop_recording"),
+                            ("Disconnect", "disconnect")):
+            button = QtWidgets.QPushButton(label)
+            button.clicked.connect(lambda _=False, name=name: self.action.emit(name))
+            buttons.addWidget(button)
+        box.addLayout(buttons)
+        self.hide()
+
+    def show_reader(self, reader) -> bool:
+        """Show ``reader``'s state (a ``sources.SerialReader``): rate, counts, rejections, recording."""
+        stats = reader.stats
+        rejected = reader.rejected()
+        parts = [f"{reader.url} ({reader.fmt}): {reader.state}", f"{stats.rate(reader.now()):.0f} fps",
+                 f"received {stats.received}", f"lost {stats.lost}"]
+        if rejected or reader.decoder.skipped_bytes:
+            parts.append("rejected " + (", ".join(f"{k} {v}" for k, v in sorted(rejected.items())) or "0")
+                         + f"; skipped {reader.decoder.skipped_bytes} B")
+        if reader.reconnects:
+            parts.append(f"reconnected {reader.reconnects}x")
+        if reader.failures:
+            parts.append(f"{reader.failures} chunks failed: {reader.error}")
+        if reader.calibration.taring:
+            parts.append("taring")
+        if reader.recorder is not None:
+            parts.append(f"recording {reader.recorder.path.name} ({reader.recorder.written} frames saved)")
+        self.status.setText("\n".join(parts))
