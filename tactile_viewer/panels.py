@@ -374,7 +374,7 @@ class LivePanel(QtWidgets.QGroupBox):
         self.hide()
 
     def show_reader(self, reader) -> bool:
-        """Show ``reader``'s state (a ``sources.SerialReader``): rate, counts, rejections, recording."""
+        """Show ``reader``'s state (a ``serial_source.SerialReader``): rate, counts, rejections, recording."""
         stats = reader.stats
         rejected = reader.rejected()
         parts = [f"{reader.url} ({reader.fmt}): {reader.state}", f"{stats.rate(reader.now()):.0f} fps",

@@ -1,5 +1,10 @@
 """Recordings: a sensor grid, frames of stress and their timestamps, in NPZ or CSV.
 
+One module for the format: :func:`load` reads it, :func:`save` writes a whole
+recording, :class:`Recorder` writes one frame by frame as a live source delivers
+them, and :func:`grid_from_fields` / :func:`geometry_fields` are the one reader
+and writer of the geometry that every file (layouts included) declares.
+
 NPZ keys: ``frames (T, m)`` pascals, ``t (T,)`` seconds, ``nx``, ``ny`` (or
 ``taxels`` and ``positions`` for an irregular layout), ``pitch``, ``thickness``
 (metres), optional ``poisson_ratio`` (the elastomer's nu, default 0.5),
@@ -26,17 +31,23 @@ from __future__ import annotations
 
 import io
 import math
+import os
+import threading
 import zipfile
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from solver import SensorGrid
 from solver.arrays import read_only
 
-__all__ = ["Recording", "RecordingError", "load", "save", "grid_from_fields", "geometry_fields",
+if TYPE_CHECKING:
+    from .layout import SensorLayout
+
+__all__ = ["Recording", "RecordingError", "load", "save", "Recorder", "grid_from_fields", "geometry_fields",
            "csv_geometry_header", "MAX_TAXELS"]
 
 UNIT_SCALES = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
@@ -344,3 +355,104 @@ def save(recording: Recording, path) -> Path:
     else:
         raise RecordingError(f"{path}: unknown recording type {path.suffix!r}, expected .npz or .csv")
     return path
+
+
+class Recorder:
+    """Writes every frame it is given to a recording, incrementally.
+
+    ``.npz``: each flush appends one chunk (frames, t, seq) to the archive, which
+    is a valid, loadable recording after every flush; :meth:`close` rewrites it
+    as one plain recording. ``.csv``: rows ``seq, t, v0, ...`` appended and
+    flushed. Flushes happen at least every ``flush_interval`` seconds of receive
+    time, so a crash loses at most that much.
+    """
+
+    def __init__(self, path, layout: SensorLayout, *, flush_interval: float = 1.0, description: str = ""):
+        path = Path(path)
+        self.kind = path.suffix.lower()
+        if self.kind not in (".npz", ".csv"):
+            raise ValueError(f"{path}: unknown recording type {path.suffix!r}, expected .npz or .csv")
+        self.path = path
+        self.layout = layout
+        self.flush_interval = flush_interval
+        self.description = description or "live recording"
+        self.written = 0
+        self._rows: list = []
+        self._closed = False
+        self._chunks = 0
+        self._last_flush: float | None = None
+        self._lock = threading.Lock()
+        grid = layout.grid
+        # the geometry as every recording declares it (recording.geometry_fields), positions always
+        self._meta = dict(geometry_fields(grid), units="Pa")
+        self._meta["positions"] = grid.positions
+        if self.kind == ".npz":
+            with zipfile.ZipFile(path, "w") as archive:
+                for key, value in (*self._meta.items(), ("description", self.description)):
+                    _write_member(archive, key, np.asarray(value))
+        else:
+            header = csv_geometry_header(grid) + "# units=Pa\n"
+            header += f"# description={' '.join(self.description.split())}\n# columns=seq,t\n"
+            path.write_text(header, encoding="utf-8")
+
+    def add(self, seq: int, t: float, stress: np.ndarray) -> None:
+        """Queue one frame (``t`` in seconds); flushes when ``flush_interval`` has passed."""
+        with self._lock:
+            if self._closed:
+                return  # the reader took this recorder just before it was stopped: the frame is past the end
+            self._rows.append((seq, t, stress))
+            if self._last_flush is None:
+                self._last_flush = t
+            if t - self._last_flush >= self.flush_interval:
+                self._flush(t)
+
+    def tick(self, now: float) -> None:
+        """Flush if frames have waited ``flush_interval`` (called while the line is quiet)."""
+        with self._lock:
+            if self._rows and now - self._last_flush >= self.flush_interval:
+                self._flush(now)
+
+    def _flush(self, now: float | None = None) -> None:
+        rows, self._rows = self._rows, []
+        self._last_flush = now
+        if rows:
+            seq = np.array([r[0] for r in rows], dtype=np.int64)
+            t = np.array([r[1] for r in rows])
+            frames = np.array([r[2] for r in rows])
+            if self.kind == ".npz":
+                with zipfile.ZipFile(self.path, "a") as archive:
+                    name = f"chunk{self._chunks:06d}"
+                    for key, value in (("frames", frames), ("t", t), ("seq", seq)):
+                        _write_member(archive, f"{name}_{key}", value)
+                self._chunks += 1
+            else:
+                with open(self.path, "a", encoding="utf-8") as f:
+                    np.savetxt(f, np.column_stack([seq, t, frames]), delimiter=",",
+                               fmt=["%d", "%.6f"] + ["%.9g"] * frames.shape[1])
+            self.written += len(rows)
+
+    def close(self) -> Path | None:
+        """Write what is left; an NPZ becomes one plain recording (chunks joined).
+
+        Returns the path, or None (and no file) when no frame was recorded.
+        """
+        with self._lock:
+            self._flush()
+            self._closed = True
+            if self.written == 0:
+                self.path.unlink(missing_ok=True)
+                return None
+            if self.kind == ".npz":
+                recording = load(self.path)
+                temporary = self.path.with_name(self.path.name + ".tmp")
+                with open(temporary, "wb") as handle:
+                    np.savez(handle, frames=recording.frames, t=recording.t,
+                             seq=recording.seq if recording.seq is not None else np.zeros(0, np.int64),
+                             description=self.description, **self._meta)
+                os.replace(temporary, self.path)
+        return self.path
+
+
+def _write_member(archive: zipfile.ZipFile, key: str, value: np.ndarray) -> None:
+    with archive.open(f"{key}.npy", "w", force_zip64=True) as member:
+        np.lib.format.write_array(member, np.asarray(value), allow_pickle=False)

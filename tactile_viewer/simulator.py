@@ -27,8 +27,8 @@ import numpy as np
 
 from solver import SensorGrid, loads
 
+from .layout import SensorLayout, save_layout
 from .protocol import encode_binary, encode_text
-from .sources import SensorLayout, save_layout
 
 __all__ = ["Board", "contact_cycle", "main"]
 

@@ -13,9 +13,9 @@ import pytest
 import serial
 
 from solver import SensorGrid
+from tactile_viewer.layout import SensorLayout, load_layout
 from tactile_viewer.protocol import BinaryDecoder, TextDecoder, make_decoder
 from tactile_viewer.simulator import Board, contact_cycle, main
-from tactile_viewer.sources import SensorLayout, load_layout
 
 
 @pytest.fixture(scope="module")

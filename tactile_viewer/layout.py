@@ -1,0 +1,138 @@
+"""Sensor layout files: where the taxels are, the elastomer, and how raw values become pascals.
+
+A layout JSON names the geometry (``nx`` and ``ny``, or ``taxels`` and
+``positions``; ``pitch``, ``thickness``, optional ``poisson_ratio`` and
+``sensor_size``) and the calibration of the raw values (``units``, ``gain``,
+``offset``). :func:`load_layout` reads it and :func:`save_layout` writes it;
+the geometry goes through the same reader and writer as every recording
+(:func:`tactile_viewer.recording.grid_from_fields`). No Qt.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from solver import SensorGrid
+from solver.arrays import read_only
+
+from .recording import UNIT_SCALES, geometry_fields, grid_from_fields
+
+__all__ = ["LayoutError", "SensorLayout", "load_layout", "save_layout", "RAW_UNITS"]
+
+RAW_UNITS = (*UNIT_SCALES, "counts")
+
+
+class LayoutError(ValueError):
+    """A sensor layout file that cannot be used; the message names the file and the problem."""
+
+
+@dataclass(frozen=True, eq=False)
+class SensorLayout:
+    """How a board's raw values map onto the skin.
+
+    ``pascals = gain * (raw - offset) * scale(units)`` per taxel, where
+    ``scale`` is 1, 1e3 or 1e6 for ``"Pa"``, ``"kPa"``, ``"MPa"`` and 1 for
+    ``"counts"`` (the gain then is pascals per count).
+
+    Attributes
+    ----------
+    grid : SensorGrid
+    units : str
+        One of ``"Pa"``, ``"kPa"``, ``"MPa"``, ``"counts"``.
+    gain : (m,) ndarray
+    offset : (m,) ndarray
+        Raw units.
+    """
+
+    grid: SensorGrid
+    units: str = "Pa"
+    gain: np.ndarray = field(default=1.0)
+    offset: np.ndarray = field(default=0.0)
+
+    def __post_init__(self):
+        if self.units not in RAW_UNITS:
+            raise ValueError(f"units must be one of {RAW_UNITS}, got {self.units!r}")
+        m = self.grid.size
+        for name in ("gain", "offset"):
+            value = np.broadcast_to(np.asarray(getattr(self, name), dtype=float), (m,)) \
+                if np.ndim(getattr(self, name)) == 0 else np.asarray(getattr(self, name), dtype=float)
+            if value.shape != (m,):
+                raise ValueError(f"{name} must be one number or {m} numbers (one per taxel), "
+                                 f"got shape {value.shape}")
+            if not np.all(np.isfinite(value)):
+                raise ValueError(f"{name} must be finite")
+            object.__setattr__(self, name, read_only(value))
+
+    @property
+    def count(self) -> int:
+        """Values per frame."""
+        return self.grid.size
+
+    def to_pascals(self, raw) -> np.ndarray:
+        """``(m,)`` or ``(T, m)`` raw values to pascals."""
+        return self.gain * (np.asarray(raw, dtype=float) - self.offset) * UNIT_SCALES.get(self.units, 1.0)
+
+
+def load_layout(path) -> SensorLayout:
+    """Read a sensor layout JSON file.
+
+    Keys: ``nx``, ``ny``, ``pitch``, ``thickness`` (metres); optional
+    ``poisson_ratio`` (the elastomer's nu, default 0.5), ``sensor_size`` (side
+    of a square taxel, metres, default 0: point sensors), ``positions``
+    ([[x, y], ...] metres), ``units``, ``gain``, ``offset`` (a number or one per
+    taxel). Files written before nu and the taxel size were recorded have
+    neither key and open with the defaults.
+
+    Raises
+    ------
+    LayoutError
+        The message names the file and the key that is wrong.
+    """
+    path = Path(path)
+    try:
+        spec = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise LayoutError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise LayoutError(f"{path}: not JSON ({exc})") from None
+    if not isinstance(spec, dict):
+        raise LayoutError(f"{path}: expected a JSON object, got {type(spec).__name__}")
+    counts = ("taxels",) if "taxels" in spec else ("nx", "ny")
+    missing = [k for k in (*counts, "pitch", "thickness") if k not in spec]
+    if missing:
+        raise LayoutError(f"{path}: missing {', '.join(repr(k) for k in missing)}")
+    try:
+        if not all(isinstance(spec[k], int) and not isinstance(spec[k], bool) for k in counts):
+            raise ValueError(f"{' and '.join(counts)} must be whole numbers, got "
+                             f"{' and '.join(repr(spec[k]) for k in counts)}")
+        for key in ("pitch", "thickness"):
+            if isinstance(spec[key], bool) or not isinstance(spec[key], (int, float)):
+                raise ValueError(f"{key} must be a number of metres, got {spec[key]!r}")
+        # SensorGrid checks nu and the taxel size (a string or a bool is no number there either)
+        grid = grid_from_fields(pitch=float(spec["pitch"]), thickness=float(spec["thickness"]),
+                                positions=spec.get("positions"), poisson_ratio=spec.get("poisson_ratio", 0.5),
+                                sensor_size=spec.get("sensor_size", 0.0), **{k: spec[k] for k in counts})
+        return SensorLayout(grid, spec.get("units", "Pa"), spec.get("gain", 1.0), spec.get("offset", 0.0))
+    except (ValueError, TypeError) as exc:
+        raise LayoutError(f"{path}: {exc}") from None
+
+
+def save_layout(layout: SensorLayout, path) -> Path:
+    """Write ``layout`` as the JSON file :func:`load_layout` reads (nu and the taxel size always written).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    one = lambda a: float(a[0]) if np.all(a == a[0]) else a.tolist()  # noqa: E731
+    spec = {key: value.tolist() if isinstance(value, np.ndarray) else value
+            for key, value in geometry_fields(layout.grid).items()}
+    spec.update(units=layout.units, gain=one(layout.gain), offset=one(layout.offset))
+    path.write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
+    return path

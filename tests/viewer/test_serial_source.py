@@ -1,0 +1,274 @@
+"""The serial board as a live source, without Qt: calibration, statistics, the reader on a pty."""
+
+import os
+import threading
+import time
+import tty
+
+import numpy as np
+import pytest
+import serial
+
+from tactile_viewer import recording
+from tactile_viewer.layout import SensorLayout
+from tactile_viewer.protocol import encode_binary
+from tactile_viewer.serial_source import Calibration, LiveStats, SerialReader
+from tests.viewer.skins import grid32, wait_for
+
+# -- Calibration ----------------------------------------------------------------------------------
+
+def test_calibration_subtracts_nothing_before_tare():
+    calibration = Calibration(SensorLayout(grid32(), "kPa"))
+    assert not calibration.taring
+    np.testing.assert_array_equal(calibration(np.full(6, 2.0)), np.full(6, 2000.0))
+
+
+def test_tare_averages_the_next_frames_and_subtracts_them_from_then_on():
+    calibration = Calibration(SensorLayout(grid32()))
+    calibration.tare(3)
+    assert calibration.taring
+    # while taring the frames come out untared; the third completes the baseline (mean of 1, 2, 6 = 3)
+    np.testing.assert_array_equal(calibration(np.full(6, 1.0)), np.full(6, 1.0))
+    np.testing.assert_array_equal(calibration(np.full(6, 2.0)), np.full(6, 2.0))
+    assert calibration.taring
+    np.testing.assert_array_equal(calibration(np.full(6, 6.0)), np.full(6, 3.0))
+    assert not calibration.taring
+    np.testing.assert_array_equal(calibration.baseline, np.full(6, 3.0))
+    np.testing.assert_array_equal(calibration(np.arange(6.0)), np.arange(6.0) - 3.0)
+    np.testing.assert_array_equal(calibration(np.arange(6.0)), np.arange(6.0) - 3.0)  # and stays
+
+
+def test_a_second_tare_replaces_the_baseline_with_absolute_values():
+    calibration = Calibration(SensorLayout(grid32(), "kPa"))
+    calibration.tare(1)
+    calibration(np.full(6, 1.0))  # baseline 1000 Pa
+    calibration.tare(2)
+    calibration(np.full(6, 4.0))
+    out = calibration(np.full(6, 2.0))  # new baseline: mean(4000, 2000), not measured from the old one
+    np.testing.assert_array_equal(calibration.baseline, np.full(6, 3000.0))
+    np.testing.assert_array_equal(out, np.full(6, -1000.0))
+
+
+@pytest.mark.parametrize("frames", [0, -1, 2.0, "5", None, True])
+def test_tare_needs_a_positive_integer(frames):
+    calibration = Calibration(SensorLayout(grid32()))
+    with pytest.raises(ValueError, match="frames must be a positive integer"):
+        calibration.tare(frames)
+    assert not calibration.taring
+
+
+# -- LiveStats ------------------------------------------------------------------------------------
+
+def test_rate_from_receive_times():
+    stats = LiveStats(window=1.0)
+    assert stats.rate() == 0.0 and stats.silence(5.0) == float("inf")
+    for k in range(100):
+        stats.add(k, k / 100)  # 10 ms apart
+    assert stats.rate() == pytest.approx(100.0)
+    assert stats.rate(now=1.0) == pytest.approx(100.0)  # recent enough
+    assert stats.rate(now=2.5) == 0.0  # silent for longer than the window
+    assert stats.silence(1.24) == pytest.approx(0.25)
+    assert stats.received == 100 and stats.lost == 0
+
+
+def test_rate_measures_only_the_window():
+    stats = LiveStats(window=1.0)
+    for k in range(100):
+        stats.add(None, k / 100)  # 100 fps for a second ...
+    for k in range(1, 21):
+        stats.add(None, 0.99 + k / 10)  # ... then 10 fps for two
+    assert stats.rate() == pytest.approx(10.0)
+
+
+def test_lost_frames_from_gaps():
+    stats = LiveStats()
+    assert [stats.add(s, 0.0) for s in (100, 101, 104, 105, 110)] == [100, 101, 104, 105, 110]
+    assert stats.lost == 2 + 4 and stats.received == 5 and stats.out_of_order == 0
+
+
+def test_uint16_wrap():
+    stats = LiveStats()
+    assert [stats.add(s, 0.0) for s in (65534, 65535, 0, 1)] == [65534, 65535, 65536, 65537]
+    assert stats.lost == 0
+    stats = LiveStats()
+    stats.add(65535, 0.0)
+    assert stats.add(2, 0.0) == 65538 and stats.lost == 2  # 0 and 1 went missing across the wrap
+
+
+def test_duplicates_and_reordered_frames_are_out_of_order_not_lost():
+    stats = LiveStats()
+    for s in (10, 11):
+        stats.add(s, 0.0)
+    assert stats.add(11, 0.0) == 11  # a repeat
+    assert stats.add(5, 0.0) == 5  # a late one keeps its own number
+    assert stats.out_of_order == 2 and stats.lost == 0
+    assert stats.add(12, 0.0) == 12 and stats.lost == 0  # the count goes on from the newest
+    # a frame overtaken by the next one: the gap was already counted when 14 came; 13 adds no loss
+    stats.add(14, 0.0)
+    assert stats.add(13, 0.0) == 13
+    assert stats.lost == 1 and stats.out_of_order == 3 and stats.received == 7
+
+
+def test_new_connection_continues_the_numbering_without_loss():
+    stats = LiveStats()
+    for s in (40, 41, 42):
+        stats.add(s, 0.0)
+    stats.new_connection()  # the board restarted: it counts from 0 again
+    assert [stats.add(s, 1.0) for s in (0, 1, 3)] == [43, 44, 46]
+    assert stats.lost == 1 and stats.out_of_order == 0  # only the real gap 1 -> 3
+
+
+def test_text_frames_have_no_sequence():
+    stats = LiveStats()
+    assert stats.add(None, 0.0) is None and stats.add(None, 0.5) is None
+    assert stats.received == 2 and stats.lost == 0 and stats.last_seq is None
+    assert stats.silence(0.75) == pytest.approx(0.25) and stats.rate() == pytest.approx(2.0)
+
+
+# -- SerialReader on a pseudo-terminal ------------------------------------------------------------
+
+@pytest.fixture
+def pty():
+    """A raw pseudo-terminal: (master fd to write the board's bytes to, slave device path)."""
+    master, slave = os.openpty()
+    tty.setraw(slave)  # no echo, no newline translation
+    yield master, os.ttyname(slave)
+    os.close(master)
+    os.close(slave)
+
+
+@pytest.fixture
+def make_reader(pty):
+    readers = []
+
+    def make(**kwargs):
+        layout = SensorLayout(grid32(), "kPa")
+        reader = SerialReader(pty[1], layout, **kwargs)
+        readers.append(reader)
+        return reader
+
+    yield make
+    for reader in readers:
+        reader.stop()  # always: the worker thread must not outlive the test
+
+
+def write_all(fd, data):
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+def values(k):
+    return np.linspace(0.5, 3.0, 6) + k  # kPa; exact in float32
+
+
+def test_reader_calibrates_to_pascals_and_keeps_the_newest(pty, make_reader):
+    reader = make_reader()
+    reader.start()
+    assert reader.state == "connected"
+    write_all(pty[0], b"".join(encode_binary(s, values(s)) for s in (0, 1, 2)))
+    wait_for(lambda: reader.stats.received == 3, what="three frames")
+    frame = reader.take_latest()
+    assert frame.seq == 2 and frame.t >= 0
+    np.testing.assert_array_equal(frame.stress, values(2) * 1000)  # kPa -> Pa
+    assert reader.take_latest() is None  # taken: nothing new since
+    assert reader.stats.lost == 0 and reader.rejected() == {}
+
+
+def test_on_frame_fires_once_until_taken(pty, make_reader):
+    calls = []
+    reader = make_reader(on_frame=lambda: calls.append(threading.current_thread().name))
+    reader.start()
+    write_all(pty[0], encode_binary(0, values(0)))
+    wait_for(lambda: len(calls) == 1, what="the first notification")
+    assert calls[0].startswith("serial ")  # called from the reader thread, not ours
+    write_all(pty[0], encode_binary(1, values(1)))
+    wait_for(lambda: reader.stats.received == 2, what="the second frame")
+    write_all(pty[0], encode_binary(2, values(2)))
+    wait_for(lambda: reader.stats.received == 3, what="the third frame")
+    assert len(calls) == 1  # the GUI has not taken the first yet: no second notification
+    # a frame is published just after it is counted: wait for it before taking, without re-arming
+    wait_for(lambda: reader._latest is not None and reader._latest.seq == 2, what="the third frame published")
+    assert len(calls) == 1
+    assert reader.take_latest().seq == 2  # the newest; the ones before it were skipped, as the GUI may
+    write_all(pty[0], encode_binary(3, values(3)))
+    wait_for(lambda: len(calls) == 2, what="the notification after taking")
+    assert reader.take_latest().seq == 3
+
+
+def test_reader_skips_garbage(pty, make_reader):
+    reader = make_reader()
+    reader.start()
+    rng = np.random.default_rng(4)  # fixed seed
+    garbage = bytes(b for b in rng.integers(0, 256, 300, dtype=np.uint8).tobytes() if b != 0xA5)  # no sync
+    write_all(pty[0], garbage + encode_binary(0, values(0)) + garbage[:50] + encode_binary(1, values(1)))
+    wait_for(lambda: reader.stats.received == 2, what="both frames past the garbage")
+    assert reader.decoder.skipped_bytes == len(garbage) + 50
+    assert reader.take_latest().seq == 1
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_reader_records_every_frame(pty, make_reader, tmp_path, suffix):
+    reader = make_reader()
+    reader.start()
+    recorder = reader.start_recording(tmp_path / f"rec{suffix}", flush_interval=0.05)
+    assert reader.recorder is recorder
+    for start in range(0, 300, 50):  # bursts, so that the reader sees many reads
+        write_all(pty[0], b"".join(encode_binary(s, values(s % 7)) for s in range(start, start + 50)))
+        time.sleep(0.01)
+    wait_for(lambda: reader.stats.received == 300, what="300 frames")
+    path = reader.stop_recording()
+    assert path == tmp_path / f"rec{suffix}" and reader.recorder is None
+    loaded = recording.load(path)
+    np.testing.assert_array_equal(loaded.seq, np.arange(300))  # every frame, no gap
+    np.testing.assert_allclose(loaded.frames, np.array([values(s % 7) for s in range(300)]) * 1000, rtol=1e-8)
+    assert np.all(np.diff(loaded.t) >= 0)
+    assert reader.stats.lost == 0
+
+
+def test_reader_start_fails_at_once_on_a_missing_device(tmp_path):
+    reader = SerialReader(str(tmp_path / "no-such-tty"), SensorLayout(grid32()))
+    try:
+        with pytest.raises(serial.SerialException) as info:
+            reader.start()
+        assert isinstance(info.value, OSError)
+        assert reader._thread is None  # no worker left retrying behind the caller's back
+    finally:
+        reader.stop()
+
+
+def test_reader_rejects_an_unknown_format():
+    with pytest.raises(ValueError, match=r"fmt must be one of .*'hex'"):
+        SerialReader("loop://", SensorLayout(grid32()), fmt="hex")
+
+
+def test_reader_reads_a_socket_url_and_reconnects_to_it():
+    import socket
+
+    # a board behind TCP (pyserial's socket:// URL), dropped and reaccepted
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+    layout = SensorLayout(grid32(), "kPa")
+    accepted = []
+    thread = threading.Thread(target=lambda: accepted.append(server.accept()[0]), daemon=True)
+    thread.start()
+    reader = SerialReader(f"socket://127.0.0.1:{port}", layout, reconnect_interval=0.05)
+    try:
+        reader.start()
+        thread.join(5)
+        accepted[0].sendall(b"".join(encode_binary(s, values(s)) for s in range(5)))
+        wait_for(lambda: reader.stats.received == 5, what="five frames over TCP")
+        np.testing.assert_array_equal(reader.take_latest().stress, values(4) * 1000)
+        thread = threading.Thread(target=lambda: accepted.append(server.accept()[0]), daemon=True)
+        thread.start()
+        accepted[0].close()  # the board goes away ...
+        thread.join(5)  # ... and the reader is back as soon as the server takes it again
+        wait_for(lambda: reader.reconnects == 1 and reader.state == "connected", what="reconnection")
+        accepted[1].sendall(encode_binary(0, values(7)))
+        wait_for(lambda: reader.stats.received == 6, what="a frame after reconnecting")
+        assert reader.stats.lost == 0 and reader.failures == 0
+    finally:
+        reader.stop()
+        for connection in accepted:
+            connection.close()
+        server.close()
