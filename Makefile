@@ -46,11 +46,11 @@ run: $(STAMP)
 	fi
 
 lint: $(STAMP)
-	$(PY) -m ruff check solver tactile_viewer tests
+	$(PY) -m ruff check solver tactile_viewer tests tools benchmarks
 
 bench: system-deps $(STAMP)
-	$(PY) -m solver.bench
-	$(XRUN) $(PY) -m tactile_viewer.bench
+	$(PY) -m benchmarks.solver_speed
+	$(XRUN) $(PY) -m benchmarks.viewer_speed
 
 clean:
 	rm -rf $(VENV) .pytest_cache

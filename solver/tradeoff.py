@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import csv
 import math
+import os
+import platform
 import time
 import tracemalloc
 from dataclasses import asdict, dataclass, field
@@ -27,7 +29,7 @@ from .inverse import Reconstructor
 from .region import RegionSolver
 from .validation import SHAPES, standard_contact
 
-__all__ = [
+__all__ = ["machine",
     "Configuration",
     "Measurement",
     "CONFIGURATIONS",
@@ -41,6 +43,18 @@ __all__ = [
 ]
 
 PATHS = ("fit", "exact", "normal", "region")
+
+
+
+def machine() -> str:
+    """One line naming the machine a measurement ran on: CPU, cores, numpy, Python."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, numpy {np.__version__}, python {platform.python_version()}"
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,8 @@ from pathlib import Path
 
 from solver import SensorGrid
 from solver import tradeoff as measured
-from solver.bench import machine
 from solver.kernels import KERNELS
+from solver.tradeoff import machine
 
 from .model import KERNEL_HELP, geometry_text
 

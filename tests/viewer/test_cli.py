@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tactile_viewer import samples
 from tactile_viewer.__main__ import main
 from tactile_viewer.recording import load
+from tools import make_samples as samples
 
 SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
 NAMES = ["hertz_static.npz", "hertz_shear_turning.npz", "flat_punch_shear.npz", "two_contacts.npz"]

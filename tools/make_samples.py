@@ -1,6 +1,6 @@
 """Make the bundled sample recordings in ``sample_data/`` from :mod:`solver.loads`.
 
-``python -m tactile_viewer.samples [OUTDIR]`` rewrites them; every sample
+``python -m tools.make_samples [OUTDIR]`` rewrites them; every sample
 carries its true nodal forces and the whole geometry (the elastomer's Poisson
 ratio and the taxel size too). Seeds are fixed, so the files are reproducible.
 """
@@ -14,8 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from solver import SensorGrid, loads
-
-from .recording import Recording, save
+from tactile_viewer.recording import Recording, save
 
 PITCH = 2e-3
 THICKNESS = 2e-3

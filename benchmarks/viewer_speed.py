@@ -1,4 +1,4 @@
-"""Viewer benchmark: ``python -m tactile_viewer.bench`` (``make bench`` runs it under Xvfb).
+"""Viewer benchmark: ``python -m benchmarks.viewer_speed`` (``make bench`` runs it under Xvfb).
 
 Measures, in the real window (``QtInteractor``, whatever OpenGL the display offers):
 
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.bench import machine
+from solver.tradeoff import machine
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "hertz_shear_turning.npz"
 
@@ -90,12 +90,12 @@ def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     out = sys.stdout if out is None else out
     os.environ.setdefault("QT_API", "pyqt6")
 
-    from .main_window import MainWindow
-    from .panels import SPEEDS
+    from tactile_viewer.main_window import MainWindow
+    from tactile_viewer.panels import SPEEDS
 
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise SystemExit("tactile_viewer.bench needs a display: run it as `xvfb-run -a python -m "
-                         "tactile_viewer.bench` on a headless machine")
+        raise SystemExit("benchmarks.viewer_speed needs a display: run it as `xvfb-run -a python -m "
+                         "benchmarks.viewer_speed` on a headless machine")
     app = _application()
     window = MainWindow()
     window.resize(*size)
@@ -125,17 +125,21 @@ def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     for label, times in rows:
         print(f"  {label:<40} {np.median(times):9.1f} {np.percentile(times, 90):7.1f}", file=out)
     print(f"playback over {seconds:g} s, looped", file=out)
+    rates = {}
     for speed in (1.0, 4.0):
-        rate = playback_rate(window, app, SPEEDS.index(speed), seconds)
-        print(f"  {speed:g}x ({30 * speed:g} recording frames/s): {rate:5.1f} frames drawn per second",
-              file=out)
+        rates[speed] = playback_rate(window, app, SPEEDS.index(speed), seconds)
+        print(f"  {speed:g}x ({30 * speed:g} recording frames/s): {rates[speed]:5.1f} frames drawn "
+              f"per second", file=out)
+    solves = window.model.worker_stats()
     window.close()
     app.processEvents()
+    return dict(ratio=ratio, direction=direction, step=stepped, playback=rates,
+                recording_fps=(len(recording) - 1) / float(recording.t[-1] - recording.t[0]), solves=solves)
 
 
 def decoder_throughput(count=256, frames=20000, chunk=4096, out=None):
     """Frames per second each decoder turns bytes into frames (``count`` values, ``chunk``-byte reads)."""
-    from .protocol import encode_binary, encode_text, make_decoder
+    from tactile_viewer.protocol import encode_binary, encode_text, make_decoder
 
     out = sys.stdout if out is None else out
     rng = np.random.default_rng(0)  # fixed seed: the same stream every run
@@ -160,8 +164,8 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
     import subprocess
     import tempfile
 
-    from .main_window import MainWindow
-    from .recording import load
+    from tactile_viewer.main_window import MainWindow
+    from tactile_viewer.recording import load
 
     out = sys.stdout if out is None else out
     app = _application()
@@ -217,7 +221,7 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m tactile_viewer.bench",
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.viewer_speed",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("recording", nargs="?", default=str(SAMPLE))
     parser.add_argument("--count", type=int, default=40, help="slider moves per measurement")

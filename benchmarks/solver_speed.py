@@ -1,4 +1,4 @@
-"""Benchmarks: ``python -m solver.bench`` (``make bench``).
+"""Solver benchmarks: ``python -m benchmarks.solver_speed`` (``make bench``).
 
 Prints the median per-frame ``solve`` time on a 16x16 skin (automatic
 parameters, given parameters, normal only) and the set-up time of
@@ -9,16 +9,15 @@ of the same ``(m, 3m)`` matrix, as a ratio from the same run.
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import time
 
 import numpy as np
 
-from . import layer, loads
-from .geometry import SensorGrid
-from .inverse import Reconstructor
-from .kernels import KERNELS, stress_matrix
+from solver import layer, loads
+from solver.geometry import SensorGrid
+from solver.inverse import Reconstructor
+from solver.kernels import KERNELS, stress_matrix
+from solver.tradeoff import machine
 
 
 def _median_ms(fn, repeat):
@@ -28,16 +27,6 @@ def _median_ms(fn, repeat):
         fn()
         times.append(time.perf_counter() - start)
     return 1e3 * float(np.median(times))
-
-
-def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, numpy {np.__version__}, python {platform.python_version()}"
 
 
 def per_frame(n=16, frames=40, kernel="layer", repeat=5):
