@@ -17,6 +17,7 @@ contact; several is our extension).
 from __future__ import annotations
 
 import math
+import threading
 from collections import OrderedDict
 from dataclasses import replace
 
@@ -102,6 +103,7 @@ class RegionSolver:
         self.step = step
         self._options = options
         self._cache: OrderedDict = OrderedDict()
+        self._lock = threading.Lock()
         self._capacity = cache
         self.factorizations = 0  # windows factored so far (the rest were reused)
 
@@ -113,15 +115,17 @@ class RegionSolver:
     def reconstructor(self, rows: int, columns: int) -> Reconstructor:
         """The (cached) reconstructor of a ``rows x columns`` window."""
         key = (rows, columns)
-        if key in self._cache:
-            self._cache.move_to_end(key)
-            return self._cache[key]
-        made = Reconstructor(self._window(rows, columns), kernel=self.kernel, **self._options)
-        self.factorizations += 1
-        self._cache[key] = made
-        if len(self._cache) > self._capacity:
-            self._cache.popitem(last=False)
-        return made
+        # one lock: the viewer's solve thread and an export may ask at the same time
+        with self._lock:
+            if key in self._cache:
+                self._cache.move_to_end(key)
+                return self._cache[key]
+            made = Reconstructor(self._window(rows, columns), kernel=self.kernel, **self._options)
+            self.factorizations += 1
+            self._cache[key] = made
+            if len(self._cache) > self._capacity:
+                self._cache.popitem(last=False)
+            return made
 
     def windows(self, stress: np.ndarray) -> list[tuple[slice, slice]]:
         """The contact windows of a frame: one per contact, merged where they overlap."""

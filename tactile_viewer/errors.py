@@ -19,7 +19,7 @@ import threading
 import traceback
 from pathlib import Path
 
-from PyQt6 import QtCore, QtWidgets
+from PyQt6 import QtCore, QtWidgets, sip
 
 __all__ = ["data_folder", "setup_logging", "install", "Reporter"]
 
@@ -96,20 +96,24 @@ class Reporter(QtCore.QObject):
         self._queued.emit(title, str(exc) or exc_type.__name__)
 
     def _show(self, title: str, message: str):
-        text = f"{message}\n\nThe viewer goes on; what it showed and recorded is kept."
-        if self.log_path is not None:
-            text += f"\nDetails are in {self.log_path}."
-        if self.dialog is not None and self.dialog.isVisible():
-            # a burst of errors (one per frame, say) updates one dialog instead of burying the window
-            self.dialog.setText(f"{text}\n\n{self.count} unexpected errors so far.")
-        else:
-            parent = QtWidgets.QApplication.activeWindow()
-            self.dialog = QtWidgets.QMessageBox(QtWidgets.QMessageBox.Icon.Critical, "Unexpected error",
-                                                text, QtWidgets.QMessageBox.StandardButton.Ok, parent)
-            self.dialog.setInformativeText(title)
-            self.dialog.setModal(False)
-            self.dialog.show()
-        self.reported.emit(title, message)
+        # Never raise from here: an error in the reporter would come back to the reporter.
+        try:
+            text = f"{message}\n\nThe viewer goes on; what it showed and recorded is kept."
+            if self.log_path is not None:
+                text += f"\nDetails are in {self.log_path}."
+            if self.dialog is not None and not sip.isdeleted(self.dialog) and self.dialog.isVisible():
+                # a burst of errors (one per frame, say) updates one dialog instead of burying the window
+                self.dialog.setText(f"{text}\n\n{self.count} unexpected errors so far.")
+            else:
+                # no parent: a short-lived parent (a progress dialog) would delete it under us
+                self.dialog = QtWidgets.QMessageBox(QtWidgets.QMessageBox.Icon.Critical, "Unexpected error",
+                                                    text, QtWidgets.QMessageBox.StandardButton.Ok)
+                self.dialog.setInformativeText(title)
+                self.dialog.setModal(False)
+                self.dialog.show()
+            self.reported.emit(title, message)
+        except Exception:
+            log.exception("the error dialog itself failed")
 
 
 def install(reporter: Reporter) -> None:

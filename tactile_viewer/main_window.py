@@ -66,6 +66,7 @@ class MainWindow(QtWidgets.QMainWindow):
         # same repaint as the slider or frame change that asked for it
         self.model = ViewerModel(dispatch=self._dispatcher.post, settle=SETTLE_S)
         self._first_frame = False  # a recording was installed and its first frame is not drawn yet
+        self._closing = False
         self._tasks: list[Task] = []
         self._measured_for = None  # the geometry the quality presets were measured on
 
@@ -350,12 +351,15 @@ class MainWindow(QtWidgets.QMainWindow):
             try:
                 self.export_screenshot(path, scale=int(scale.currentText()[0]),
                                        transparent=transparent.isChecked())
-            except OSError as exc:
-                self._error("Cannot save screenshot", f"{path}: {exc.strerror or exc}")
+            except (OSError, ValueError) as exc:
+                self._error("Cannot save screenshot", f"{path}: {getattr(exc, 'strerror', None) or exc}")
 
     def export_screenshot(self, path, *, scale: int = 1, transparent: bool = False) -> Path:
         """Save the scene as PNG plus a JSON sidecar naming the recording, frame and parameters."""
         path = Path(path).with_suffix(".png")
+        if self.model.last is None:
+            # the sidecar names the frame and parameters shown: there must be one
+            raise ValueError("no frame has been reconstructed yet")
         # VTK would only print a warning and write nothing
         if not path.parent.is_dir():
             raise FileNotFoundError(2, "the folder does not exist", str(path.parent))
@@ -424,6 +428,8 @@ class MainWindow(QtWidgets.QMainWindow):
             dialog.close()
             dialog.deleteLater()
             self._tasks.remove(task)
+            if self._closing:
+                return  # the window closed while it ran: nothing left to show it in
             if ok:
                 done(outcome)
             elif not isinstance(outcome, export.ExportCancelled):
@@ -479,6 +485,8 @@ class MainWindow(QtWidgets.QMainWindow):
 
         task = self._run(work, done, f"Factoring the {grid.size}-taxel geometry...", determinate=False)
         task.failed.connect(lambda _: reader.stop())
+        # closed while factoring: done() never runs, so nothing else would stop the reader
+        task.succeeded.connect(lambda _: reader.stop() if self._closing else None)
         return True
 
     def disconnect_live(self):
@@ -564,6 +572,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.live_panel.show_reader(reader)
 
     def closeEvent(self, event):
+        self._closing = True
         self._stop_reader()
         self.playback.stop()
         self.model.close()

@@ -211,6 +211,7 @@ class ViewerModel:
         self._dispatch = dispatch
         self.settle = float(settle)
         self._generation = 0  # grows with each installed solver: results of older ones are dropped
+        self._closed = False
         self._worker = None if dispatch is None else LatestWorker(self._work, name="tactile-solver")
 
     # -- building -----------------------------------------------------------------
@@ -409,7 +410,7 @@ class ViewerModel:
 
     def _schedule(self):
         # what is shown changed: solve it on the worker (newest request wins)
-        if self._worker is None:
+        if self._worker is None or self._closed:
             return
         job = self._job()
         if job is not None:
@@ -424,9 +425,11 @@ class ViewerModel:
         except Exception as exc:
             log.exception("solve of frame %s failed", job.frame)
             message = f"solve of frame {job.frame} failed: {exc}"
-            self._dispatch(lambda: self._failed(job, message))
+            if not self._closed:
+                self._dispatch(lambda: self._failed(job, message))
             return
-        self._dispatch(lambda: self._deliver(job, solved))
+        if not self._closed:  # after close the dispatcher (a Qt object) may be gone
+            self._dispatch(lambda: self._deliver(job, solved))
 
     def _deliver(self, job: _Job, solved: Solved):
         if job.generation != self._generation:
@@ -453,7 +456,11 @@ class ViewerModel:
         return self._worker is None or self._worker.wait_idle(timeout)
 
     def close(self):
-        """End the worker thread (the running solve finishes; its result is dropped)."""
+        """End the worker thread (the running solve finishes; its result is dropped).
+
+        Changes after this are kept but solve nothing.
+        """
+        self._closed = True
         self._generation += 1
         if self._worker is not None:
             self._worker.close()

@@ -240,9 +240,10 @@ def _scale(units: str, path) -> float:
 
 def _checked_frames(frames, grid, path):
     if frames.ndim != 2 or frames.shape[1] != grid.size:
-        raise RecordingError(
-            f"{path}: frames must have {grid.size} values each for a "
-            f"{grid.shape[1]}x{grid.shape[0]} grid, got shape {frames.shape}")
+        layout = (f"{grid.shape[1]}x{grid.shape[0]} grid" if len(grid.shape) == 2
+                  else f"{grid.size}-taxel layout")
+        raise RecordingError(f"{path}: frames must be a (T, {grid.size}) table for a {layout}, "
+                             f"got shape {frames.shape}")
     if frames.shape[0] == 0:
         raise RecordingError(f"{path}: no frames")
     bad = np.argwhere(~np.isfinite(frames))
@@ -315,7 +316,8 @@ def _load_csv(path) -> Recording:
     positions = None
     if "positions" in meta:
         try:
-            positions = [[float(v) for v in pair.split(",")] for pair in meta["positions"].split(";")]
+            positions = [[float(v) for v in pair.split(",")] for pair in meta["positions"].split(";")
+                         if pair.strip()]  # a trailing ';' of a hand-edited file is no pair
         except ValueError:
             raise RecordingError(f"{path}: positions must be x,y pairs of metres separated by ';'") from None
     grid = _grid(meta, path, positions, width=table.shape[1] - first)

@@ -116,3 +116,17 @@ def _quiet_log():
     for handler in list(errors.log.handlers):  # do not leave file handlers behind
         errors.log.removeHandler(handler)
         handler.close()
+
+
+def test_a_deleted_dialog_does_not_turn_the_reporter_into_a_loop(qtbot, tmp_path):
+    # the dialog used to be parented to the active window, which can be a short-lived progress
+    # dialog: once it was deleted, every report raised inside the reporter again, without end
+    from PyQt6 import sip
+
+    reporter = errors.Reporter(errors.setup_logging(tmp_path))
+    for k in range(2):
+        with qtbot.waitSignal(reporter.reported, timeout=2000):
+            reporter.report(ValueError, ValueError(f"frame {k}"), None)
+        sip.delete(reporter.dialog)  # gone under the reporter's feet
+    assert reporter.count == 2
+    assert "the error dialog itself failed" not in (tmp_path / errors.LOG_NAME).read_text()

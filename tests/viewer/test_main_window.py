@@ -321,3 +321,33 @@ def test_a_screenshot_that_cannot_be_written_is_reported(opened, tmp_path, where
     opened.screenshot_dialog()
     assert opened.errors[-1] == ("Cannot save screenshot", f"{target}: the folder does not exist")
     assert not target.exists()
+
+
+def test_leaving_auto_from_one_slider_keeps_the_other_as_shown(opened, qtbot):
+    panel = opened.parameters
+    found = opened.model.last.result  # Auto is on after opening
+    assert opened.model.auto and panel.direction_spin.value() == pytest.approx(
+        math.degrees(found.shear_direction), abs=0.05)
+    with qtbot.waitSignal(opened.rendered, timeout=5000):
+        panel.ratio_slider.setValue(round(found.shear_ratio * 100) + 5)
+    # the direction the user saw is the one solved, not an old manual value they could not see
+    assert not opened.model.auto
+    assert opened.model.shear_direction == pytest.approx(found.shear_direction)
+    assert opened.model.last.result.shear_direction == pytest.approx(found.shear_direction)
+    assert panel.direction_spin.value() == pytest.approx(math.degrees(found.shear_direction), abs=0.05)
+
+
+def test_closing_while_a_recording_is_factored_leaves_nothing_running(window, qtbot):
+    import threading
+
+    window.show_recording(load(SAMPLES / "hertz_static.npz"))  # factoring runs in a task
+    window.close()
+    qtbot.waitUntil(lambda: not window._tasks, timeout=20000)  # the task's result arrives after the close
+    assert window.model.recording is None
+    assert not [t for t in threading.enumerate() if t.name == "tactile-solver" and t.is_alive()]
+
+
+def test_a_screenshot_before_any_frame_is_refused_cleanly(window, tmp_path):
+    with pytest.raises(ValueError, match="no frame has been reconstructed yet"):
+        window.export_screenshot(tmp_path / "early.png")
+    assert not (tmp_path / "early.png").exists()

@@ -165,7 +165,7 @@ MALFORMED = [
     ("nonx.npz", lambda p: write_npz(p, nx=None), "missing 'nx'"),
     ("count.npz", lambda p: write_npz(p, frames=np.ones((2, 5))),
      r"declares a 2x2 grid \(4 taxels\) but its frames have 5 values each"),
-    ("flat.npz", lambda p: write_npz(p, frames=np.ones(4)), r"frames must have 4 values each .* got shape \(4,\)"),
+    ("flat.npz", lambda p: write_npz(p, frames=np.ones(4)), r"frames must be a \(T, 4\) table for a 2x2 grid, got shape \(4,\)"),
     ("noframes.npz", lambda p: write_npz(p, frames=np.ones((0, 4)), t=[]), "no frames"),
     ("nan.npz", lambda p: write_npz(p, frames=np.array([[1, 2, 3, 4], [1, np.nan, 3, 4]])),
      "frame 1 taxel 1 is not a finite number"),
