@@ -22,7 +22,10 @@ def real(value) -> float | None:
     """``value`` as a float if it is a real number (not a bool, not text), else None."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         return None
-    return float(value)
+    try:
+        return float(value)
+    except OverflowError:  # an int beyond any float (10**400) is no usable number either
+        return None
 
 
 def real_number(name: str, value, *, rule: str, valid) -> float:
