@@ -24,11 +24,11 @@ from solver import tradeoff  # noqa: E402
 from . import export  # noqa: E402
 from .connect_dialog import ConnectDialog  # noqa: E402
 from .layout import LayoutError, SensorLayout, load_layout  # noqa: E402
+from .live_source import SerialReader  # noqa: E402
 from .model import ViewerModel  # noqa: E402
 from .panels import DisplayPanel, LivePanel, ParametersPanel, PlaybackPanel, status_text  # noqa: E402
 from .recording import Recording, RecordingError, load  # noqa: E402
 from .scene import Scene  # noqa: E402
-from .serial_source import SerialReader  # noqa: E402
 from .tasks import Dispatcher, Task  # noqa: E402
 
 log = logging.getLogger(__name__)

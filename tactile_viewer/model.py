@@ -256,7 +256,7 @@ class ViewerModel:
         self.display_changed.emit()
 
     def show_live(self, frame):
-        """The newest live frame (a :class:`~tactile_viewer.serial_source.LiveFrame`); solve to show it."""
+        """The newest live frame (a :class:`~tactile_viewer.live_source.LiveFrame`); solve to show it."""
         if not self.live:
             raise RuntimeError("show_live needs install_live first")
         if frame.stress.shape != (self.reconstructor.grid.size,):

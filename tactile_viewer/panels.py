@@ -2,7 +2,8 @@
 
 No panel solves, draws or reads files: :class:`ParametersPanel` and
 :class:`DisplayPanel` edit the :class:`~tactile_viewer.model.ViewerModel`;
-:class:`PlaybackPanel` moves its frame on the recording's clock;
+:class:`PlaybackPanel` moves the frame on the recording's clock
+(:class:`~tactile_viewer.playback.PlaybackClock`);
 :class:`LivePanel` shows a live source's state. Requests that need the window
 (a new kernel to factor, a camera preset, a live action) leave as Qt signals.
 """
@@ -17,6 +18,7 @@ from PyQt6 import QtCore, QtWidgets
 from solver.kernels import KERNELS
 
 from .model import KERNEL_HELP, MAX_SHEAR_RATIO, Solved, ViewerModel, geometry_text
+from .playback import PlaybackClock
 
 __all__ = ["ParametersPanel", "DisplayPanel", "PlaybackPanel", "LivePanel", "status_text", "MAP_CHOICES",
            "SPEEDS"]
@@ -273,7 +275,7 @@ class PlaybackPanel(QtWidgets.QGroupBox):
         grid.addWidget(self.time_label, 2, 0, 1, 5)
         self._timer = QtCore.QTimer(self, interval=15)
         self._timer.timeout.connect(self._tick)
-        self._origin = (0.0, 0.0)  # (wall clock, recording time) when playback started
+        self.clock: PlaybackClock | None = None
         model.recording_changed.connect(self._on_recording)
         model.frame_changed.connect(self._on_frame)
         model.solved.connect(self._on_solved)
@@ -298,9 +300,11 @@ class PlaybackPanel(QtWidgets.QGroupBox):
 
     def _on_recording(self):
         if self.model.live:
+            self.clock = None
             self.time_label.setText("live")
             return
         recording = self.model.recording
+        self.clock = PlaybackClock(recording.t)
 
         def apply():
             self.frame_slider.setRange(0, len(recording) - 1)
@@ -330,27 +334,18 @@ class PlaybackPanel(QtWidgets.QGroupBox):
             self._timer.stop()
 
     def _restart_clock(self):
-        if self.model.recording is not None:
-            self._origin = (time.perf_counter(), float(self.model.recording.t[self.model.frame]))
+        if self.clock is not None and self.model.recording is not None:
+            self.clock.restart(self.model.frame, time.perf_counter())
 
     def _tick(self):
-        recording = self.model.recording
-        if recording is None:
+        if self.clock is None or self.model.recording is None:
             self.stop()
             return
-        t = recording.t
-        wall, start = self._origin
-        now = start + (time.perf_counter() - wall) * self.speed
-        looping = self.loop_box.isChecked() and len(recording) > 1
-        if looping and now > t[-1]:
-            # the recording repeats with one mean frame interval after its last frame
-            period = (t[-1] - t[0]) * len(recording) / (len(recording) - 1)
-            if period > 0:
-                now = t[0] + (now - t[0]) % period
-        index = int(min(max(t.searchsorted(now, side="right") - 1, 0), len(recording) - 1))
+        index, finished = self.clock.due(time.perf_counter(), speed=self.speed,
+                                         loop=self.loop_box.isChecked())
         if index != self.model.frame:
             self.model.set_frame(index)
-        if index == len(recording) - 1 and not looping:
+        if finished:
             self.set_playing(False)
 
 
@@ -381,7 +376,7 @@ class LivePanel(QtWidgets.QGroupBox):
         self.hide()
 
     def show_reader(self, reader) -> bool:
-        """Show ``reader``'s state (a ``serial_source.SerialReader``): rate, counts, rejections, recording."""
+        """Show ``reader``'s state (a ``live_source.LiveSource``): rate, counts, rejections, recording."""
         stats = reader.stats
         rejected = reader.rejected()
         parts = [f"{reader.url} ({reader.fmt}): {reader.state}", f"{stats.rate(reader.now()):.0f} fps",

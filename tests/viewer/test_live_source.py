@@ -1,4 +1,5 @@
-"""The serial board as a live source, without Qt: calibration, statistics, the reader on a pty."""
+"""Live sources without Qt (tactile_viewer/live_source.py): calibration, statistics, the serial reader on
+a pty, and a new transport as one subclass."""
 
 import os
 import threading
@@ -11,8 +12,8 @@ import serial
 
 from tactile_viewer import recording
 from tactile_viewer.layout import SensorLayout
+from tactile_viewer.live_source import Calibration, LiveStats, SerialReader
 from tactile_viewer.protocol import encode_binary
-from tactile_viewer.serial_source import Calibration, LiveStats, SerialReader
 from tests.viewer.skins import grid32, wait_for
 
 # -- Calibration ----------------------------------------------------------------------------------
@@ -181,7 +182,7 @@ def test_on_frame_fires_once_until_taken(pty, make_reader):
     reader.start()
     write_all(pty[0], encode_binary(0, values(0)))
     wait_for(lambda: len(calls) == 1, what="the first notification")
-    assert calls[0].startswith("serial ")  # called from the reader thread, not ours
+    assert calls[0].startswith("source ")  # called from the reader thread, not ours
     write_all(pty[0], encode_binary(1, values(1)))
     wait_for(lambda: reader.stats.received == 2, what="the second frame")
     write_all(pty[0], encode_binary(2, values(2)))
@@ -272,3 +273,58 @@ def test_reader_reads_a_socket_url_and_reconnects_to_it():
         for connection in accepted:
             connection.close()
         server.close()
+
+
+def test_a_new_transport_is_one_subclass(tmp_path):
+    # what LiveSource promises: a transport only opens, reads and closes; decoding, calibration,
+    # statistics, recording, reconnection and the hand-off come with it
+    import queue
+
+    from tactile_viewer.live_source import LiveSource
+
+    class Dropped(OSError):
+        pass
+
+    class QueueSource(LiveSource):
+        lost = (Dropped,)
+
+        def __init__(self, chunks, **kwargs):
+            super().__init__("queue://test", SensorLayout(grid32(), "kPa"), **kwargs)
+            self.chunks, self.opened = chunks, 0
+
+        def _open(self):
+            self.opened += 1
+            return self.chunks
+
+        def _read(self, chunks):
+            try:
+                chunk = chunks.get(timeout=0.01)
+            except queue.Empty:
+                return b""
+            if chunk is None:
+                raise Dropped("the stream went away")
+            return chunk
+
+        def _close(self, chunks):
+            pass
+
+    chunks = queue.Queue()
+    arrived = threading.Event()
+    source = QueueSource(chunks, on_frame=arrived.set, reconnect_interval=0.01)
+    source.start_recording(tmp_path / "queue.npz", flush_interval=0.0)
+    source.start()
+    try:
+        for k in range(3):
+            chunks.put(encode_binary(k, values(k)))
+        wait_for(lambda: source.stats.received == 3, what="three frames")
+        assert arrived.is_set()
+        np.testing.assert_allclose(source.take_latest().stress, values(2) * 1e3, rtol=1e-6)  # kPa to Pa
+        chunks.put(None)  # the connection drops: the source reconnects by itself
+        wait_for(lambda: source.reconnects == 1 and source.state == "connected", what="reconnection")
+        chunks.put(encode_binary(3, values(3)))
+        wait_for(lambda: source.stats.received == 4, what="a frame after reconnecting")
+    finally:
+        source.stop()
+    assert source.opened == 2 and source.stats.lost == 0
+    saved = recording.load(tmp_path / "queue.npz")
+    assert len(saved) == 4 and list(saved.seq) == [0, 1, 2, 3]

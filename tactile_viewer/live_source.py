@@ -1,8 +1,13 @@
-"""The serial board as a live source: calibration, statistics and the reader thread. No Qt.
+"""Live sources: what every transport shares (:class:`LiveSource`) and the serial board. No Qt.
 
-The reader runs in its own thread (``threading``): it reads through pyserial's
-``serial_for_url`` (device paths, ``loop://``, ``socket://`` ...), decodes, turns
-raw values into pascals, stamps each frame with its receive time, counts,
+A new transport (a network stream, say) is one subclass of :class:`LiveSource`
+that opens, reads and closes its connection; the reader thread, reconnection,
+decoding, calibration, statistics, recording and the hand-off to the GUI are
+shared.
+
+The reader runs in its own thread (``threading``): it reads (the serial board
+through pyserial's ``serial_for_url``: device paths, ``loop://``,
+``socket://`` ...), decodes, turns raw values into pascals, stamps each frame with its receive time, counts,
 records every frame, and hands the latest to the GUI through a callback. The
 GUI thread never reads the port and the reader never touches the scene.
 """
@@ -22,7 +27,7 @@ from .layout import SensorLayout
 from .protocol import Frame, make_decoder
 from .recording import Recorder
 
-__all__ = ["Calibration", "LiveStats", "LiveFrame", "SerialReader"]
+__all__ = ["Calibration", "LiveStats", "LiveFrame", "LiveSource", "SerialReader"]
 
 
 class Calibration:
@@ -135,27 +140,36 @@ class LiveFrame:
     seq: int | None
 
 
-class SerialReader:
-    """Reads frames from a serial URL in a worker thread, reconnecting when the device goes away.
+class LiveSource:
+    """A live source of frames: the part every transport shares. No Qt.
+
+    A transport (a serial port, a network stream) subclasses this and says how
+    to open a connection, read bytes from it and close it (:meth:`_open`,
+    :meth:`_read`, :meth:`_close`, and which errors mean "connection lost":
+    :attr:`lost`). Everything else is here, the same for every source: a
+    reader thread that reconnects, decoding, calibration to pascals, statistics,
+    recording of every frame (any source can record), and the hand-off of the
+    newest frame to the GUI.
 
     Parameters
     ----------
-    url : str
-        A device path or any pyserial URL (``loop://``, ``socket://host:port``).
+    label : str
+        What the source is, for people (the URL).
     layout : SensorLayout
     fmt : {"binary", "text"}
-    baudrate : int
     on_frame : callable, optional
         Called from the reader thread with no arguments when a new frame is
         waiting in :meth:`take_latest` (once until it is taken: the GUI may
         skip frames, the recorder never does).
     reconnect_interval : float
-        Seconds between attempts to reopen a lost device.
+        Seconds between attempts to reopen a lost connection.
     """
 
-    def __init__(self, url: str, layout: SensorLayout, *, fmt: str = "binary", baudrate: int = 115200,
-                 on_frame=None, reconnect_interval: float = 0.5):
-        self.url, self.layout, self.fmt, self.baudrate = url, layout, fmt, baudrate
+    lost: tuple = (OSError,)
+
+    def __init__(self, label: str, layout: SensorLayout, *, fmt: str = "binary", on_frame=None,
+                 reconnect_interval: float = 0.5):
+        self.url, self.layout, self.fmt = label, layout, fmt
         self.calibration = Calibration(layout)
         self.decoder = make_decoder(fmt, layout.count)
         self.stats = LiveStats()
@@ -173,14 +187,32 @@ class SerialReader:
         self._thread: threading.Thread | None = None
         self._origin = time.perf_counter()
 
+    @property
+    def grid(self):
+        """The geometry of the frames (:class:`solver.SensorGrid`)."""
+        return self.layout.grid
+
+    # -- what a transport provides ------------------------------------------------------------
+
+    def _open(self):
+        """A new connection (raising one of :attr:`lost` when it cannot be opened now)."""
+        raise NotImplementedError
+
+    def _read(self, connection) -> bytes:
+        """The bytes waiting (``b""`` after a short wait when there are none)."""
+        raise NotImplementedError
+
+    def _close(self, connection) -> None:
+        connection.close()
+
     # -- control (any thread) ------------------------------------------------------------
 
     def start(self) -> None:
-        """Open the port (raising if it cannot be opened now) and start reading."""
-        port = self._open()  # the first failure goes to the caller, later ones are retried
+        """Connect (raising if that fails now; later losses are retried) and start reading."""
+        connection = self._open()
         self.state = "connected"
         self._origin = time.perf_counter()
-        self._thread = threading.Thread(target=self._run, args=(port,), name=f"serial {self.url}",
+        self._thread = threading.Thread(target=self._run, args=(connection,), name=f"source {self.url}",
                                         daemon=True)
         self._thread.start()
 
@@ -210,23 +242,18 @@ class SerialReader:
     def now(self) -> float:
         return time.perf_counter() - self._origin
 
-    # -- the worker ------------------------------------------------------------------------
+    def rejected(self) -> Counter:
+        """Rejected frames by reason so far (a copy)."""
+        return Counter(self.decoder.rejected)
 
-    def _open(self):
-        import serial  # pyserial; imported here so that the codecs work without it
+    # -- the reader thread -------------------------------------------------------------------
 
-        port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=0.05)
-        port.reset_input_buffer()  # stale bytes queued before we connected
-        return port
-
-    def _run(self, port) -> None:
-        import serial
-
+    def _run(self, connection) -> None:
         while not self._stop.is_set():
-            if port is None:
+            if connection is None:
                 try:
-                    port = self._open()
-                except (serial.SerialException, OSError, ValueError) as exc:
+                    connection = self._open()
+                except (*self.lost, ValueError) as exc:
                     self.state, self.error = "reconnecting", str(exc)
                     self._stop.wait(self._reconnect_interval)
                     continue
@@ -235,11 +262,11 @@ class SerialReader:
                 self.reconnects += 1
                 self.state, self.error = "connected", ""
             try:
-                data = port.read(max(1, port.in_waiting))
-            except (serial.SerialException, OSError) as exc:
+                data = self._read(connection)
+            except self.lost as exc:
                 self.state, self.error = "reconnecting", str(exc)
-                port.close()
-                port = None
+                self._close(connection)
+                connection = None
                 continue
             if data:
                 try:
@@ -249,8 +276,8 @@ class SerialReader:
                     self.error = f"internal error while decoding: {exc!r}"
             elif self.recorder is not None:
                 self.recorder.tick(self.now())
-        if port is not None:
-            port.close()
+        if connection is not None:
+            self._close(connection)
 
     def _handle(self, data: bytes) -> None:
         t = self.now()
@@ -271,6 +298,35 @@ class SerialReader:
             if notify and self._on_frame is not None:
                 self._on_frame()
 
-    def rejected(self) -> Counter:
-        """Rejected frames by reason so far (a copy)."""
-        return Counter(self.decoder.rejected)
+
+class SerialReader(LiveSource):
+    """The serial board: a :class:`LiveSource` over pyserial's ``serial_for_url``.
+
+    Parameters
+    ----------
+    url : str
+        A device path or any pyserial URL (``loop://``, ``socket://host:port``).
+    layout : SensorLayout
+    fmt : {"binary", "text"}
+    baudrate : int
+    on_frame, reconnect_interval
+        As for :class:`LiveSource`.
+    """
+
+    def __init__(self, url: str, layout: SensorLayout, *, fmt: str = "binary", baudrate: int = 115200,
+                 on_frame=None, reconnect_interval: float = 0.5):
+        import serial  # pyserial; imported here so that the codecs work without it
+
+        super().__init__(url, layout, fmt=fmt, on_frame=on_frame, reconnect_interval=reconnect_interval)
+        self.baudrate = baudrate
+        self.lost = (serial.SerialException, OSError)
+
+    def _open(self):
+        import serial
+
+        port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=0.05)
+        port.reset_input_buffer()  # stale bytes queued before we connected
+        return port
+
+    def _read(self, port) -> bytes:
+        return port.read(max(1, port.in_waiting))
