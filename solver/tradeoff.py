@@ -29,7 +29,7 @@ from .inverse import Reconstructor
 from .region import RegionSolver
 from .validation import SHAPES, standard_contact
 
-__all__ = ["machine",
+__all__ = ["machine", "preset_front",
     "Configuration",
     "Measurement",
     "CONFIGURATIONS",
@@ -284,6 +284,16 @@ def pareto(measurements) -> list[Measurement]:
 
 
 BALANCED_SLACK = 0.25  # how much more error than the most accurate the balanced preset may have
+
+
+def preset_front(grid: SensorGrid) -> dict[str, Measurement]:
+    """The quality presets of ``grid``: every configuration measured once on 1% noise cases.
+
+    What the viewer's quality selector offers; a plain function of the geometry,
+    so that it can run in another process.
+    """
+    cases = default_cases(grid, noises=(0.01,))
+    return presets(measure_all(grid, cases=cases, repeat=1, memory=False))
 
 
 def presets(measurements) -> dict[str, Measurement]:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
+import multiprocessing
 import os
 from pathlib import Path
 
@@ -246,14 +247,16 @@ class MainWindow(QtWidgets.QMainWindow):
         self._measured_for = (key, "measuring")
 
         def work(progress):
-            def check(_):
-                if not progress(0, 0):  # the window closed: stop after this configuration
-                    raise export.ExportCancelled("presets not measured: the window closed")
-
-            cases = tradeoff.default_cases(grid, noises=(0.01,))
-            # no memory tracing here: tracemalloc is not safe beside the reader thread
-            measured = tradeoff.measure_all(grid, cases=cases, repeat=1, progress=check, memory=False)
-            return tradeoff.presets(measured)
+            # In another process: measuring takes seconds of Python, which in this process would
+            # take the interpreter lock from the solve thread and slow every slider move.
+            with multiprocessing.get_context("spawn").Pool(1) as pool:
+                pending = pool.apply_async(tradeoff.preset_front, (grid,))
+                while True:
+                    try:
+                        return pending.get(timeout=0.1)
+                    except multiprocessing.TimeoutError:
+                        if not progress(0, 0):  # the window closed: leaving the block ends the process
+                            raise export.ExportCancelled("presets not measured: the window closed") from None
 
         def done(chosen):
             self.parameters.set_presets(chosen, lambda m: f"{m.name}, {m.frame_ms:.2f} ms/frame, "
