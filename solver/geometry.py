@@ -172,6 +172,13 @@ class SensorGrid:
         offset = self.positions[0] - reference[0]
         return np.allclose(self.positions, reference + offset, rtol=0, atol=1e-9 * self.pitch)
 
+    @property
+    def key(self) -> tuple:
+        """Everything a solver for this grid depends on, hashable: two grids with equal keys
+        share their stress matrices (shape, pitch, thickness, Poisson ratio, taxel size, positions)."""
+        return (self.shape, self.pitch, self.thickness, self.poisson_ratio, self.sensor_size,
+                self.positions.tobytes())
+
     def with_thickness(self, thickness: float) -> SensorGrid:
         """The same layout, elastomer and taxels under a layer of another thickness (metres)."""
         return self.replace(thickness=thickness)

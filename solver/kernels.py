@@ -36,6 +36,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from . import layer
+from .checks import whole_number
 from .geometry import SensorGrid, check_poisson_ratio
 
 __all__ = ["KERNELS", "point_force_stress", "cell_force_stress", "layer_force_stress", "taxel_points",
@@ -246,9 +247,7 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
     """
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
-    if isinstance(subdivision, bool) or int(subdivision) != subdivision or subdivision < 1:
-        raise ValueError(f"subdivision must be a whole number >= 1, got {subdivision!r}")
-    subdivision = int(subdivision)
+    subdivision = whole_number("subdivision", subdivision, low=1)
     if subdivision > 1 and (kernel == "point" or not grid.is_regular):
         raise ValueError("subdivision > 1 needs a regular grid and a cell or layer kernel, got "
                          f"{'an irregular grid' if not grid.is_regular else 'the point kernel'}")

@@ -41,6 +41,7 @@ from scipy.spatial import cKDTree
 
 from . import layer
 from .arrays import read_only
+from .checks import whole_number
 from .geometry import SensorGrid
 from .kernels import point_force_stress, taxel_points
 
@@ -286,9 +287,7 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
     if subdivisions is None:
         smallest = min(min(c.semi_axes) for c in contacts)
         subdivisions = int(min(128, max(8, math.ceil(pitch / min(h / 4, smallest / 10)))))
-    if isinstance(subdivisions, bool) or int(subdivisions) != subdivisions or subdivisions < 1:
-        raise ValueError(f"subdivisions must be a whole number >= 1, got {subdivisions!r}")
-    subdivisions = int(subdivisions)
+    subdivisions = whole_number("subdivisions", subdivisions, low=1)
     if subdivisions % 2 == 0:
         subdivisions += 1   # odd: sensors of a regular grid sit on sub-cell centres
     step = pitch / subdivisions

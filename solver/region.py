@@ -104,6 +104,8 @@ class RegionSolver:
         self._options = options
         self._cache: OrderedDict = OrderedDict()
         self._lock = threading.Lock()
+        self._border = np.zeros(grid.shape, dtype=bool)  # contacts touching it are at the skin's edge
+        self._border[[0, -1], :] = self._border[:, [0, -1]] = True
         self._capacity = cache
         self.factorizations = 0  # windows factored so far (the rest were reused)
 
@@ -192,8 +194,6 @@ class RegionSolver:
         contacts, results = [], []
         explained = np.zeros(grid.shape, dtype=bool)
         unexplained = 0.0
-        border = np.zeros(grid.shape, dtype=bool)
-        border[[0, -1], :] = border[:, [0, -1]] = True
         for rows, columns in self.windows(image):
             window = image[rows, columns]
             solver = self.reconstructor(window.shape[0], window.shape[1])
@@ -211,7 +211,7 @@ class RegionSolver:
                 nodes = np.zeros(grid.shape, dtype=bool)
                 nodes[rows, columns] = contact.nodes.reshape(window.shape)
                 contacts.append(replace(contact, nodes=read_only(nodes.ravel(), bool),
-                                        at_edge=bool(np.any(nodes & border))))
+                                        at_edge=bool(np.any(nodes & self._border))))
         norm = float(np.linalg.norm(image))
         unexplained += float(np.sum(image[~explained] ** 2))
         contacts.sort(key=lambda c: -c.total_force[2])

@@ -103,7 +103,7 @@ class Configuration:
         options = dict(kernel=self.kernel, max_condition=self.max_condition, subdivision=self.subdivision,
                        efficiency=efficiency)
         if self.path == "region":
-            return _Region(RegionSolver(grid, **options))
+            return RegionSolver(grid, **options)
         return _Configured(Reconstructor(grid, **options), self.path)
 
 
@@ -125,18 +125,6 @@ class _Configured:
 
     def solve_normal(self, stress):
         return self.reconstructor.solve_normal(stress)
-
-
-class _Region:
-    def __init__(self, solver: RegionSolver):
-        self.solver = solver
-        self.grid, self.kernel = solver.grid, solver.kernel
-
-    def solve(self, stress, *, shear_ratio=None, shear_direction=None):
-        return self.solver.solve(stress, shear_ratio=shear_ratio, shear_direction=shear_direction)
-
-    def solve_normal(self, stress):
-        return self.solver.solve_normal(stress)
 
 
 CONFIGURATIONS = (

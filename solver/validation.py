@@ -110,9 +110,9 @@ def validation_cases(*, noise: float = 0.01, medium: str = "layer") -> list[Case
 
 def counts(rows) -> dict:
     """Decisions over a set: shear reported on shear-free loads, missed on loads with shear >= 0.2."""
-    free = [r for r in rows if r["true_ratio"] == 0]
+    found = false_shear(rows)
     sheared = [r for r in rows if r["true_ratio"] >= 0.2]
-    return dict(false=sum(r["ratio"] > 0 for r in free), free=len(free),
+    return dict(false=found["count"], free=found["cases"],
                 missed=sum(r["ratio"] == 0 for r in sheared), sheared=len(sheared))
 
 
@@ -206,7 +206,7 @@ def evaluate(cases, make_reconstructor, *, solve=None):
     rows = []
     for case in cases:
         grid = case.frame.grid
-        key = (grid.shape, grid.pitch, grid.thickness, grid.poisson_ratio, grid.sensor_size)
+        key = grid.key
         if key not in cache:
             cache[key] = make_reconstructor(case.frame.grid)
         reconstructor = cache[key]

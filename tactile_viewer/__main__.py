@@ -148,9 +148,7 @@ def run_window(path=None, *, kernel=KERNELS[0]):
     errors.log.info("tactile-viewer started (log %s)", log_path)
     window = MainWindow()
     window.model.kernel = kernel
-    window.parameters.kernel_box.blockSignals(True)  # nothing is open yet: nothing to rebuild
-    window.parameters.kernel_box.setCurrentText(kernel)
-    window.parameters.kernel_box.blockSignals(False)
+    window.parameters.show_kernel(kernel)  # nothing is open yet: nothing to rebuild
     window.show()
     if path:
         window.open(path)

@@ -187,11 +187,6 @@ class LiveSource:
         self._thread: threading.Thread | None = None
         self._origin = time.perf_counter()
 
-    @property
-    def grid(self):
-        """The geometry of the frames (:class:`solver.SensorGrid`)."""
-        return self.layout.grid
-
     # -- what a transport provides ------------------------------------------------------------
 
     def _open(self):

@@ -238,7 +238,7 @@ class MainWindow(QtWidgets.QMainWindow):
         """Measure the speed/accuracy front for the shown geometry in the background; fill the
         quality presets with their measured cost and error (emits ``presets_measured``)."""
         grid = self.model.grid
-        key = (grid.shape, grid.pitch, grid.thickness, grid.poisson_ratio, grid.sensor_size)
+        key = grid.key
         if self._measured_for == (key, "done"):
             self.presets_measured.emit()
             return

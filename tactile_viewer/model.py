@@ -275,12 +275,7 @@ class ViewerModel:
             positions, thickness, pitch, Poisson ratio or taxel size (the
             layer kernel's matrix depends on all of them).
         """
-        ours, theirs = reconstructor.grid, recording.grid
-        if ours is not theirs and not (
-                ours.shape == theirs.shape
-                and np.array_equal(ours.positions, theirs.positions)
-                and (ours.thickness, ours.pitch, ours.poisson_ratio, ours.sensor_size)
-                == (theirs.thickness, theirs.pitch, theirs.poisson_ratio, theirs.sensor_size)):
+        if reconstructor.grid.key != recording.grid.key:
             raise ValueError("reconstructor was built for another geometry than the recording's")
         self.recording = recording
         self.live, self.live_frame, self.live_label = False, None, ""

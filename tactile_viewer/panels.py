@@ -140,7 +140,11 @@ class ParametersPanel(QtWidgets.QGroupBox):
 
     def _on_recording(self):
         self.geometry_label.setText(geometry_text(self.model.grid))
-        _quietly([self.kernel_box], lambda: self.kernel_box.setCurrentText(self.model.kernel))
+        self.show_kernel(self.model.kernel)
+
+    def show_kernel(self, kernel: str):
+        """Show ``kernel`` as chosen without asking for a rebuild."""
+        _quietly([self.kernel_box], lambda: self.kernel_box.setCurrentText(kernel))
 
     def follow(self):
         """Show the model's parameters: in Auto what the last solve found, else the manual values."""

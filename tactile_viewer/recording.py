@@ -375,7 +375,6 @@ class Recorder:
         if self.kind not in (".npz", ".csv"):
             raise ValueError(f"{path}: unknown recording type {path.suffix!r}, expected .npz or .csv")
         self.path = path
-        self.layout = layout
         self.flush_interval = flush_interval
         self.description = description or "live recording"
         self.written = 0
