@@ -46,7 +46,7 @@ run: $(STAMP)
 	fi
 
 lint: $(STAMP)
-	$(PY) -m ruff check solver tactile_viewer tests tools benchmarks
+	$(PY) -m ruff check solver measurement tactile_viewer tests tools benchmarks
 
 bench: system-deps $(STAMP)
 	$(PY) -m benchmarks.solver_speed

@@ -13,11 +13,11 @@ import time
 
 import numpy as np
 
+from measurement.tradeoff import machine
 from solver import layer, loads
 from solver.geometry import SensorGrid
 from solver.inverse import Reconstructor
 from solver.kernels import KERNELS, stress_matrix
-from solver.tradeoff import machine
 
 
 def _median_ms(fn, repeat):

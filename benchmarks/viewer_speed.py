@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.tradeoff import machine
+from measurement.tradeoff import machine
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "hertz_shear_turning.npz"
 
@@ -178,24 +178,24 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
     window.resize(1280, 820)
     window.show()
     try:
-        if not window.connect_live(str(folder / "board"), folder / "layout.json", fmt=fmt):
+        if not window.live_panel.connect_live(str(folder / "board"), folder / "layout.json", fmt=fmt):
             raise SystemExit("could not connect to the simulated board")
         deadline = time.perf_counter() + 30
-        while window.reader is None or window.reader.stats.received < 10:
+        while window.live_panel.reader is None or window.live_panel.reader.stats.received < 10:
             app.processEvents()
             if time.perf_counter() > deadline:
                 raise SystemExit("no frames from the simulated board")
         drawn, solved = [], []
         window.rendered.connect(lambda: drawn.append(time.perf_counter()))  # on screen, not just solved
         window.model.solved.connect(lambda result: solved.append(result.frame))
-        window.start_recording(folder / "live.npz")
-        received = window.reader.stats.received
+        window.live_panel.start_recording(folder / "live.npz")
+        received = window.live_panel.reader.stats.received
         cpu, start = time.process_time(), time.perf_counter()
         while time.perf_counter() - start < seconds:
             app.processEvents()
         elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
-        received = window.reader.stats.received - received
-        path = window.stop_recording()
+        received = window.live_panel.reader.stats.received - received
+        path = window.live_panel.stop_recording()
         board.terminate()
         _, sim_report = board.communicate(timeout=10)
         sim_cpu = os.times().children_user + os.times().children_system
@@ -204,7 +204,8 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
         print(f"{seconds:g} s at {rate:g} Hz, {fmt}, {recording.grid.size} values per frame, "
               "pseudo-terminal:", file=out)
         print(f"  recorded {len(recording)} frames, sequence gaps {gaps}, repeats "
-              f"{int(np.sum(np.diff(recording.seq) <= 0))}; reader lost {window.reader.stats.lost}",
+              f"{int(np.sum(np.diff(recording.seq) <= 0))}; "
+              f"reader lost {window.live_panel.reader.stats.lost}",
               file=out)
         print(f"  display: {len(drawn) / elapsed:.1f} frames on screen per second, "
               f"{len(solved) / elapsed:.1f} solved ({received} received, "

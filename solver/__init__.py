@@ -6,7 +6,8 @@ numpy and scipy only; never imports Qt or pyvista.
 from . import efficiency, loads, metrics
 from .geometry import SensorGrid
 from .inverse import Contact, Reconstruction, Reconstructor
+from .quality import Configuration
 from .region import RegionSolver, make_solver
 
-__all__ = ["SensorGrid", "Reconstructor", "RegionSolver", "make_solver", "Reconstruction", "Contact",
-           "loads", "metrics", "efficiency"]
+__all__ = ["SensorGrid", "Reconstructor", "RegionSolver", "make_solver", "Configuration", "Reconstruction",
+           "Contact", "loads", "metrics", "efficiency"]

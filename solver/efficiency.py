@@ -229,7 +229,7 @@ class ContactFit:
     the evidence, ``mu_k <- mu_k max(0, 1 - shrinkage / F_k)`` (the
     positive-part James-Stein factor): weak evidence gives a small ratio, no
     evidence none, strong evidence keeps it. Both constants were chosen on
-    the tuning set (:func:`solver.validation.tuning_cases`) and are judged on
+    the tuning set (:func:`measurement.cases.tuning_cases`) and are judged on
     the validation set (``docs/efficiency.md``).
 
     Parameters

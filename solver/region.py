@@ -25,7 +25,7 @@ import numpy as np
 from scipy import ndimage
 
 from .arrays import read_only
-from .checks import real_number, whole_number
+from .checks import real_number, shown, whole_number
 from .geometry import SensorGrid
 from .inverse import Reconstruction, Reconstructor, _direction, check_options, check_parameters, check_stress
 
@@ -37,7 +37,7 @@ __all__ = ["RegionSolver", "make_solver", "DENSE_LIMIT"]
 DENSE_LIMIT = 1024
 
 
-def make_solver(grid: SensorGrid, **options):
+def make_solver(grid: SensorGrid, *, quality=None, **options):
     """The solver for a skin of any size: the one place callers get one.
 
     A :class:`~solver.Reconstructor` of the whole skin when it has at most
@@ -47,13 +47,31 @@ def make_solver(grid: SensorGrid, **options):
     shear_direction=None, exact=None)`` and ``solve_normal(stress)`` with a
     :class:`~solver.Reconstruction`.
 
+    With ``quality`` the solver is the one that setting builds
+    (:meth:`solver.quality.Configuration.build`), on ``kernel`` when given
+    (else the setting's own): its solve takes the setting's path and answers
+    ``solve(stress, *, shear_ratio=None, shear_direction=None)``.
+
     Parameters
     ----------
     grid : SensorGrid
+    quality : solver.quality.Configuration, optional
+        A quality setting (one of :data:`solver.quality.CONFIGURATIONS`, a
+        viewer preset ...); None (default): the standard solve above.
     **options
         Tuning arguments of :class:`~solver.Reconstructor` (``kernel``,
-        ``max_condition`` ...), all checked before any matrix is built.
+        ``max_condition`` ...), all checked before any matrix is built. With
+        ``quality``, ``kernel`` replaces the setting's and the others are passed
+        to :meth:`~solver.quality.Configuration.build`.
     """
+    # quality builds through RegionSolver (defined below): imported here, not at the top
+    from .quality import Configuration
+
+    if quality is not None:
+        if not isinstance(quality, Configuration):
+            raise ValueError(f"quality must be a solver.quality.Configuration or None, got {shown(quality)}")
+        others = {k: v for k, v in options.items() if k != "kernel"}
+        return replace(quality, kernel=options.get("kernel", quality.kernel)).build(grid, **others)
     check_options(grid, **{k: v for k, v in options.items() if k != "efficiency"})
     if grid.size <= DENSE_LIMIT or not grid.is_regular:
         return Reconstructor(grid, **options)

@@ -73,10 +73,11 @@ def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear
     from . import export
     from .model import ViewerModel
     from .scene import Scene
+    from .source import RecordingSource
 
     recording = load(path)
     model = ViewerModel()
-    model.install(recording, ViewerModel.build(recording.grid, kernel), path)
+    model.set_source(RecordingSource(recording, path), ViewerModel.build(recording.grid, kernel))
     model.set_frame(_frame_index(frame, recording))
     if shear_ratio is not None or shear_direction_deg is not None:
         model.set_parameters(shear_ratio=shear_ratio if shear_ratio is not None else model.shear_ratio,

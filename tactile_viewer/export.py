@@ -26,15 +26,11 @@ from solver import Reconstructor
 from solver.arrays import read_only
 
 from .recording import Recording
+from .worker import Cancelled
 
-__all__ = ["ForceTable", "reconstruct_frames", "force_table", "save_forces", "load_forces", "write_sidecar",
-           "ExportCancelled"]
+__all__ = ["ForceTable", "reconstruct_frames", "force_table", "save_forces", "load_forces", "write_sidecar"]
 
 CSV_COLUMNS = ("frame", "t", "node", "x", "y", "Fx", "Fy", "Fz", "shear_ratio", "shear_direction_deg")
-
-
-class ExportCancelled(Exception):
-    """The progress callback asked to stop; nothing was written."""
 
 
 @dataclass(frozen=True)
@@ -77,7 +73,7 @@ def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frame
     ----------
     progress : callable, optional
         ``progress(done, total) -> bool``; returning False cancels
-        (:class:`ExportCancelled` is raised).
+        (:class:`Cancelled` is raised).
     """
     frames = np.arange(len(recording)) if frames is None else np.atleast_1d(np.asarray(frames, dtype=int))
     if frames.size and (frames.min() < 0 or frames.max() >= len(recording)):
@@ -87,7 +83,7 @@ def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frame
         results.append(reconstructor.solve(recording.frames[k], shear_ratio=shear_ratio,
                                            shear_direction=shear_direction))
         if progress is not None and progress(i + 1, frames.size) is False:
-            raise ExportCancelled(f"cancelled after {i + 1} of {frames.size} frames")
+            raise Cancelled(f"cancelled after {i + 1} of {frames.size} frames")
     auto = shear_ratio is None and shear_direction is None
     return force_table(results, frames, recording.t[frames], recording.grid, solver=reconstructor,
                        mode="auto" if auto else "manual", source=recording.description)

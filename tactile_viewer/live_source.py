@@ -1,15 +1,16 @@
 """Live sources: what every transport shares (:class:`LiveSource`) and the serial board. No Qt.
 
-A new transport (a network stream, say) is one subclass of :class:`LiveSource`
-that opens, reads and closes its connection; the reader thread, reconnection,
-decoding, calibration, statistics, recording and the hand-off to the GUI are
-shared.
+A :class:`LiveSource` is a :class:`~tactile_viewer.source.Source` whose frames
+come from a connection read on its own thread. A new transport (a network
+stream, say) is one subclass that opens, reads and closes its connection; the
+reader thread, reconnection, decoding, calibration, statistics, recording
+and the hand-off of the newest frame are shared.
 
-The reader runs in its own thread (``threading``): it reads (the serial board
-through pyserial's ``serial_for_url``: device paths, ``loop://``,
-``socket://`` ...), decodes, turns raw values into pascals, stamps each frame with its receive time, counts,
-records every frame, and hands the latest to the GUI through a callback. The
-GUI thread never reads the port and the reader never touches the scene.
+The reader (the serial board through pyserial's ``serial_for_url``: device
+paths, ``loop://``, ``socket://`` ...) decodes, turns raw values into pascals,
+stamps each frame with its receive time, counts, records every frame, and
+announces the newest through ``frame_arrived``. The GUI thread never reads
+the port and the reader never touches the scene.
 """
 
 from __future__ import annotations
@@ -18,16 +19,14 @@ import math
 import threading
 import time
 from collections import Counter, deque
-from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from .layout import SensorLayout
 from .protocol import Frame, make_decoder
-from .recording import Recorder
+from .source import Source, SourceFrame
 
-__all__ = ["Calibration", "LiveStats", "LiveFrame", "LiveSource", "SerialReader"]
+__all__ = ["Calibration", "LiveStats", "LiveSource", "SerialReader"]
 
 
 class Calibration:
@@ -121,68 +120,43 @@ class LiveStats:
         return math.inf if self.last_time is None else now - self.last_time
 
 
-@dataclass(frozen=True)
-class LiveFrame:
-    """One received frame in pascals.
-
-    Attributes
-    ----------
-    stress : (m,) ndarray
-        Pascals, calibrated and tared.
-    t : float
-        Receive time, seconds since the reader started.
-    seq : int or None
-        Unwrapped sequence number (binary), None for text.
-    """
-
-    stress: np.ndarray
-    t: float
-    seq: int | None
-
-
-class LiveSource:
+class LiveSource(Source):
     """A live source of frames: the part every transport shares. No Qt.
 
     A transport (a serial port, a network stream) subclasses this and says how
     to open a connection, read bytes from it and close it (:meth:`_open`,
     :meth:`_read`, :meth:`_close`, and which errors mean "connection lost":
-    :attr:`lost`). Everything else is here, the same for every source: a
-    reader thread that reconnects, decoding, calibration to pascals, statistics,
-    recording of every frame (any source can record), and the hand-off of the
-    newest frame to the GUI.
+    :attr:`lost`). Everything else is here, the same for every transport: a
+    reader thread that reconnects, decoding, calibration to pascals,
+    statistics, and the :class:`~tactile_viewer.source.Source` interface
+    (recording of every frame, the newest frame for the display). Its
+    :attr:`state` is "stopped", "connected" or "reconnecting"; frames carry
+    their receive time and unwrapped sequence number.
 
     Parameters
     ----------
-    label : str
-        What the source is, for people (the URL).
+    url : str
+        Where the transport connects.
     layout : SensorLayout
     fmt : {"binary", "text"}
-    on_frame : callable, optional
-        Called from the reader thread with no arguments when a new frame is
-        waiting in :meth:`take_latest` (once until it is taken: the GUI may
-        skip frames, the recorder never does).
     reconnect_interval : float
         Seconds between attempts to reopen a lost connection.
     """
 
+    live = True
     lost: tuple = (OSError,)
 
-    def __init__(self, label: str, layout: SensorLayout, *, fmt: str = "binary", on_frame=None,
+    def __init__(self, url: str, layout: SensorLayout, *, fmt: str = "binary",
                  reconnect_interval: float = 0.5):
-        self.url, self.layout, self.fmt = label, layout, fmt
+        super().__init__(f"{url} ({fmt})", layout.grid)
+        self.url, self.layout, self.fmt = url, layout, fmt
         self.calibration = Calibration(layout)
         self.decoder = make_decoder(fmt, layout.count)
         self.stats = LiveStats()
-        self.state = "stopped"
         self.error = ""
         self.reconnects = 0
         self.failures = 0  # chunks whose handling raised (shown in the live status)
-        self.recorder: Recorder | None = None
-        self._on_frame = on_frame
         self._reconnect_interval = reconnect_interval
-        self._latest: LiveFrame | None = None
-        self._notified = False
-        self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._origin = time.perf_counter()
@@ -205,7 +179,7 @@ class LiveSource:
     def start(self) -> None:
         """Connect (raising if that fails now; later losses are retried) and start reading."""
         connection = self._open()
-        self.state = "connected"
+        self._set_state("connected")
         self._origin = time.perf_counter()
         self._thread = threading.Thread(target=self._run, args=(connection,), name=f"source {self.url}",
                                         daemon=True)
@@ -215,26 +189,10 @@ class LiveSource:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5)
-        self.state = "stopped"
-        self.stop_recording()
-
-    def start_recording(self, path, *, flush_interval: float = 1.0) -> Recorder:
-        recorder = Recorder(path, self.layout, flush_interval=flush_interval,
-                            description=f"live from {self.url} ({self.fmt})")
-        self.recorder = recorder
-        return recorder
-
-    def stop_recording(self) -> Path | None:
-        recorder, self.recorder = self.recorder, None
-        return recorder.close() if recorder is not None else None
-
-    def take_latest(self) -> LiveFrame | None:
-        """The newest frame not yet taken (None if none arrived since)."""
-        with self._lock:
-            frame, self._latest, self._notified = self._latest, None, False
-        return frame
+        super().stop()
 
     def now(self) -> float:
+        """Seconds since the reader started (the clock of the frames' receive times)."""
         return time.perf_counter() - self._origin
 
     def rejected(self) -> Counter:
@@ -249,17 +207,20 @@ class LiveSource:
                 try:
                     connection = self._open()
                 except (*self.lost, ValueError) as exc:
-                    self.state, self.error = "reconnecting", str(exc)
+                    self.error = str(exc)
+                    self._set_state("reconnecting")
                     self._stop.wait(self._reconnect_interval)
                     continue
                 self.decoder.reset()
                 self.stats.new_connection()
                 self.reconnects += 1
-                self.state, self.error = "connected", ""
+                self.error = ""
+                self._set_state("connected")
             try:
                 data = self._read(connection)
             except self.lost as exc:
-                self.state, self.error = "reconnecting", str(exc)
+                self.error = str(exc)
+                self._set_state("reconnecting")
                 self._close(connection)
                 connection = None
                 continue
@@ -277,21 +238,8 @@ class LiveSource:
     def _handle(self, data: bytes) -> None:
         t = self.now()
         frames: list[Frame] = self.decoder.feed(data)
-        latest = None
-        for frame in frames:
-            stress = self.calibration(frame.values)
-            seq = self.stats.add(frame.seq, t)
-            recorder = self.recorder
-            if recorder is not None:
-                recorder.add(seq if seq is not None else self.stats.received - 1, t, stress)
-            latest = LiveFrame(stress, t, seq)
-        if latest is not None:
-            with self._lock:
-                self._latest = latest
-                notify = not self._notified
-                self._notified = True
-            if notify and self._on_frame is not None:
-                self._on_frame()
+        self._publish([SourceFrame(self.calibration(frame.values), t, self.stats.add(frame.seq, t))
+                       for frame in frames])
 
 
 class SerialReader(LiveSource):
@@ -304,15 +252,15 @@ class SerialReader(LiveSource):
     layout : SensorLayout
     fmt : {"binary", "text"}
     baudrate : int
-    on_frame, reconnect_interval
+    reconnect_interval
         As for :class:`LiveSource`.
     """
 
     def __init__(self, url: str, layout: SensorLayout, *, fmt: str = "binary", baudrate: int = 115200,
-                 on_frame=None, reconnect_interval: float = 0.5):
+                 reconnect_interval: float = 0.5):
         import serial  # pyserial; imported here so that the codecs work without it
 
-        super().__init__(url, layout, fmt=fmt, on_frame=on_frame, reconnect_interval=reconnect_interval)
+        super().__init__(url, layout, fmt=fmt, reconnect_interval=reconnect_interval)
         self.baudrate = baudrate
         self.lost = (serial.SerialException, OSError)
 

@@ -1,18 +1,20 @@
-"""The viewer's state in plain Python: what is open, which frame, which parameters.
+"""The viewer's state in plain Python: which source, which frame, which parameters.
 
 No Qt and no pyvista here (napari's split): the window and the scene only
-follow this model's signals and set its fields. The model calls the solver; it
-never draws. Given a ``dispatch`` function it schedules its own solves: every
-change that alters what is shown (a frame, a live frame, the parameters, a new
-solver) submits a solve to one latest-wins worker thread that owns the solver,
-and the result comes back through ``dispatch`` (the Qt layer posts it to the
-GUI thread) as the ``solved`` signal.
+follow this model's signals and set its fields. The model follows its
+:class:`~tactile_viewer.source.Source` (a recording or a live board), calls the
+solver and never draws. Given a ``dispatch`` function it schedules its own
+solves: every change that alters what is shown (a frame the source produced,
+the parameters, a new solver) submits a solve to one latest-wins worker thread
+that owns the solver, and the result comes back through ``dispatch`` (the Qt
+layer posts it to the GUI thread) as the ``solved`` signal.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -24,11 +26,12 @@ from solver.arrays import read_only
 from solver.kernels import KERNELS
 
 from .recording import Recording
+from .source import RecordingSource, Signal, Source, SourceFrame
 from .worker import LatestWorker
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Signal", "Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO", "KERNEL_HELP", "geometry_text"]
+__all__ = ["Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO", "KERNEL_HELP", "geometry_text"]
 
 MAX_SHEAR_RATIO = 1.5  # the slider's end; the automatic search uses the same bound
 MAPS = ("pressure", "stress", "none")
@@ -47,23 +50,6 @@ def geometry_text(grid: SensorGrid) -> str:
     size = f"taxel {grid.sensor_size * 1e3:g} mm" if grid.sensor_size > 0 else "point sensors"
     return (f"{taxels}, pitch {grid.pitch * 1e3:g} mm, thickness {grid.thickness * 1e3:g} mm, "
             f"nu {grid.poisson_ratio:g}, {size}")
-
-
-class Signal:
-    """A minimal callback list: ``connect(fn)``, ``disconnect(fn)``, ``emit(*args)``."""
-
-    def __init__(self):
-        self._slots = []
-
-    def connect(self, slot):
-        self._slots.append(slot)
-
-    def disconnect(self, slot):
-        self._slots.remove(slot)
-
-    def emit(self, *args):
-        for slot in list(self._slots):
-            slot(*args)
 
 
 @dataclass(frozen=True)
@@ -162,8 +148,9 @@ class ViewerModel:
     Signals
     -------
     recording_changed()
-        A recording (and its reconstructor) was installed.
+        A source (and its reconstructor) was installed.
     frame_changed(int)
+        The recording moved to another frame.
     parameters_changed()
         Auto flag, shear ratio, shear direction or kernel changed.
     display_changed()
@@ -171,6 +158,9 @@ class ViewerModel:
         A frame was reconstructed.
     solve_failed(str)
         A solve raised; the message (the error is logged with its traceback).
+    message(str, str, str)
+        A source's news for people: ``(level, title, text)``, level "info" or
+        "error" (a recording saved, a recording that could not be completed).
 
     Parameters
     ----------
@@ -185,18 +175,18 @@ class ViewerModel:
         solve is then posted before the window repaints, so the control that
         asked for it and the new frame reach the screen in one repaint
         instead of two, while a slow solve still leaves the window free.
+    pace : bool, optional
+        Frames a live source pushes are taken only once the last result is
+        on screen (the window calls :meth:`shown`): a solve that could never
+        be drawn is not run. Default False.
     """
 
-    def __init__(self, *, dispatch=None, settle: float = 0.0):
-        self.recording: Recording | None = None
-        self.live = False  # showing a live source instead of a recording
-        self.live_frame = None
-        self.live_label = ""
-        self.path: Path | None = None
+    def __init__(self, *, dispatch=None, settle: float = 0.0, pace: bool = False):
+        self.source: Source | None = None
+        self.current: SourceFrame | None = None  # the frame being shown
         self.reconstructor: Reconstructor | None = None
         self.kernel = KERNELS[0]  # the solver lists its default first
-        self.configuration = None  # a solver.tradeoff.Configuration (quality preset), None: standard
-        self.frame = 0
+        self.configuration = None  # a solver.quality.Configuration (quality preset), None: standard
         self.auto = True
         self.shear_ratio = 0.0
         self.shear_direction = 0.0  # radians
@@ -208,8 +198,13 @@ class ViewerModel:
         self.display_changed = Signal()
         self.solved = Signal()
         self.solve_failed = Signal()
+        self.message = Signal()
         self._dispatch = dispatch
         self.settle = float(settle)
+        self.pace = bool(pace)
+        self._owner = threading.get_ident()
+        self._unshown = False  # a pushed frame's result is not on screen yet
+        self._waiting = False  # a pushed frame arrived meanwhile
         self._generation = 0  # grows with each installed solver: results of older ones are dropped
         self._closed = False
         self._worker = None if dispatch is None else LatestWorker(self._work, name="tactile-solver")
@@ -220,53 +215,52 @@ class ViewerModel:
     def build(grid: SensorGrid, kernel: str, configuration=None):
         """The solver for a geometry (slow for large grids: run it off the GUI thread).
 
-        ``configuration`` is a :class:`solver.tradeoff.Configuration` (a quality
-        preset); None is the standard exact solve. Its kernel is replaced by ``kernel``.
+        ``configuration`` is a :class:`solver.quality.Configuration` (a quality
+        preset) whose kernel is replaced by ``kernel``; None is the standard
+        solve (:func:`solver.make_solver`: dense up to 32x32, contact by
+        contact beyond).
         """
-        if configuration is None:
-            # solver.make_solver: dense up to 32x32, contact by contact beyond
-            return make_solver(grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO)
-        return replace(configuration, kernel=kernel).build(grid)
+        return make_solver(grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO, quality=configuration)
+
+    # -- what is shown ---------------------------------------------------------------
 
     @property
     def is_open(self) -> bool:
-        """A recording or a live source is shown."""
-        return self.recording is not None or self.live
+        """A source is shown."""
+        return self.source is not None
+
+    @property
+    def live(self) -> bool:
+        """The source is live (frames pushed at its own pace)."""
+        return self.source is not None and self.source.live
+
+    @property
+    def recording(self) -> Recording | None:
+        """The recording shown, None for a live source or nothing."""
+        return self.source.recording if isinstance(self.source, RecordingSource) else None
+
+    @property
+    def path(self) -> Path | None:
+        """The file of the recording shown, if it came from one."""
+        return self.source.path if isinstance(self.source, RecordingSource) else None
+
+    @property
+    def frame(self) -> int:
+        """The recording's frame shown (0 for a live source)."""
+        return self.source.position if isinstance(self.source, RecordingSource) else 0
 
     @property
     def grid(self) -> SensorGrid | None:
         """The geometry shown (the solver's), None when nothing is open."""
         return self.reconstructor.grid if self.is_open else None
 
-    def install_live(self, reconstructor: Reconstructor, label: str):
-        """Show a live source on ``reconstructor.grid``; frames come through :meth:`show_live`."""
-        self.recording, self.path, self.live, self.live_label = None, None, True, label
-        self.live_frame = None
-        self.reconstructor = reconstructor
-        self.kernel = reconstructor.kernel
-        self.frame = 0
-        self.last = None
-        # nominal arrow lengths until the user sets them: 50 mN per node spans
-        # three pitches, a 1 N total a third of the skin
-        grid = reconstructor.grid
-        width = float(np.ptp(grid.positions[:, 0])) + grid.pitch
-        self.display = replace(self.display, arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3)
-        self._generation += 1
-        self.recording_changed.emit()
-        self.display_changed.emit()
+    def set_source(self, source: Source, reconstructor: Reconstructor):
+        """Show ``source`` with its ready reconstructor.
 
-    def show_live(self, frame):
-        """The newest live frame (a :class:`~tactile_viewer.live_source.LiveFrame`); solve to show it."""
-        if not self.live:
-            raise RuntimeError("show_live needs install_live first")
-        if frame.stress.shape != (self.reconstructor.grid.size,):
-            raise ValueError(f"live frame must have {self.reconstructor.grid.size} values, "
-                             f"got shape {frame.stress.shape}")
-        self.live_frame = frame
-        self._schedule()
-
-    def install(self, recording: Recording, reconstructor: Reconstructor, path=None):
-        """Show a recording with its ready reconstructor; starts at frame 0.
+        A recording starts at frame 0; a live source shows its next frame. A
+        different source replaces the one shown, which is stopped (its
+        recording closed). Installing the same source again (another kernel or
+        quality) keeps its frame.
 
         Raises
         ------
@@ -275,43 +269,84 @@ class ViewerModel:
             positions, thickness, pitch, Poisson ratio or taxel size (the
             layer kernel's matrix depends on all of them).
         """
-        if reconstructor.grid.key != recording.grid.key:
-            raise ValueError("reconstructor was built for another geometry than the recording's")
-        self.recording = recording
-        self.live, self.live_frame, self.live_label = False, None, ""
+        if reconstructor.grid.key != source.grid.key:
+            raise ValueError("reconstructor was built for another geometry than the source's")
+        old, same = self.source, source is self.source
+        if old is not None and not same:
+            old.frame_arrived.disconnect(self._frame_arrived)
+            self._stop(old)  # its last news (a recording saved) still reaches the user
+            old.message.disconnect(self._source_message)
+        self.source = source
         self.reconstructor = reconstructor
         self.kernel = reconstructor.kernel
-        self.path = Path(path) if path is not None else None
-        self.frame = 0
         self.last = None
-        # readable default arrow lengths: on the recording's most loaded frame the
-        # largest node force spans about three pitches, the total a third of the skin
-        loaded = int(np.argmax(np.abs(recording.frames).sum(axis=1)))
-        first = reconstructor.solve_normal(recording.frames[loaded]).forces[:, 2]
-        peak = float(np.abs(first).max()) or 1.0
-        total = abs(float(first.sum())) or peak
-        width = float(np.ptp(recording.grid.positions[:, 0])) + recording.grid.pitch
-        self.display = replace(self.display, arrow_scale=3 * recording.grid.pitch / peak,
-                               resultant_scale=width / 3 / total,
-                               range_max=max(float(np.abs(recording.frames).max()),
-                                             peak / recording.grid.pitch**2, 1.0))
+        self._unshown = self._waiting = False
+        if not same:
+            self.current = None
+            self.display = replace(self.display, **_display_scales(source, reconstructor))
+            source.frame_arrived.connect(self._frame_arrived)
+            source.message.connect(self._source_message)
         self._generation += 1
         self.recording_changed.emit()
         self.display_changed.emit()
+        if isinstance(source, RecordingSource):
+            source.seek(source.position if same else 0)
+        else:
+            self._take()  # a frame that arrived while the solver was built
+
+    def _stop(self, source: Source):
+        try:
+            source.stop()
+        except Exception as exc:  # a source that fails to stop must not keep the next from showing
+            log.exception("stopping %s failed", source.label)
+            self.message.emit("error", "Source did not stop cleanly", f"{source.label}: {exc}")
+
+    def _source_message(self, level: str, title: str, text: str):
+        if threading.get_ident() == self._owner or self._dispatch is None:
+            self.message.emit(level, title, text)
+        elif not self._closed:
+            self._dispatch(lambda: self.message.emit(level, title, text))
+
+    def _frame_arrived(self):
+        # a source produced a frame: on our thread (a recording seeks) take it now; from a
+        # reader thread hand it over, then take the newest once the last result is shown
+        if threading.get_ident() == self._owner or self._dispatch is None:
+            self._take()
+        elif not self._closed:
+            self._dispatch(self._take_pushed)
+
+    def _take_pushed(self):
+        if self._unshown:
+            self._waiting = True
+            return
+        self._take()
+
+    def _take(self):
+        source = self.source
+        frame = source.take_latest() if source is not None else None
+        if frame is None:
+            return
+        previous, self.current = self.current, frame
+        if previous is not None and frame.index != previous.index and isinstance(source, RecordingSource):
+            self.frame_changed.emit(frame.index)
         self._schedule()
+
+    def shown(self):
+        """The last result is on screen: a live frame that waited is taken now (with ``pace``)."""
+        self._unshown = False
+        if self._waiting:
+            self._waiting = False
+            self._take()
 
     # -- state changes ---------------------------------------------------------------
 
     def set_frame(self, index: int):
-        if self.recording is None:
+        """Show frame ``index`` of the recording (nothing for a live source); playback goes on from it."""
+        source = self.source
+        if not isinstance(source, RecordingSource):
             return
-        index = int(index)
-        if not 0 <= index < len(self.recording):
-            raise ValueError(f"frame must be in [0, {len(self.recording) - 1}], got {index}")
-        if index != self.frame:
-            self.frame = index
-            self.frame_changed.emit(index)
-            self._schedule()
+        if int(index) != source.position:
+            source.seek(index, now=time.perf_counter())
 
     def set_auto(self, auto: bool):
         if bool(auto) != self.auto:
@@ -354,7 +389,7 @@ class ViewerModel:
         last = self.last
         r = last.result
         grid = self.reconstructor.grid
-        source = self.live_label if self.live else (str(self.path) if self.path else None)
+        source = self.source.label if self.live else (str(self.path) if self.path else None)
         return dict(recording=source, frame=last.frame, t=last.time,
                     kernel=self.kernel, poisson_ratio=grid.poisson_ratio, sensor_size=grid.sensor_size,
                     mode="auto" if last.auto else "manual",
@@ -365,18 +400,11 @@ class ViewerModel:
     # -- the work ------------------------------------------------------------------------
 
     def _job(self) -> _Job | None:
-        if self.live:
-            if self.live_frame is None:
-                return None
-            stress, time_s = self.live_frame.stress, self.live_frame.t
-            index = self.live_frame.seq if self.live_frame.seq is not None else -1
-        elif self.recording is not None:
-            stress, index = self.recording.frames[self.frame], self.frame
-            time_s = float(self.recording.t[self.frame])
-        else:
+        frame = self.current
+        if frame is None or self.reconstructor is None:
             return None
-        return _Job(self._generation, self.reconstructor, index, time_s, stress, self.auto,
-                    self.shear_ratio, self.shear_direction)
+        return _Job(self._generation, self.reconstructor, frame.index if frame.index is not None else -1,
+                    frame.t, frame.stress, self.auto, self.shear_ratio, self.shear_direction)
 
     @staticmethod
     def _compute(job: _Job) -> Solved:
@@ -430,6 +458,7 @@ class ViewerModel:
         if job.generation != self._generation:
             return  # solved with a solver that has been replaced since
         self.last = solved
+        self._unshown = self.pace and self.live
         self.solved.emit(solved)
 
     def _failed(self, job: _Job, message: str):
@@ -451,11 +480,31 @@ class ViewerModel:
         return self._worker is None or self._worker.wait_idle(timeout)
 
     def close(self):
-        """End the worker thread (the running solve finishes; its result is dropped).
+        """Stop the source and end the worker thread (the running solve finishes; its result is dropped).
 
         Changes after this are kept but solve nothing.
         """
         self._closed = True
         self._generation += 1
+        if self.source is not None:
+            self._stop(self.source)
         if self._worker is not None:
             self._worker.close()
+
+
+def _display_scales(source: Source, reconstructor) -> dict:
+    # readable default arrow lengths and colour range for a new source
+    grid = source.grid
+    width = float(np.ptp(grid.positions[:, 0])) + grid.pitch
+    if not isinstance(source, RecordingSource):
+        # nothing seen yet: 50 mN per node spans three pitches, a 1 N total a third of the skin
+        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3)
+    # on the recording's most loaded frame the largest node force spans about three pitches,
+    # the total a third of the skin; the fixed colour range holds every frame
+    frames = source.recording.frames
+    loaded = int(np.argmax(np.abs(frames).sum(axis=1)))
+    first = reconstructor.solve_normal(frames[loaded]).forces[:, 2]
+    peak = float(np.abs(first).max()) or 1.0
+    total = abs(float(first.sum())) or peak
+    return dict(arrow_scale=3 * grid.pitch / peak, resultant_scale=width / 3 / total,
+                range_max=max(float(np.abs(frames).max()), peak / grid.pitch**2, 1.0))

@@ -2,10 +2,9 @@
 
 No panel solves, draws or reads files: :class:`ParametersPanel` and
 :class:`DisplayPanel` edit the :class:`~tactile_viewer.model.ViewerModel`;
-:class:`PlaybackPanel` moves the frame on the recording's clock
-(:class:`~tactile_viewer.playback.PlaybackClock`);
-:class:`LivePanel` shows a live source's state. Requests that need the window
-(a new kernel to factor, a camera preset, a live action) leave as Qt signals.
+:class:`PlaybackPanel` ticks the recording source's clock (the live panel is
+:mod:`tactile_viewer.live_panel`). Requests that need the window (a new kernel
+to factor, a camera preset) leave as Qt signals.
 """
 
 from __future__ import annotations
@@ -18,10 +17,9 @@ from PyQt6 import QtCore, QtWidgets
 from solver.kernels import KERNELS
 
 from .model import KERNEL_HELP, MAX_SHEAR_RATIO, Solved, ViewerModel, geometry_text
-from .playback import PlaybackClock
+from .source import RecordingSource
 
-__all__ = ["ParametersPanel", "DisplayPanel", "PlaybackPanel", "LivePanel", "status_text", "MAP_CHOICES",
-           "SPEEDS"]
+__all__ = ["ParametersPanel", "DisplayPanel", "PlaybackPanel", "status_text", "MAP_CHOICES", "SPEEDS"]
 
 MAP_CHOICES = (("normal pressure", "pressure"), ("sensor stress", "stress"), ("none", "none"))
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)
@@ -70,7 +68,7 @@ class ParametersPanel(QtWidgets.QGroupBox):
     kernel_chosen(str)
         The user picked another kernel (the window factors it).
     quality_chosen(object)
-        The user picked a quality preset (a ``solver.tradeoff.Configuration`` or None).
+        The user picked a quality preset (a ``solver.quality.Configuration`` or None).
     """
 
     kernel_chosen = QtCore.pyqtSignal(str)
@@ -245,10 +243,11 @@ class DisplayPanel(QtWidgets.QGroupBox):
 
 
 class PlaybackPanel(QtWidgets.QGroupBox):
-    """Play, step, frame slider, speed, loop: the recording's clock drives the model's frame.
+    """Play, step, frame slider, speed, loop: controls of the recording source's clock.
 
-    Playback shows the frame whose time has come, so slow drawing skips
-    frames rather than slowing the recording down.
+    The :class:`~tactile_viewer.source.RecordingSource` keeps the clock and
+    shows the frame whose time has come, so slow drawing skips frames rather
+    than slowing the recording down; this panel only ticks it.
     """
 
     def __init__(self, model: ViewerModel, parent=None):
@@ -263,12 +262,13 @@ class PlaybackPanel(QtWidgets.QGroupBox):
         forward = QtWidgets.QPushButton(">")
         forward.clicked.connect(lambda: self.step(1))
         self.frame_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
-        self.frame_slider.valueChanged.connect(self._frame_slider_moved)
+        self.frame_slider.valueChanged.connect(model.set_frame)
         self.speed_box = QtWidgets.QComboBox()
         self.speed_box.addItems([f"{s:g}x" for s in SPEEDS])
         self.speed_box.setCurrentIndex(SPEEDS.index(1.0))
-        self.speed_box.currentIndexChanged.connect(lambda _: self._restart_clock())
+        self.speed_box.currentIndexChanged.connect(lambda _: self._follow_controls())
         self.loop_box = QtWidgets.QCheckBox("loop")
+        self.loop_box.toggled.connect(lambda _: self._follow_controls())
         self.time_label = QtWidgets.QLabel("-")
         grid.addWidget(back, 0, 0)
         grid.addWidget(self.play_button, 0, 1)
@@ -279,7 +279,7 @@ class PlaybackPanel(QtWidgets.QGroupBox):
         grid.addWidget(self.time_label, 2, 0, 1, 5)
         self._timer = QtCore.QTimer(self, interval=15)
         self._timer.timeout.connect(self._tick)
-        self.clock: PlaybackClock | None = None
+        self.source: RecordingSource | None = None
         model.recording_changed.connect(self._on_recording)
         model.frame_changed.connect(self._on_frame)
         model.solved.connect(self._on_solved)
@@ -293,107 +293,58 @@ class PlaybackPanel(QtWidgets.QGroupBox):
 
     def stop(self):
         self.set_playing(False)
-        self._timer.stop()
 
     def step(self, delta: int):
-        recording = self.model.recording
-        if recording is None:
-            return
-        self.model.set_frame(min(max(self.model.frame + delta, 0), len(recording) - 1))
-        self._restart_clock()
+        if self.source is not None:
+            self.model.set_frame(min(max(self.model.frame + delta, 0), len(self.source) - 1))
 
     def _on_recording(self):
-        if self.model.live:
-            self.clock = None
+        source = self.model.source
+        if source is self.source:
+            return  # the same recording with another solver
+        if self.source is not None:
+            self.source.state_changed.disconnect(self._follow_state)
+        self.stop()
+        self.source = source if isinstance(source, RecordingSource) else None
+        if self.source is None:
             self.time_label.setText("live")
             return
-        recording = self.model.recording
-        self.clock = PlaybackClock(recording.t)
+        self.source.state_changed.connect(self._follow_state)
+        self._follow_controls()
 
         def apply():
-            self.frame_slider.setRange(0, len(recording) - 1)
-            self.frame_slider.setValue(0)
+            self.frame_slider.setRange(0, len(self.source) - 1)
+            self.frame_slider.setValue(self.source.position)
         _quietly([self.frame_slider], apply)
+
+    def _follow_controls(self):
+        if self.source is not None:
+            self.source.loop = self.loop_box.isChecked()
+            self.source.set_speed(self.speed, time.perf_counter())
+
+    def _follow_state(self):
+        # the recording stopped itself at its end
+        if self.source is not None and self.source.state != "playing":
+            self.set_playing(False)
 
     def _on_frame(self, index):
         _quietly([self.frame_slider], lambda: self.frame_slider.setValue(index))
 
     def _on_solved(self, solved):
-        if not self.model.live:
-            self.time_label.setText(f"frame {solved.frame + 1} of {len(self.model.recording)},  "
+        if self.source is not None:
+            self.time_label.setText(f"frame {solved.frame + 1} of {len(self.source)},  "
                                     f"t = {solved.time:.3f} s")
-
-    def _frame_slider_moved(self, value):
-        self.model.set_frame(value)
-        self._restart_clock()
 
     def _play_toggled(self, on):
         self.play_button.setText("Pause" if on else "Play")
-        if on and self.model.recording is not None:
-            if self.model.frame == len(self.model.recording) - 1:
-                self.model.set_frame(0)
-            self._restart_clock()
+        if on and self.source is not None:
+            self.source.play(time.perf_counter())
             self._timer.start()
         else:
             self._timer.stop()
-
-    def _restart_clock(self):
-        if self.clock is not None and self.model.recording is not None:
-            self.clock.restart(self.model.frame, time.perf_counter())
+            if self.source is not None:
+                self.source.pause()
 
     def _tick(self):
-        if self.clock is None or self.model.recording is None:
-            self.stop()
-            return
-        index, finished = self.clock.due(time.perf_counter(), speed=self.speed,
-                                         loop=self.loop_box.isChecked())
-        if index != self.model.frame:
-            self.model.set_frame(index)
-        if finished:
-            self.set_playing(False)
-
-
-class LivePanel(QtWidgets.QGroupBox):
-    """A live source's state and its actions (tare, record, stop recording, disconnect).
-
-    Signals
-    -------
-    action(str)
-        "tare", "record", "stop_recording" or "disconnect" was asked for.
-    """
-
-    action = QtCore.pyqtSignal(str)
-
-    def __init__(self, parent=None):
-        super().__init__("Live", parent)
-        box = QtWidgets.QVBoxLayout(self)
-        self.status = QtWidgets.QLabel("")
-        self.status.setWordWrap(True)
-        box.addWidget(self.status)
-        buttons = QtWidgets.QHBoxLayout()
-        for label, name in (("Tare", "tare"), ("Record...", "record"), ("Stop recording", "stop_recording"),
-                            ("Disconnect", "disconnect")):
-            button = QtWidgets.QPushButton(label)
-            button.clicked.connect(lambda _=False, name=name: self.action.emit(name))
-            buttons.addWidget(button)
-        box.addLayout(buttons)
-        self.hide()
-
-    def show_reader(self, reader) -> bool:
-        """Show ``reader``'s state (a ``live_source.LiveSource``): rate, counts, rejections, recording."""
-        stats = reader.stats
-        rejected = reader.rejected()
-        parts = [f"{reader.url} ({reader.fmt}): {reader.state}", f"{stats.rate(reader.now()):.0f} fps",
-                 f"received {stats.received}", f"lost {stats.lost}"]
-        if rejected or reader.decoder.skipped_bytes:
-            parts.append("rejected " + (", ".join(f"{k} {v}" for k, v in sorted(rejected.items())) or "0")
-                         + f"; skipped {reader.decoder.skipped_bytes} B")
-        if reader.reconnects:
-            parts.append(f"reconnected {reader.reconnects}x")
-        if reader.failures:
-            parts.append(f"{reader.failures} chunks failed: {reader.error}")
-        if reader.calibration.taring:
-            parts.append("taring")
-        if reader.recorder is not None:
-            parts.append(f"recording {reader.recorder.path.name} ({reader.recorder.written} frames saved)")
-        self.status.setText("\n".join(parts))
+        if self.source is not None:
+            self.source.advance(time.perf_counter())

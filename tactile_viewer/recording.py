@@ -37,15 +37,11 @@ import zipfile
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from solver import SensorGrid
 from solver.arrays import read_only
-
-if TYPE_CHECKING:
-    from .layout import SensorLayout
 
 __all__ = ["Recording", "RecordingError", "load", "save", "Recorder", "grid_from_fields", "geometry_fields",
            "csv_geometry_header", "MAX_TAXELS"]
@@ -369,7 +365,7 @@ class Recorder:
     time, so a crash loses at most that much.
     """
 
-    def __init__(self, path, layout: SensorLayout, *, flush_interval: float = 1.0, description: str = ""):
+    def __init__(self, path, grid: SensorGrid, *, flush_interval: float = 1.0, description: str = ""):
         path = Path(path)
         self.kind = path.suffix.lower()
         if self.kind not in (".npz", ".csv"):
@@ -383,7 +379,6 @@ class Recorder:
         self._chunks = 0
         self._last_flush: float | None = None
         self._lock = threading.Lock()
-        grid = layout.grid
         # the geometry as every recording declares it (recording.geometry_fields), positions always
         self._meta = dict(geometry_fields(grid), units="Pa")
         self._meta["positions"] = grid.positions

@@ -1,6 +1,6 @@
 """``tactile-tradeoff``: measure speed against accuracy for a geometry; table, CSV and plot.
 
-The measurements are :mod:`solver.tradeoff`'s; this module adds the command
+The measurements are :mod:`measurement.tradeoff`'s; this module adds the command
 line and draws the time-against-error plot with its Pareto front (a pyvista
 chart, rendered off screen).
 """
@@ -12,10 +12,12 @@ import dataclasses
 import sys
 from pathlib import Path
 
+from measurement import tradeoff as measured
+from measurement.cases import default_cases
+from measurement.tradeoff import machine
 from solver import SensorGrid
-from solver import tradeoff as measured
 from solver.kernels import KERNELS
-from solver.tradeoff import machine
+from solver.quality import CONFIGURATIONS, Configuration
 
 from .model import KERNEL_HELP, geometry_text
 
@@ -32,15 +34,15 @@ def on_kernel(configurations, kernel: str) -> list:
 
     Parameters
     ----------
-    configurations : iterable of solver.tradeoff.Configuration
+    configurations : iterable of solver.quality.Configuration
     kernel : str
         One of :data:`solver.kernels.KERNELS`.
 
     Returns
     -------
-    list of solver.tradeoff.Configuration
+    list of solver.quality.Configuration
     """
-    default = next(f.default for f in dataclasses.fields(measured.Configuration) if f.name == "kernel")
+    default = next(f.default for f in dataclasses.fields(Configuration) if f.name == "kernel")
     moved, compared = [], []
     for c in configurations:
         if c.kernel == default:
@@ -150,7 +152,7 @@ def main(argv=None) -> int:
         parser.error(str(exc))
     if any(not 0 <= n < 1 for n in args.noise):
         parser.error(f"--noise levels must be in [0, 1), got {args.noise}")
-    cases = measured.default_cases(grid, noises=tuple(args.noise))
+    cases = default_cases(grid, noises=tuple(args.noise))
     print(
         f"{machine()}\n{geometry_text(grid)}; kernel {args.kernel}; {len(cases)} cases "
         f"(noise {', '.join(f'{100 * n:g}%' for n in args.noise)})",
@@ -158,12 +160,12 @@ def main(argv=None) -> int:
     )
     results = measured.measure_all(
         grid,
-        on_kernel(measured.CONFIGURATIONS, args.kernel),
+        on_kernel(CONFIGURATIONS, args.kernel),
         cases=cases,
         repeat=args.repeat,
         progress=lambda m: print(f"  measured {m.name}", file=sys.stderr, flush=True),
     )
-    print(measured.format_table(results))
+    print(measured.format_measurements(results))
     args.out.mkdir(parents=True, exist_ok=True)
     table = measured.write_csv(results, args.out / "tradeoff.csv")
     figure = plot(

@@ -12,7 +12,11 @@ from __future__ import annotations
 import sys
 import threading
 
-__all__ = ["LatestWorker"]
+__all__ = ["LatestWorker", "Cancelled"]
+
+
+class Cancelled(Exception):
+    """Work stopped because it was asked to (the user cancelled, the window closed); nothing was written."""
 
 
 class LatestWorker:

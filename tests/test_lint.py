@@ -1,4 +1,4 @@
-"""Style: ruff over the packages and the tests (settings in pyproject.toml)."""
+"""Style: ruff over the packages, the tests, the tools and the benchmarks (settings in pyproject.toml)."""
 
 import subprocess
 import sys
@@ -8,7 +8,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_ruff_is_clean():
-    out = subprocess.run([sys.executable, "-m", "ruff", "check", "solver", "tactile_viewer", "tests", "tools",
-                          "benchmarks"],
+    out = subprocess.run([sys.executable, "-m", "ruff", "check", "solver", "measurement", "tactile_viewer", "tests",
+                          "tools", "benchmarks"],
                          cwd=ROOT, capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr

@@ -9,13 +9,13 @@ import pytest
 from solver import Reconstructor, SensorGrid, loads
 from tactile_viewer.export import (
     CSV_COLUMNS,
-    ExportCancelled,
     load_forces,
     reconstruct_frames,
     save_forces,
     write_sidecar,
 )
 from tactile_viewer.recording import Recording
+from tactile_viewer.worker import Cancelled
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +64,7 @@ def test_progress_is_reported_and_can_cancel(recording, reconstructor):
     seen = []
     reconstruct_frames(recording, reconstructor, progress=lambda done, total: seen.append((done, total)))
     assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
-    with pytest.raises(ExportCancelled, match="cancelled after 2 of 4 frames"):
+    with pytest.raises(Cancelled, match="cancelled after 2 of 4 frames"):
         reconstruct_frames(recording, reconstructor, progress=lambda done, total: done < 2)
 
 

@@ -170,15 +170,16 @@ def test_reader_calibrates_to_pascals_and_keeps_the_newest(pty, make_reader):
     write_all(pty[0], b"".join(encode_binary(s, values(s)) for s in (0, 1, 2)))
     wait_for(lambda: reader.stats.received == 3, what="three frames")
     frame = reader.take_latest()
-    assert frame.seq == 2 and frame.t >= 0
+    assert frame.index == 2 and frame.t >= 0
     np.testing.assert_array_equal(frame.stress, values(2) * 1000)  # kPa -> Pa
     assert reader.take_latest() is None  # taken: nothing new since
     assert reader.stats.lost == 0 and reader.rejected() == {}
 
 
-def test_on_frame_fires_once_until_taken(pty, make_reader):
+def test_frame_arrived_fires_once_until_taken(pty, make_reader):
     calls = []
-    reader = make_reader(on_frame=lambda: calls.append(threading.current_thread().name))
+    reader = make_reader()
+    reader.frame_arrived.connect(lambda: calls.append(threading.current_thread().name))
     reader.start()
     write_all(pty[0], encode_binary(0, values(0)))
     wait_for(lambda: len(calls) == 1, what="the first notification")
@@ -189,12 +190,12 @@ def test_on_frame_fires_once_until_taken(pty, make_reader):
     wait_for(lambda: reader.stats.received == 3, what="the third frame")
     assert len(calls) == 1  # the GUI has not taken the first yet: no second notification
     # a frame is published just after it is counted: wait for it before taking, without re-arming
-    wait_for(lambda: reader._latest is not None and reader._latest.seq == 2, what="the third frame published")
+    wait_for(lambda: reader._latest is not None and reader._latest.index == 2, what="the third frame published")
     assert len(calls) == 1
-    assert reader.take_latest().seq == 2  # the newest; the ones before it were skipped, as the GUI may
+    assert reader.take_latest().index == 2  # the newest; the ones before it were skipped, as the GUI may
     write_all(pty[0], encode_binary(3, values(3)))
     wait_for(lambda: len(calls) == 2, what="the notification after taking")
-    assert reader.take_latest().seq == 3
+    assert reader.take_latest().index == 3
 
 
 def test_reader_skips_garbage(pty, make_reader):
@@ -205,7 +206,7 @@ def test_reader_skips_garbage(pty, make_reader):
     write_all(pty[0], garbage + encode_binary(0, values(0)) + garbage[:50] + encode_binary(1, values(1)))
     wait_for(lambda: reader.stats.received == 2, what="both frames past the garbage")
     assert reader.decoder.skipped_bytes == len(garbage) + 50
-    assert reader.take_latest().seq == 1
+    assert reader.take_latest().index == 1
 
 
 @pytest.mark.parametrize("suffix", [".npz", ".csv"])
@@ -310,7 +311,8 @@ def test_a_new_transport_is_one_subclass(tmp_path):
 
     chunks = queue.Queue()
     arrived = threading.Event()
-    source = QueueSource(chunks, on_frame=arrived.set, reconnect_interval=0.01)
+    source = QueueSource(chunks, reconnect_interval=0.01)
+    source.frame_arrived.connect(arrived.set)
     source.start_recording(tmp_path / "queue.npz", flush_interval=0.0)
     source.start()
     try:

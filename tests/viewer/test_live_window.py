@@ -41,7 +41,7 @@ def board(tmp_path):
 def live(window, board, qtbot):
     """The window connected to a 200 Hz binary board with some garbage on the line."""
     board.start("--rate", "200", "--garbage", "0.1", "--seed", "5")
-    assert window.connect_live(str(board.link), board.layout, fmt="binary")
+    assert window.live_panel.connect_live(str(board.link), board.layout, fmt="binary")
     qtbot.waitUntil(lambda: window.model.live and window.model.last is not None, timeout=20000)
     return window
 
@@ -60,21 +60,21 @@ def test_the_window_shows_live_frames(live, qtbot):
 
 
 def test_injected_garbage_is_counted_and_no_frame_is_lost(live, qtbot):
-    reader = live.reader
+    reader = live.live_panel.reader
     qtbot.waitUntil(lambda: reader.decoder.skipped_bytes > 0 and reader.stats.received > 200, timeout=10000)
     assert reader.stats.lost == 0 and reader.stats.out_of_order == 0
     qtbot.waitUntil(lambda: "skipped" in live.live_panel.status.text(), timeout=3000)
 
 
 def test_a_disconnect_shows_no_data_and_a_reconnect_recovers(live, board, qtbot):
-    reader = live.reader
+    reader = live.live_panel.reader
     board.stop()
-    qtbot.waitUntil(lambda: live.banner.isVisible(), timeout=5000)
-    assert "NO DATA" in live.banner.text() and reader.state == "reconnecting"
+    qtbot.waitUntil(lambda: live.live_panel.banner.isVisible(), timeout=5000)
+    assert "NO DATA" in live.live_panel.banner.text() and reader.state == "reconnecting"
     before = reader.stats.received
     board.start("--rate", "200")
     qtbot.waitUntil(lambda: reader.reconnects == 1 and reader.stats.received > before + 50, timeout=15000)
-    qtbot.waitUntil(lambda: not live.banner.isVisible(), timeout=3000)
+    qtbot.waitUntil(lambda: not live.live_panel.banner.isVisible(), timeout=3000)
     with qtbot.waitSignal(live.rendered, timeout=5000):
         pass
     assert reader.stats.lost == 0  # a restarted board's new numbering is not a gap
@@ -82,60 +82,60 @@ def test_a_disconnect_shows_no_data_and_a_reconnect_recovers(live, board, qtbot)
 
 def test_a_1khz_recording_has_every_frame(window, board, qtbot, tmp_path):
     board.start("--rate", "1000", "--seed", "9")
-    assert window.connect_live(str(board.link), board.layout)
-    qtbot.waitUntil(lambda: window.reader is not None and window.reader.stats.received > 100, timeout=20000)
-    assert window.start_recording(tmp_path / "live.npz")
-    recorder = window.reader.recorder
+    assert window.live_panel.connect_live(str(board.link), board.layout)
+    qtbot.waitUntil(lambda: window.live_panel.reader is not None and window.live_panel.reader.stats.received > 100, timeout=20000)
+    assert window.live_panel.start_recording(tmp_path / "live.npz")
+    recorder = window.live_panel.reader.recorder
     qtbot.waitUntil(lambda: recorder.written >= 2000, timeout=20000)  # flushed every second
-    path = window.stop_recording()
+    path = window.live_panel.stop_recording()
     recording = load(path)
     assert len(recording) >= 2000
     np.testing.assert_array_equal(np.diff(recording.seq), 1)  # no gap, no repeat
     assert recording.grid.shape == (16, 16) and np.all(np.diff(recording.t) >= 0)
-    assert window.reader.stats.lost == 0 and window.reader.failures == 0
+    assert window.live_panel.reader.stats.lost == 0 and window.live_panel.reader.failures == 0
 
 
 def test_recording_to_csv_while_the_display_skips(window, board, qtbot, tmp_path):
     board.start("--rate", "500", "--format", "text")
-    assert window.connect_live(str(board.link), board.layout, fmt="text")
-    qtbot.waitUntil(lambda: window.reader is not None and window.reader.stats.received > 50, timeout=20000)
+    assert window.live_panel.connect_live(str(board.link), board.layout, fmt="text")
+    qtbot.waitUntil(lambda: window.live_panel.reader is not None and window.live_panel.reader.stats.received > 50, timeout=20000)
     drawn = []
     window.model.solved.connect(drawn.append)
-    assert window.start_recording(tmp_path / "live.csv")
-    qtbot.waitUntil(lambda: window.reader.recorder.written >= 500, timeout=20000)
-    received_while = window.reader.stats.received
-    path = window.stop_recording()
+    assert window.live_panel.start_recording(tmp_path / "live.csv")
+    qtbot.waitUntil(lambda: window.live_panel.reader.recorder.written >= 500, timeout=20000)
+    received_while = window.live_panel.reader.stats.received
+    path = window.live_panel.stop_recording()
     recording = load(path)
     assert len(recording) >= 500
     np.testing.assert_array_equal(np.diff(recording.seq), 1)  # text frames are numbered on arrival
     assert len(drawn) < received_while  # the display skipped frames; the recorder did not
-    assert window.reader.failures == 0
+    assert window.live_panel.reader.failures == 0
 
 
 def test_a_port_that_cannot_be_opened_is_reported_and_changes_nothing(opened, tmp_path, board):
     board.start("--rate", "50")
     shown = opened.model.recording
-    assert not opened.connect_live(str(tmp_path / "no-such-device"), board.layout)
+    assert not opened.live_panel.connect_live(str(tmp_path / "no-such-device"), board.layout)
     assert opened.errors and "no-such-device" in opened.errors[-1][1]
-    assert opened.model.recording is shown and not opened.model.live and opened.reader is None
+    assert opened.model.recording is shown and not opened.model.live and opened.live_panel.reader is None
 
 
 def test_a_bad_layout_is_reported(window, tmp_path, board):
     board.start("--rate", "50")
     bad = tmp_path / "bad.json"
     bad.write_text('{"nx": 4}')
-    assert not window.connect_live(str(board.link), bad)
+    assert not window.live_panel.connect_live(str(board.link), bad)
     assert "bad.json" in window.errors[-1][1] and "missing" in window.errors[-1][1]
-    assert window.reader is None
+    assert window.live_panel.reader is None
 
 
 def test_opening_a_recording_disconnects(live, qtbot):
     from pathlib import Path
 
-    reader = live.reader
+    reader = live.live_panel.reader
     with qtbot.waitSignal(live.ready, timeout=20000):
         live.open(Path(__file__).resolve().parents[2] / "sample_data" / "hertz_static.npz")
-    assert live.reader is None and reader.state == "stopped" and not live.model.live
+    assert live.live_panel.reader is None and reader.state == "stopped" and not live.model.live
     assert live.playback.isEnabled() and not live.live_panel.isVisible()
 
 
@@ -178,8 +178,8 @@ def test_exporting_the_live_frame_on_screen(live, qtbot, tmp_path):
     from tactile_viewer.export import load_forces
 
     shown = live.model.last
-    with qtbot.waitSignal(live.task_finished, timeout=30000):
-        live.export_forces(tmp_path / "live.npz", whole=False)
+    with qtbot.waitSignal(live.tasks.finished, timeout=30000):
+        live.exports.export_forces(tmp_path / "live.npz", whole=False)
     assert live.errors == []
     back = load_forces(tmp_path / "live.npz")
     assert back["forces"].shape == (1, live.model.grid.size, 3)
@@ -188,13 +188,13 @@ def test_exporting_the_live_frame_on_screen(live, qtbot, tmp_path):
 
 
 def test_a_recording_that_fails_to_close_is_reported_and_live_goes_on(live, qtbot, tmp_path):
-    assert live.start_recording(tmp_path / "full.npz")
-    qtbot.waitUntil(lambda: live.reader.recorder.written > 0 or bool(live.reader.recorder._rows), timeout=5000)
+    assert live.live_panel.start_recording(tmp_path / "full.npz")
+    qtbot.waitUntil(lambda: live.live_panel.reader.recorder.written > 0 or bool(live.live_panel.reader.recorder._rows), timeout=5000)
 
     def full_disk():
         raise OSError(28, "No space left on device")
-    live.reader.recorder.close = full_disk
-    assert live.stop_recording() is None
+    live.live_panel.reader.recorder.close = full_disk
+    assert live.live_panel.stop_recording() is None
     assert live.errors and live.errors[-1][0] == "Recording not completed"
     assert "No space left on device" in live.errors[-1][1] and "the live view goes on" in live.errors[-1][1]
     seen = live.model.last.frame

@@ -69,7 +69,7 @@ class Held:
 def test_a_slider_drag_solves_only_the_latest_value(opened, qtbot):
     model = opened.model
     with qtbot.waitSignal(opened.ready, timeout=20000):
-        model.install(model.recording, Held(model.reconstructor, 0.5), model.path)
+        model.set_source(model.source, Held(model.reconstructor, 0.5))
     solved = []
     model.solved.connect(solved.append)
     for value in range(10, 60, 5):  # ten moves, each faster than a solve
@@ -88,7 +88,7 @@ def test_the_window_keeps_responding_while_a_solve_runs(opened, qtbot):
     model = opened.model
     held = Held(model.reconstructor, 0.2)
     with qtbot.waitSignal(opened.ready, timeout=20000):
-        model.install(model.recording, held, model.path)
+        model.set_source(model.source, held)
     held.running.clear()
     ticks = []
     timer = QtCore.QTimer(interval=10)
@@ -142,7 +142,7 @@ def read_png(path):
 
 @pytest.mark.parametrize("scale", [1, 2])
 def test_screenshot_export_has_the_size_asked_and_is_not_blank(opened, tmp_path, scale):
-    path = opened.export_screenshot(tmp_path / "shot.png", scale=scale)
+    path = opened.exports.export_screenshot(tmp_path / "shot.png", scale=scale)
     pixels = read_png(path)
     width, height = opened.plotter.window_size
     assert pixels.shape[:2] == (height * scale, width * scale)
@@ -154,8 +154,8 @@ def test_screenshot_export_has_the_size_asked_and_is_not_blank(opened, tmp_path,
 
 
 def test_screenshot_honours_the_transparent_option(opened, tmp_path):
-    solid = read_png(opened.export_screenshot(tmp_path / "solid.png"))
-    clear = read_png(opened.export_screenshot(tmp_path / "clear.png", transparent=True))
+    solid = read_png(opened.exports.export_screenshot(tmp_path / "solid.png"))
+    clear = read_png(opened.exports.export_screenshot(tmp_path / "clear.png", transparent=True))
     assert clear.shape[2] == 4 and clear[0, 0, 3] == 0  # the corner is background
     assert solid.shape[2] == 3 or solid[0, 0, 3] == 255
 
@@ -164,15 +164,15 @@ def test_force_export_round_trips(opened, qtbot, tmp_path):
     recording = opened.model.recording
     for suffix in (".npz", ".csv"):
         path = tmp_path / f"all{suffix}"
-        with qtbot.waitSignal(opened.task_finished, timeout=30000):
-            opened.export_forces(path, whole=True)
+        with qtbot.waitSignal(opened.tasks.finished, timeout=30000):
+            opened.exports.export_forces(path, whole=True)
         back = load_forces(path)
         expected = reconstruct_frames(recording, opened.model.reconstructor)
         assert back["forces"].shape == (len(recording), recording.grid.size, 3)
         np.testing.assert_allclose(back["forces"], expected.forces, rtol=1e-6, atol=1e-12)
         np.testing.assert_allclose(back["shear_ratio"], expected.shear_ratio, rtol=1e-6, atol=1e-9)
-    with qtbot.waitSignal(opened.task_finished, timeout=30000):
-        opened.export_forces(tmp_path / "one.npz", whole=False)
+    with qtbot.waitSignal(opened.tasks.finished, timeout=30000):
+        opened.exports.export_forces(tmp_path / "one.npz", whole=False)
     one = load_forces(tmp_path / "one.npz")
     np.testing.assert_allclose(one["forces"][0], opened.model.last.result.forces, rtol=1e-9, atol=1e-15)
 
@@ -249,8 +249,8 @@ def test_looped_playback_wraps_to_the_start(opened, qtbot):
 
 
 def test_quality_presets_are_measured_for_the_geometry_and_applied(opened, qtbot):
-    with qtbot.waitSignal(opened.presets_measured, timeout=60000):
-        opened.measure_presets()
+    with qtbot.waitSignal(opened.presets.measured, timeout=60000):
+        opened.presets.measure()
     labels = [opened.parameters.quality_box.itemText(k) for k in range(opened.parameters.quality_box.count())]
     assert labels[0].startswith("standard") and [label.split(":")[0] for label in labels[1:]] == [
         "fast", "balanced", "accurate"]
@@ -268,7 +268,7 @@ def test_quality_presets_are_measured_for_the_geometry_and_applied(opened, qtbot
 
 def test_separate_contacts_are_reported_each_with_its_parameters(window, qtbot):
     from solver import SensorGrid, loads
-    from solver.tradeoff import Configuration
+    from solver.quality import Configuration
     from tactile_viewer.recording import Recording
 
     grid = SensorGrid.regular(40, 40, 2e-3, 2e-3)
@@ -314,11 +314,11 @@ def test_a_screenshot_that_cannot_be_written_is_reported(opened, tmp_path, where
     blocker.write_text("not a folder")
     target = (tmp_path / "gone" / "shot.png") if where == "missing folder" else (blocker / "shot.png")
     with pytest.raises(OSError, match="the folder does not exist"):
-        opened.export_screenshot(target)
+        opened.exports.export_screenshot(target)
     # through the menu's slot: reported, not raised (an exception there used to end the app)
     monkeypatch.setattr(QtWidgets.QDialog, "exec", lambda self: QtWidgets.QDialog.DialogCode.Accepted)
     monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: (str(target), "")))
-    opened.screenshot_dialog()
+    opened.exports.screenshot_dialog()
     assert opened.errors[-1] == ("Cannot save screenshot", f"{target}: the folder does not exist")
     assert not target.exists()
 
@@ -342,12 +342,12 @@ def test_closing_while_a_recording_is_factored_leaves_nothing_running(window, qt
 
     window.show_recording(load(SAMPLES / "hertz_static.npz"))  # factoring runs in a task
     window.close()
-    qtbot.waitUntil(lambda: not window._tasks, timeout=20000)  # the task's result arrives after the close
+    qtbot.waitUntil(lambda: not window.tasks.tasks, timeout=20000)  # the task's result arrives after the close
     assert window.model.recording is None
     assert not [t for t in threading.enumerate() if t.name == "tactile-solver" and t.is_alive()]
 
 
 def test_a_screenshot_before_any_frame_is_refused_cleanly(window, tmp_path):
     with pytest.raises(ValueError, match="no frame has been reconstructed yet"):
-        window.export_screenshot(tmp_path / "early.png")
+        window.exports.export_screenshot(tmp_path / "early.png")
     assert not (tmp_path / "early.png").exists()

@@ -9,8 +9,9 @@ import pytest
 
 from solver import Reconstructor, SensorGrid, loads
 from solver.kernels import KERNELS
-from tactile_viewer.model import MAX_SHEAR_RATIO, Display, Signal, Solved, ViewerModel, geometry_text
+from tactile_viewer.model import MAX_SHEAR_RATIO, Display, Solved, ViewerModel, geometry_text
 from tactile_viewer.recording import Recording
+from tactile_viewer.source import RecordingSource, Source, SourceFrame
 
 ROOT = Path(__file__).resolve().parents[2]
 PITCH, THICKNESS = 2e-3, 2e-3
@@ -37,7 +38,7 @@ def reconstructor(recording):
 @pytest.fixture
 def model(recording, reconstructor):
     model = ViewerModel()
-    model.install(recording, reconstructor, path="takes/sliding.npz")
+    model.set_source(RecordingSource(recording, "takes/sliding.npz"), reconstructor)
     return model
 
 
@@ -53,39 +54,12 @@ def names(events):
     return [name for name, _ in events]
 
 
-# -- Signal --------------------------------------------------------------------------------------
-
-def test_signal_calls_its_slots_in_order_and_forgets_disconnected_ones():
-    signal, calls = Signal(), []
-    first, second = (lambda *a: calls.append(("first", a))), (lambda *a: calls.append(("second", a)))
-    signal.connect(first)
-    signal.connect(second)
-    signal.emit(1, "x")
-    signal.disconnect(first)
-    signal.emit(2)
-    assert calls == [("first", (1, "x")), ("second", (1, "x")), ("second", (2,))]
-
-
-def test_a_slot_may_disconnect_itself_while_the_signal_fires():
-    signal, calls = Signal(), []
-
-    def once(value):
-        calls.append(("once", value))
-        signal.disconnect(once)
-
-    signal.connect(once)
-    signal.connect(lambda value: calls.append(("always", value)))
-    signal.emit(1)
-    signal.emit(2)  # the self-removal must not have skipped the second slot on the first emit
-    assert calls == [("once", 1), ("always", 1), ("always", 2)]
-
-
 # -- installing ----------------------------------------------------------------------------------
 
-def test_install_announces_the_recording_then_its_display(recording, reconstructor):
+def test_set_source_announces_the_recording_then_its_display(recording, reconstructor):
     model = ViewerModel()
     events = listen(model)
-    model.install(recording, reconstructor, path="takes/sliding.npz")
+    model.set_source(RecordingSource(recording, "takes/sliding.npz"), reconstructor)
     # the window builds the scene on recording_changed, then reads the display it was given
     assert events == [("recording_changed", ()), ("display_changed", ())]
     assert model.recording is recording and model.reconstructor is reconstructor
@@ -93,7 +67,7 @@ def test_install_announces_the_recording_then_its_display(recording, reconstruct
     assert model.frame == 0 and model.last is None
 
 
-def test_install_scales_the_display_to_the_recording(model, recording, reconstructor):
+def test_set_source_scales_the_display_to_the_recording(model, recording, reconstructor):
     # readable defaults, loosely (the exact rule is a heuristic): the largest normal-only node force
     # of the recording draws an arrow of a few pitches, and the fixed colour range holds every frame
     peak = max(np.abs(reconstructor.solve_normal(frame).forces[:, 2]).max() for frame in recording.frames)
@@ -102,20 +76,20 @@ def test_install_scales_the_display_to_the_recording(model, recording, reconstru
     assert math.isfinite(model.display.resultant_scale) and model.display.resultant_scale > 0
 
 
-def test_reinstalling_starts_over_at_frame_zero(model, recording, reconstructor):
+def test_a_new_source_starts_over_at_frame_zero(model, recording, reconstructor):
     model.set_frame(3)
     model.solve()
     model.set_display(map="stress")
-    model.install(recording, reconstructor)
+    model.set_source(RecordingSource(recording), reconstructor)
     assert model.frame == 0 and model.last is None and model.path is None
     assert model.display.map == "stress"  # the user's choices stay; only the scales follow the data
 
 
-def test_install_accepts_the_same_geometry_built_separately(recording, reconstructor):
+def test_set_source_accepts_the_same_geometry_built_separately(recording, reconstructor):
     twin = Recording(SensorGrid.regular(6, 5, PITCH, THICKNESS), recording.frames, recording.t)
     assert twin.grid is not reconstructor.grid
     model = ViewerModel()
-    model.install(twin, reconstructor)
+    model.set_source(RecordingSource(twin), reconstructor)
     assert model.recording is twin
 
 
@@ -126,22 +100,22 @@ def test_install_accepts_the_same_geometry_built_separately(recording, reconstru
     SensorGrid.regular(6, 5, PITCH, THICKNESS, poisson_ratio=0.45),  # a compressible elastomer
     SensorGrid.regular(6, 5, PITCH, THICKNESS, sensor_size=1e-3),    # taxels that average
 ], ids=["transposed", "thicker", "wider", "other-nu", "taxel-size"])
-def test_install_rejects_a_reconstructor_for_another_geometry(model, recording, other):
+def test_set_source_rejects_a_reconstructor_for_another_geometry(model, recording, other):
     events = listen(model)
     shown = model.recording
-    with pytest.raises(ValueError, match="reconstructor was built for another geometry than the recording's"):
-        model.install(recording, Reconstructor(other, kernel="cell"))
+    with pytest.raises(ValueError, match="reconstructor was built for another geometry than the source's"):
+        model.set_source(RecordingSource(recording), Reconstructor(other, kernel="cell"))
     assert model.recording is shown and events == []
 
 
-def test_install_rejects_a_reconstructor_for_another_pitch():
+def test_set_source_rejects_a_reconstructor_for_another_pitch():
     positions = SensorGrid.regular(4, 4, PITCH, THICKNESS).positions
     grid = SensorGrid(positions, THICKNESS, PITCH, (16,))
     other = SensorGrid(positions, THICKNESS, 1.5 * PITCH, (16,))
     recording = Recording(grid, np.full((2, 16), 1e3), [0.0, 1.0])
     assert not np.allclose(Reconstructor(grid).matrix, Reconstructor(other).matrix)  # really another geometry
     with pytest.raises(ValueError, match="another geometry"):
-        ViewerModel().install(recording, Reconstructor(other))
+        ViewerModel().set_source(RecordingSource(recording), Reconstructor(other))
 
 
 # -- frames --------------------------------------------------------------------------------------
@@ -338,7 +312,7 @@ def test_manual_solve_on_an_all_zero_frame(recording, reconstructor):
     # a skin at rest: nothing to reconstruct, nothing to raise
     zero = Recording(recording.grid, np.zeros((2, recording.grid.size)), [0.0, 1.0])
     model = ViewerModel()
-    model.install(zero, reconstructor)
+    model.set_source(RecordingSource(zero), reconstructor)
     model.set_parameters(shear_ratio=0.5, shear_direction=1.0)
     assert not np.any(model.solve().result.forces)
     model.set_auto(True)
@@ -373,7 +347,7 @@ def test_describe_carries_frame_mode_and_parameters(model, recording):
 def test_describe_names_the_material_solved_with(recording):
     grid = recording.grid.replace(poisson_ratio=0.45, sensor_size=1e-3)
     model = ViewerModel()
-    model.install(Recording(grid, recording.frames, recording.t), ViewerModel.build(grid, "point"))
+    model.set_source(RecordingSource(Recording(grid, recording.frames, recording.t)), ViewerModel.build(grid, "point"))
     model.solve()
     info = model.describe()
     assert info["poisson_ratio"] == 0.45 and info["sensor_size"] == 1e-3 and info["kernel"] == "point"
@@ -393,7 +367,7 @@ def test_geometry_text_names_nu_and_the_taxel():
 
 def test_describe_without_a_path(recording, reconstructor):
     model = ViewerModel()
-    model.install(recording, reconstructor)
+    model.set_source(RecordingSource(recording), reconstructor)
     model.solve()
     assert model.describe()["recording"] is None  # an in-memory recording
 
@@ -439,7 +413,7 @@ def threaded(recording, reconstructor):
 def test_changes_schedule_a_solve_on_the_worker(threaded, recording, reconstructor):
     model, posted = threaded
     events = listen(model)
-    model.install(recording, reconstructor)
+    model.set_source(RecordingSource(recording), reconstructor)
     assert posted.run(model) == 1  # the first frame, solved without being asked
     assert names(events) == ["recording_changed", "display_changed", "solved"]
     np.testing.assert_array_equal(model.last.result.forces, reconstructor.solve(recording.frames[0]).forces)
@@ -482,7 +456,7 @@ class SlowSolver:
 def test_the_newest_request_wins(threaded, recording, reconstructor):
     model, posted = threaded
     slow = SlowSolver(reconstructor)
-    model.install(recording, slow)
+    model.set_source(RecordingSource(recording), slow)
     assert slow.started.acquire(timeout=30)  # frame 0 is being solved
     for index in (1, 2, 3):  # three frames while it runs: only the last is worth solving
         model.set_frame(index)
@@ -496,9 +470,9 @@ def test_the_newest_request_wins(threaded, recording, reconstructor):
 def test_results_of_a_replaced_solver_are_dropped(threaded, recording, reconstructor):
     model, posted = threaded
     slow = SlowSolver(reconstructor)
-    model.install(recording, slow)
+    model.set_source(RecordingSource(recording), slow)
     assert slow.started.acquire(timeout=30)
-    model.install(recording, reconstructor)  # the user changed the kernel meanwhile
+    model.set_source(RecordingSource(recording), reconstructor)  # the user changed the kernel meanwhile
     slow.release.set()
     events = listen(model)
     posted.run(model)
@@ -517,11 +491,11 @@ def test_a_failing_solve_is_reported_and_the_model_goes_on(threaded, recording, 
     events = listen(model)
     failures = []
     model.solve_failed.connect(failures.append)
-    model.install(recording, broken)
+    model.set_source(RecordingSource(recording), broken)
     posted.run(model)
     assert failures == ["solve of frame 0 failed: the solver blew up"]
     assert model.last is None and "solved" not in names(events)
-    model.install(recording, reconstructor)  # and the next solver works
+    model.set_source(RecordingSource(recording), reconstructor)  # and the next solver works
     posted.run(model)
     assert model.last is not None and model.last.frame == 0
 
@@ -530,7 +504,7 @@ def test_closing_ends_the_worker_thread(recording, reconstructor):
     import threading
 
     model = ViewerModel(dispatch=Posted())
-    model.install(recording, reconstructor)
+    model.set_source(RecordingSource(recording), reconstructor)
     model.close()
     assert not [t for t in threading.enumerate() if t.name == "tactile-solver" and t.is_alive()]
     posted = model._dispatch
@@ -544,7 +518,7 @@ def test_a_change_waits_for_a_fast_solve_up_to_settle(recording, reconstructor):
     posted = Posted()
     model = ViewerModel(dispatch=posted, settle=30.0)
     try:
-        model.install(recording, reconstructor)
+        model.set_source(RecordingSource(recording), reconstructor)
         assert len(posted.calls) == 1  # no wait_idle needed: install returned after the solve
         model.set_frame(2)
         assert len(posted.calls) == 2
@@ -553,7 +527,7 @@ def test_a_change_waits_for_a_fast_solve_up_to_settle(recording, reconstructor):
     slow = SlowSolver(reconstructor)  # never released within settle: the change returns anyway
     model = ViewerModel(dispatch=Posted(), settle=0.05)
     try:
-        model.install(recording, slow)
+        model.set_source(RecordingSource(recording), slow)
         assert model.solving
     finally:
         slow.release.set()
@@ -572,3 +546,99 @@ def test_solved_carries_the_pressure_map_and_the_load_centroid(model, recording,
     assert not solved.pressure.flags.writeable
     nothing = Solved.of(grid, np.zeros(grid.size), reconstructor.solve(np.zeros(grid.size)))
     assert nothing.centroid is None and not np.any(nothing.pressure)
+
+
+# -- sources that push frames (a live board) -------------------------------------------------------
+
+class Pushed(Source):
+    """A live source whose frames come from a thread of its own."""
+
+    live = True
+
+    def __init__(self, grid):
+        super().__init__("test board (binary)", grid)
+        self.stopped = 0
+
+    def push(self, stress, index):
+        import threading
+
+        thread = threading.Thread(target=self._publish, args=([SourceFrame(stress, 0.01 * index, index)],))
+        thread.start()
+        thread.join()
+
+    def stop(self):
+        self.stopped += 1
+        super().stop()
+
+
+def test_pushed_frames_are_handed_to_the_models_thread_and_solved(threaded, recording, reconstructor):
+    model, posted = threaded
+    board = Pushed(recording.grid)
+    model.set_source(board, reconstructor)
+    assert model.live and model.recording is None and model.current is None
+    board.push(recording.frames[1], 41)
+    assert model.current is None  # not taken on the reader's thread
+    posted.run(model)  # the hand-over: take and schedule
+    posted.run(model)  # the result
+    assert model.last.frame == 41 and model.last.time == pytest.approx(0.41)
+    np.testing.assert_array_equal(model.last.result.forces, reconstructor.solve(recording.frames[1]).forces)
+    assert model.describe()["recording"] == "test board (binary)"
+
+
+def test_with_pace_a_pushed_frame_waits_until_the_last_result_is_shown(recording, reconstructor):
+    posted = Posted()
+    model = ViewerModel(dispatch=posted, pace=True)
+    try:
+        board = Pushed(recording.grid)
+        model.set_source(board, reconstructor)
+        board.push(recording.frames[0], 0)
+        posted.run(model)
+        posted.run(model)
+        assert model.last.frame == 0
+        for k in (1, 2, 3):  # three frames before the first result reached the screen
+            board.push(recording.frames[k], k)
+            posted.run(model)
+        assert model.current.index == 0 and not model.solving  # none taken: it could not be drawn
+        model.shown()  # frame 0 is on screen: the newest is taken
+        posted.run(model)
+        assert model.last.frame == 3 and model.worker_stats()["done"] == 2
+    finally:
+        model.close()
+
+
+def test_a_new_source_stops_the_old_one_and_the_same_source_keeps_its_frame(recording, reconstructor):
+    model = ViewerModel()
+    board = Pushed(recording.grid)
+    model.set_source(board, reconstructor)
+    board.push(recording.frames[2], 9)
+    assert model.current.index == 9  # no dispatch: taken where it arrived
+    model.set_source(board, ViewerModel.build(recording.grid, "cell"))  # another kernel, same board
+    assert board.stopped == 0 and model.current.index == 9 and model.kernel == "cell"
+    played = RecordingSource(recording)
+    model.set_source(played, reconstructor)
+    played.seek(3)
+    model.set_source(played, ViewerModel.build(recording.grid, "cell"))
+    assert board.stopped == 1 and model.frame == 3  # a new kernel does not rewind the recording
+    board.push(recording.frames[0], 10)
+    assert model.current.index == 3  # the stopped board is no longer followed
+
+
+def test_a_sources_news_reaches_the_model_and_a_failing_stop_is_reported(recording, reconstructor, tmp_path):
+    model = ViewerModel()
+    board = Pushed(recording.grid)
+    model.set_source(board, reconstructor)
+    messages = []
+    model.message.connect(lambda *m: messages.append(m))
+    board.start_recording(tmp_path / "take.npz")
+    board.push(recording.frames[0], 0)
+    model.set_source(RecordingSource(recording), reconstructor)  # closing the board closes its recording
+    assert messages == [("info", "recording saved", str(tmp_path / "take.npz"))]
+
+    class Stuck(Pushed):
+        def stop(self):
+            raise RuntimeError("the port hung")
+    stuck = Stuck(recording.grid)
+    model.set_source(stuck, reconstructor)
+    model.set_source(RecordingSource(recording), reconstructor)  # still shown, the error said
+    assert messages[-1] == ("error", "Source did not stop cleanly", "test board (binary): the port hung")
+    assert model.recording is not None

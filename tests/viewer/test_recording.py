@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 
 from solver import SensorGrid
-from tactile_viewer.layout import SensorLayout
 from tactile_viewer.recording import Recorder, Recording, RecordingError, grid_from_fields, load, save
 from tests.viewer.skins import NU, TAXEL, frames_for, grid32, grid_with_material
 
@@ -382,7 +381,7 @@ def test_declared_geometries_are_checked(fields, message):
 def test_recorder_file_is_loadable_after_every_flush(tmp_path, suffix):
     # a crash can come at any time: close() is never called here, the file on disk must be enough
     path = tmp_path / f"live{suffix}"
-    recorder = Recorder(path, SensorLayout(grid32()), flush_interval=0.5)
+    recorder = Recorder(path, grid32(), flush_interval=0.5)
     stress = frames_for(13, seed=1)  # fixed seed
     exact = suffix == ".npz"
 
@@ -421,7 +420,7 @@ def test_recorder_file_is_loadable_after_every_flush(tmp_path, suffix):
 
 def test_recorder_close_makes_a_plain_npz(tmp_path):
     path = tmp_path / "live.npz"
-    recorder = Recorder(path, SensorLayout(grid32(), "kPa"), flush_interval=0.25, description="bench run")
+    recorder = Recorder(path, grid32(), flush_interval=0.25, description="bench run")
     stress = frames_for(20, seed=2)  # fixed seed
     for k in range(20):
         recorder.add(k, k / 20, stress[k])
@@ -441,7 +440,7 @@ def test_recorder_close_makes_a_plain_npz(tmp_path):
 
 def test_recorder_close_csv(tmp_path):
     path = tmp_path / "live.csv"
-    recorder = Recorder(path, SensorLayout(grid32()), description="two\nlines")
+    recorder = Recorder(path, grid32(), description="two\nlines")
     stress = frames_for(4, seed=3)  # fixed seed
     for k in range(4):
         recorder.add(7 + k, 0.001 * k, stress[k])
@@ -458,7 +457,7 @@ def test_recorder_close_csv(tmp_path):
 def test_recorder_keeps_poisson_ratio_and_sensor_size(tmp_path, suffix):
     # both while recording (a crash leaves the unclosed file) and after close() rewrote it
     path = tmp_path / f"live{suffix}"
-    recorder = Recorder(path, SensorLayout(grid_with_material()), flush_interval=0.1)
+    recorder = Recorder(path, grid_with_material(), flush_interval=0.1)
     stress = frames_for(5, seed=4)  # fixed seed
     for k in range(5):
         recorder.add(k, k / 10, stress[k])
@@ -475,7 +474,7 @@ def test_recorder_keeps_poisson_ratio_and_sensor_size(tmp_path, suffix):
 @pytest.mark.parametrize("suffix", [".npz", ".CSV"])
 def test_recorder_close_without_frames_leaves_no_file(tmp_path, suffix):
     path = tmp_path / f"empty{suffix}"
-    recorder = Recorder(path, SensorLayout(grid32()))
+    recorder = Recorder(path, grid32())
     assert path.exists()  # created at once, so that a bad path fails when recording starts
     assert recorder.close() is None
     assert not path.exists()
@@ -483,7 +482,7 @@ def test_recorder_close_without_frames_leaves_no_file(tmp_path, suffix):
 
 def test_recorder_rejects_unknown_extensions(tmp_path):
     with pytest.raises(ValueError, match=r"unknown recording type '\.txt', expected \.npz or \.csv"):
-        Recorder(tmp_path / "live.txt", SensorLayout(grid32()))
+        Recorder(tmp_path / "live.txt", grid32())
     assert not (tmp_path / "live.txt").exists()
 
 
@@ -493,7 +492,7 @@ def test_recorder_records_an_irregular_layout(tmp_path, suffix):
     rng = np.random.default_rng(14)  # fixed seed: the same scattered taxels and frames every run
     grid = SensorGrid(rng.uniform(-4e-3, 4e-3, (9, 2)), 1.5e-3, 2e-3, (9,))
     path = tmp_path / f"scattered{suffix}"
-    recorder = Recorder(path, SensorLayout(grid), flush_interval=0.1)
+    recorder = Recorder(path, grid, flush_interval=0.1)
     stress = rng.uniform(0, 1e3, (4, 9))
     for k in range(4):
         recorder.add(k, k / 10, stress[k])

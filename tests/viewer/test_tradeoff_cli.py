@@ -6,7 +6,7 @@ import pytest
 import pyvista as pv
 
 from solver.kernels import KERNELS
-from solver.tradeoff import CONFIGURATIONS, Configuration
+from solver.quality import CONFIGURATIONS, Configuration
 from tactile_viewer.tradeoff import main, on_kernel
 
 

@@ -1,9 +1,10 @@
-"""Speed against accuracy: measure solver configurations on simulated cases of one geometry.
+"""Speed against accuracy: measure quality settings on simulated cases of one geometry.
 
-Each :class:`Configuration` is one way to reconstruct (kernel, path, search
-resolution, regularization, region of interest). :func:`measure` times its
-set-up and its per-frame solves, tracks its peak memory, and scores it with
-:mod:`solver.metrics` against finely integrated truth; :func:`pareto` keeps the
+Each :class:`solver.quality.Configuration` is one way to reconstruct (kernel,
+path, search resolution, regularization, region of interest). :func:`measure`
+times its set-up and its per-frame solves, tracks its peak memory, and scores
+it with :mod:`solver.metrics` against finely integrated truth
+(:func:`measurement.cases.default_cases`); :func:`pareto` keeps the
 configurations no other beats on both time and error; :func:`presets` names
 the front's fastest, most accurate and best-balanced points. No plotting here
 (``tactile-tradeoff`` draws): numpy and scipy only.
@@ -22,28 +23,15 @@ from pathlib import Path
 
 import numpy as np
 
-from . import loads, metrics
-from .efficiency import ContactFit
-from .geometry import SensorGrid
-from .inverse import Reconstructor
-from .region import RegionSolver
-from .validation import SHAPES, standard_contact
+from solver import Reconstructor, RegionSolver, loads, metrics
+from solver.geometry import SensorGrid
+from solver.quality import CONFIGURATIONS, Configuration
 
-__all__ = ["machine", "preset_front",
-    "Configuration",
-    "Measurement",
-    "CONFIGURATIONS",
-    "default_cases",
-    "measure",
-    "measure_all",
-    "pareto",
-    "presets",
-    "format_table",
-    "write_csv",
-]
+from .cases import default_cases
+from .tables import DIRECTION, NORMAL, TANGENTIAL, Column, format_table, value
 
-PATHS = ("fit", "exact", "normal", "region")
-
+__all__ = ["machine", "Measurement", "measure", "measure_all", "error_of", "pareto", "BALANCED_SLACK",
+           "presets", "preset_front", "format_measurements", "write_csv", "large_skin", "format_large"]
 
 
 def machine() -> str:
@@ -55,118 +43,6 @@ def machine() -> str:
     except (OSError, StopIteration):
         pass
     return f"{cpu}, {os.cpu_count()} cores, numpy {np.__version__}, python {platform.python_version()}"
-
-
-@dataclass(frozen=True)
-class Configuration:
-    """One way to reconstruct.
-
-    Attributes
-    ----------
-    name : str
-    kernel : {"layer", "cell", "point"}
-        Stress kernel (:mod:`solver.kernels`); "layer" is the skin as built,
-        "cell" and "point" the paper's half-space kernels.
-    path : {"fit", "exact", "normal", "region"}
-        ``fit``: the fitted compressive, friction-shaped load of every contact
-        (the automatic answer of :meth:`solver.Reconstructor.solve`);
-        ``exact``: the member of the exact solution family at the fitted
-        parameters (the paper's answer); ``normal``: normal forces only;
-        ``region``: ``fit`` on one window per contact.
-    subdivision : int
-        Sub-cells per side of each node's cell in the contact fit (1: the
-        whole cell, the previous profile).
-    iterations : int
-        Gauss-Newton iterations of the automatic search (its resolution).
-    tolerance : float
-        Stopping tolerance of the search.
-    max_condition : float
-        Regularization: largest condition accepted undamped (thick layers).
-    """
-
-    name: str
-    kernel: str = "layer"
-    path: str = "fit"
-    subdivision: int = 2
-    iterations: int = 12
-    tolerance: float = 1e-3
-    max_condition: float = 100.0
-
-    def __post_init__(self):
-        if self.path not in PATHS:
-            raise ValueError(f"path must be one of {PATHS}, got {self.path!r}")
-
-    def build(self, grid: SensorGrid):
-        """A solver for ``grid``: an object with ``solve(stress, shear_ratio=, shear_direction=)``,
-        ``solve_normal(stress)``, ``grid`` and ``kernel``."""
-        efficiency = ContactFit(max_iterations=self.iterations, tolerance=self.tolerance)
-        options = dict(kernel=self.kernel, max_condition=self.max_condition, subdivision=self.subdivision,
-                       efficiency=efficiency)
-        if self.path == "region":
-            return RegionSolver(grid, **options)
-        return _Configured(Reconstructor(grid, **options), self.path)
-
-
-class _Configured:
-    # a Reconstructor whose solve takes the configuration's path
-    def __init__(self, reconstructor: Reconstructor, path: str):
-        self.reconstructor, self.path = reconstructor, path
-        self.grid, self.kernel = reconstructor.grid, reconstructor.kernel
-
-    def solve(self, stress, *, shear_ratio=None, shear_direction=None):
-        if self.path == "normal":
-            return self.reconstructor.solve_normal(stress)
-        return self.reconstructor.solve(
-            stress,
-            shear_ratio=shear_ratio,
-            shear_direction=shear_direction,
-            exact=self.path == "exact",
-        )
-
-    def solve_normal(self, stress):
-        return self.reconstructor.solve_normal(stress)
-
-
-CONFIGURATIONS = (
-    Configuration("normal only", path="normal"),
-    Configuration("point, exact", kernel="point", path="exact"),
-    Configuration("cell, fit", kernel="cell"),
-    Configuration("layer, whole-cell profile", subdivision=1),
-    Configuration("layer, coarse search", iterations=2, tolerance=1e-2),
-    Configuration("layer, fit"),
-    Configuration("layer, exact", path="exact"),
-    Configuration("layer, exact, weak damping", path="exact", max_condition=1e4),
-    Configuration("layer, exact, strong damping", path="exact", max_condition=30.0),
-    Configuration("layer, region of interest", path="region"),
-)
-
-
-@dataclass(frozen=True)
-class Case:
-    """One simulated frame with its truth."""
-
-    name: str
-    shear_ratio: float
-    frame: loads.SimulatedFrame
-
-
-def default_cases(grid: SensorGrid, *, noises=(0.003, 0.01), seed: int = 11) -> list[Case]:
-    """Hertzian and non-Hertzian single contacts (Hertz, cone, flat punch, ellipse), shear ratio 0,
-    0.2 and 0.4 in varied directions, at each noise level (standard deviation over the peak stress).
-    Contacts are 2.5 pitches across (the punch 2) near the skin's centre, 1 N."""
-    rng = np.random.default_rng(seed)  # fixed seed: every configuration scores the very same frames
-    pitch = grid.pitch
-    cases = []
-    for noise in noises:
-        for shape in SHAPES:
-            for ratio in (0.0, 0.2, 0.2, 0.4, 0.4):
-                direction = rng.uniform(-math.pi, math.pi)
-                centre = tuple(rng.uniform(-pitch, pitch, size=2))
-                contact = standard_contact(shape, centre, pitch, rng, shear_ratio=ratio,
-                                           shear_direction=direction)
-                frame = loads.simulate(grid, contact, noise=noise, rng=rng)
-                cases.append(Case(f"{shape} mu={ratio:g} noise={100 * noise:g}%", ratio, frame))
-    return cases
 
 
 @dataclass(frozen=True)
@@ -293,21 +169,23 @@ def presets(measurements) -> dict[str, Measurement]:
     return {"fast": front[0], "balanced": balanced, "accurate": accurate}
 
 
-def format_table(measurements) -> str:
+def format_measurements(measurements) -> str:
+    """One line per measurement; ``*`` marks the front, and the presets are named."""
     front = {m.name for m in pareto(measurements)}
     named = {m.name: label for label, m in presets(measurements).items()}
-    lines = [
-        f"{'configuration':<30} {'set-up s':>8} {'frame ms':>8} {'peak MiB':>8} {'normal':>7} "
-        f"{'tang':>6} {'dir deg':>7} {'false mu':>8}  front"
-    ]
-    for m in measurements:
-        mark = ("*" if m.name in front else "") + (f" {named[m.name]}" if m.name in named else "")
-        lines.append(
-            f"{m.name:<30} {m.setup_s:8.3f} {m.frame_ms:8.2f} {m.peak_mib:8.1f} "
-            f"{100 * m.normal_total:6.2f}% {100 * m.tangential_total:5.1f}% {m.direction_deg:7.1f} "
-            f"{100 * m.false_shear:7.0f}%  {mark}"
-        )
-    return "\n".join(lines)
+    columns = (
+        Column("configuration", 30, value("name"), align="<"),
+        Column("set-up s", 8, value("setup_s", ".3f")),
+        Column("frame ms", 8, value("frame_ms", ".2f")),
+        Column("peak MiB", 8, value("peak_mib", ".1f")),
+        NORMAL,
+        TANGENTIAL,
+        DIRECTION,
+        Column("false mu", 8, value("false_shear", ".0f", scale=100, unit="%")),
+        Column("front", 0, lambda m: ("*" if m.name in front else "")
+               + (f" {named[m.name]}" if m.name in named else ""), align="<", gap=2),
+    )
+    return format_table(measurements, columns)
 
 
 def write_csv(measurements, path) -> Path:
@@ -403,16 +281,20 @@ def large_skin(n: int, *, frames: int = 30, full: bool = False, seed: int = 5) -
     return out
 
 
+_LARGE = (
+    Column("skin", 7, lambda r: f"{r['n']:>3}x{r['n']:<3}"),
+    Column("dense C", 10, value("dense_matrix_gib", ".2f", unit=" GiB")),
+    Column("full set-up", 11, lambda r: f"{r['full_setup_s']:.2f} s" if "full_setup_s" in r else "-"),
+    Column("region set-up", 13, value("region_setup_s", ".4f", unit=" s")),
+    Column("first frame", 11, value("region_first_ms", ".1f", unit=" ms")),
+    Column("frame", 8, value("region_frame_ms", ".2f", unit=" ms")),
+    Column("windows", 7, value("windows_factored", "d")),
+    NORMAL,
+    TANGENTIAL,
+    DIRECTION,
+)
+
+
 def format_large(rows) -> str:
-    lines = [
-        f"{'skin':>7} {'dense C':>8} {'full set-up':>11} {'region set-up':>13} {'first frame':>11} "
-        f"{'frame':>8} {'windows':>7} {'normal':>7} {'tang':>6} {'dir deg':>7}"
-    ]
-    for r in rows:
-        full = f"{r['full_setup_s']:9.2f} s" if "full_setup_s" in r else f"{'-':>11}"
-        lines.append(
-            f"{r['n']:>3}x{r['n']:<3} {r['dense_matrix_gib']:6.2f} GiB {full} {r['region_setup_s']:11.4f} s "
-            f"{r['region_first_ms']:8.1f} ms {r['region_frame_ms']:5.2f} ms {r['windows_factored']:7d} "
-            f"{100 * r['normal_total']:6.2f}% {100 * r['tangential_total']:5.1f}% {r['direction_deg']:7.1f}"
-        )
-    return "\n".join(lines)
+    """One line per :func:`large_skin` row."""
+    return format_table(rows, _LARGE)

@@ -1,49 +1,26 @@
-"""Accuracy on finely integrated loads (never the inversion kernel itself)."""
+"""Accuracy on finely integrated loads (never the inversion kernel itself): measurement/validation.py
+scoring the solver on the sets of measurement/cases.py (their coverage: test_cases.py)."""
 
 import math
+import re
 
 import numpy as np
 import pytest
 
+from measurement.cases import layer_cases, validation_cases
+from measurement.validation import counts, evaluate, format_cases, format_mismatch, mismatch, summarize
 from solver import Reconstructor, SensorGrid, loads
-from solver.validation import (
-    counts,
-    evaluate,
-    format_mismatch,
-    format_table,
-    layer_cases,
-    mismatch,
-    standard_cases,
-    summarize,
-    validation_cases,
-)
 
-
-@pytest.fixture(scope="module")
-def cases():
-    # 16x16; Hertz, cone, flat punch, uniform ellipse; shear ratio 0, 0.2, 0.4 in
-    # golden-angle directions; h/pitch 0.5, 1, 1.5; 1% noise; seed fixed in standard_cases.
-    # Half-space data: this is the set the half-space kernels and the functional were tuned on.
-    return standard_cases(medium="halfspace")
-
-
-def test_standard_set_covers_what_the_bar_names(cases):
-    assert len(cases) == 36
-    assert {c.shape for c in cases} == {"hertz", "cone", "flat_punch", "ellipse"}
-    assert {c.thickness_ratio for c in cases} == {0.5, 1.0, 1.5}
-    assert {c.shear_ratio for c in cases} == {0.0, 0.2, 0.4}
-    assert all(c.frame.grid.shape == (16, 16) and c.frame.noise == 0.01 for c in cases)
-    # directions spread round the circle
-    directions = np.array([c.shear_direction for c in cases])
-    assert np.ptp(directions) > 5.5
+# standard_set (the standard set on half-space data) and layer_noisy (the physics set, 1% noise)
+# are session fixtures of conftest.py
 
 
 @pytest.mark.parametrize("kernel, normal_bar", [("cell", 0.03), ("point", 0.08)])
 # half-space kernels on half-space data; the fit's constants were tuned for the layer kernel
-def test_medians_over_the_standard_set_meet_the_bar(cases, kernel, normal_bar, capsys):
-    rows = evaluate(cases, lambda grid: Reconstructor(grid, kernel=kernel))
+def test_medians_over_the_standard_set_meet_the_bar(standard_set, kernel, normal_bar, capsys):
+    rows = evaluate(standard_set, lambda grid: Reconstructor(grid, kernel=kernel))
     with capsys.disabled():
-        print(f"\n{kernel} kernel, automatic parameters, 1% noise\n{format_table(rows)}")
+        print(f"\n{kernel} kernel, automatic parameters, 1% noise\n{format_cases(rows)}")
     s = summarize(rows)
     # measured: cell 0.78%, 10.3%, 18.7 deg; point 5.0%, 7.0%, 10.8 deg
     assert s["normal_total"] <= normal_bar
@@ -52,18 +29,18 @@ def test_medians_over_the_standard_set_meet_the_bar(cases, kernel, normal_bar, c
     assert s["false_shear"] == 0.0
 
 
-def test_the_fit_keeps_the_normal_total_of_the_exact_solution(cases):
+def test_the_fit_keeps_the_normal_total_of_the_exact_solution(standard_set):
     # the automatic answer is the compressive fit, not C^-1 b: its normal total stays
     # within the noise of the exact one (measured 2.6% against 0.85%, layer kernel on
     # half-space data, where the kernel's physics is wrong)
-    auto = summarize(evaluate(cases, lambda grid: Reconstructor(grid)))
-    exact = summarize(evaluate(cases, lambda grid: Reconstructor(grid),
+    auto = summarize(evaluate(standard_set, lambda grid: Reconstructor(grid)))
+    exact = summarize(evaluate(standard_set, lambda grid: Reconstructor(grid),
                                solve=lambda r, b: r.solve(b, shear_ratio=0.0, shear_direction=0.0)))
     assert auto["normal_total"] < 0.03 and exact["normal_total"] < 0.03
 
 
-def test_cell_kernel_keeps_the_normal_total_at_thin_layers(cases):
-    thin = [c for c in cases if c.thickness_ratio == 0.5]
+def test_cell_kernel_keeps_the_normal_total_at_thin_layers(standard_set):
+    thin = [c for c in standard_set if c.thickness_ratio == 0.5]
     point = summarize(evaluate(thin, lambda g: Reconstructor(g, kernel="point")))
     cell = summarize(evaluate(thin, lambda g: Reconstructor(g, kernel="cell")))
     assert cell["normal_total"] < 0.03 < point["normal_total"]
@@ -72,13 +49,8 @@ def test_cell_kernel_keeps_the_normal_total_at_thin_layers(cases):
 # -- the bonded layer: the inverse crime avoided ---------------------------------------------------
 # Layer data come from the transfer functions by FFT convolution of the finely sampled
 # load (solver.loads), the layer kernel from Hankel tables and edge integrals
-# (solver.kernels): two paths. The set (solver.validation.layer_cases) has its own seed
+# (solver.kernels): two paths. The set (measurement.cases.layer_cases) has its own seed
 # and h/pitch 2: nothing was tuned on it.
-
-
-@pytest.fixture(scope="module")
-def layer_noisy():
-    return layer_cases(noise=0.01)
 
 
 @pytest.fixture(scope="module")
@@ -91,17 +63,10 @@ def half_space_noisy():
     return layer_cases(noise=0.01, medium="halfspace")
 
 
-def test_layer_set_covers_what_the_issue_names(layer_noisy):
-    assert len(layer_noisy) == 48
-    assert {c.thickness_ratio for c in layer_noisy} == {0.5, 1.0, 1.5, 2.0}
-    assert {c.shape for c in layer_noisy} == {"hertz", "cone", "flat_punch", "ellipse"}
-    assert all(c.frame.medium == "layer" and c.frame.grid.poisson_ratio == 0.5 for c in layer_noisy)
-
-
 def test_layer_kernel_on_layer_data_meets_the_bar(layer_noisy, capsys):
     rows = evaluate(layer_noisy, lambda grid: Reconstructor(grid, kernel="layer"))
     with capsys.disabled():
-        print(f"\nlayer kernel on layer data (nu 0.5), 1% noise\n{format_table(rows)}")
+        print(f"\nlayer kernel on layer data (nu 0.5), 1% noise\n{format_cases(rows)}")
     s = summarize(rows)
     # measured 0.76%, 3.7%, 8.2 deg (whole-cell profile: 1.05%, 5.5%, 7.2 deg)
     assert s["normal_total"] <= 0.02
@@ -132,7 +97,7 @@ def test_half_space_kernels_miss_the_shear_of_a_real_skin(capsys):
     assert conditions == sorted(conditions) and conditions[0] >= 1
 
 
-# -- tuned on one set, judged on another (solver.validation.tuning_cases / validation_cases) -------
+# -- tuned on one set, judged on another (measurement.cases.tuning_cases / validation_cases) ------
 
 
 @pytest.fixture(scope="module")
@@ -153,7 +118,7 @@ def test_accuracy_on_the_validation_set(validation_solvers, noise, tangential_ba
     rows = evaluate(cases, validation_solvers)
     decided = counts(rows)
     with capsys.disabled():
-        print(f"\nvalidation set, layer kernel and data, noise {noise:g}\n{format_table(rows)}\n"
+        print(f"\nvalidation set, layer kernel and data, noise {noise:g}\n{format_cases(rows)}\n"
               f"shear reported on {decided['false']} of {decided['free']} shear-free loads, "
               f"missed on {decided['missed']} of {decided['sheared']} with shear ratio >= 0.2")
     s = summarize(rows)
@@ -189,3 +154,19 @@ def test_contacts_on_the_edge_do_not_over_read_their_shear(direction):
         assert found[0].at_edge
         ratios.append(found[0].shear_ratio / 0.3)
     assert np.median(ratios) <= 1.25
+
+
+# -- the command line: python -m measurement.validation ---------------------------------------------
+
+
+def test_the_command_prints_the_summary_and_the_cases(capsys):
+    from measurement.validation import main
+
+    main(["--functional", "contact_fit", "--cases"])
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == "validation set: 36 cases, 16x16, layer data, noise 0.01, kernel layer"
+    assert lines[1].split() == ["functional", "normal", "tangential", "direction", "false", "shear", "missed", "ms"]
+    assert lines[2].split()[:2] == ["case", "mu"] and lines[39].startswith("median")
+    assert len(lines) == 41
+    # the summary line: the medians, then the counts of 12 shear-free and 24 sheared loads
+    assert re.fullmatch(r"contact_fit +\d+\.\d\d% +\d+\.\d% +\d+\.\dd +\d+/12 +\d+/24 +\d+\.\d\d", lines[40])

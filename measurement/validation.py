@@ -1,0 +1,208 @@
+"""Accuracy: reconstructions of the simulated sets (:mod:`measurement.cases`) scored against their truth.
+
+Used by the accuracy tests, the functional comparison (``python -m
+measurement.validation``) and the benchmarks, so all of them measure the same thing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from solver import Reconstructor, loads, metrics
+from solver.efficiency import FUNCTIONALS
+from solver.kernels import KERNELS
+
+from .cases import layer_cases, tuning_cases, validation_cases
+from .tables import DIRECTION, NORMAL, TANGENTIAL, Column, format_table, value
+
+__all__ = ["evaluate", "summarize", "counts", "false_shear", "MISMATCH_MEDIA", "mismatch",
+           "format_cases", "format_mismatch", "format_summary", "main"]
+
+
+def evaluate(cases, make_reconstructor, *, solve=None):
+    """Score reconstructions of every case.
+
+    Parameters
+    ----------
+    cases : list of measurement.cases.Case
+    make_reconstructor : callable
+        ``grid -> Reconstructor`` (called once per distinct grid).
+    solve : callable, optional
+        ``(reconstructor, stress) -> Reconstruction``; default ``r.solve(stress)``.
+
+    Returns
+    -------
+    list of dict
+        One row per case: its description, the errors and the solve time in ms.
+    """
+    solve = solve or (lambda r, b: r.solve(b))
+    cache = {}
+    rows = []
+    for case in cases:
+        grid = case.frame.grid
+        key = grid.key
+        if key not in cache:
+            cache[key] = make_reconstructor(case.frame.grid)
+        reconstructor = cache[key]
+        start = time.perf_counter()
+        result = solve(reconstructor, case.frame.stress)
+        elapsed = time.perf_counter() - start
+        errors = metrics.compare(result.forces, case.frame.forces)
+        rows.append(dict(case=case.name, shape=case.shape, thickness_ratio=case.thickness_ratio,
+                         true_ratio=case.shear_ratio, ratio=result.shear_ratio,
+                         true_direction=math.degrees(case.shear_direction),
+                         direction=math.degrees(result.shear_direction), ms=elapsed * 1e3,
+                         **errors.as_dict()))
+    return rows
+
+
+def summarize(rows) -> dict:
+    """Medians over the set: normal and tangential total errors over all cases,
+    direction error over cases with shear ratio >= 0.2, false shear on shear-free cases."""
+    normal = np.median([r["normal_total"] for r in rows])
+    tangential = np.median([r["tangential_total"] for r in rows])
+    sheared = [r["direction_deg"] for r in rows if r["true_ratio"] >= 0.2]
+    free = [r["ratio"] for r in rows if r["true_ratio"] == 0]
+    return dict(normal_total=float(normal), tangential_total=float(tangential),
+                direction_deg=float(np.median(sheared)) if sheared else math.nan,
+                false_shear=float(np.median(free)) if free else math.nan,
+                ms=float(np.median([r["ms"] for r in rows])))
+
+
+def false_shear(rows) -> dict:
+    """Shear found on the shear-free cases: how many got any, their mean and largest ratio."""
+    free = [r["ratio"] for r in rows if r["true_ratio"] == 0]
+    return dict(count=sum(f > 0 for f in free), cases=len(free),
+                mean=float(np.mean(free)) if free else math.nan,
+                largest=float(max(free)) if free else math.nan)
+
+
+def counts(rows) -> dict:
+    """Decisions over a set: shear reported on shear-free loads, missed on loads with shear >= 0.2."""
+    found = false_shear(rows)
+    sheared = [r for r in rows if r["true_ratio"] >= 0.2]
+    return dict(false=found["count"], free=found["cases"],
+                missed=sum(r["ratio"] == 0 for r in sheared), sheared=len(sheared))
+
+
+# data media of the mismatch table: (label, medium, Poisson ratio)
+MISMATCH_MEDIA = (("half-space", "halfspace", 0.5), ("layer nu=0.45", "layer", 0.45),
+                  ("layer nu=0.5", "layer", 0.5))
+
+
+def mismatch(*, noise: float = 0.01, kernels=("point", "cell", "layer"),
+             media=MISMATCH_MEDIA) -> list[dict]:
+    """Every kernel on data of every medium (:func:`~measurement.cases.layer_cases`): medians,
+    false shear, conditions.
+
+    Returns one row per (medium, kernel) with the :func:`summarize` medians, the
+    :func:`false_shear` counts and ``condition``, the undamped 1-norm condition
+    estimate of ``C`` (square root of that of ``C C^T``) per ``h / pitch``.
+    """
+    out = []
+    for label, medium, nu in media:
+        cases = layer_cases(noise=noise, medium=medium, poisson_ratio=nu)
+        for kernel in kernels:
+            made = {}
+
+            def make(grid, kernel=kernel, made=made):
+                made[grid.thickness / grid.pitch] = Reconstructor(grid, kernel=kernel)
+                return made[grid.thickness / grid.pitch]
+
+            rows = evaluate(cases, make)
+            conditions = {ratio: math.sqrt(r._gram.condition_undamped) for ratio, r in sorted(made.items())}
+            out.append(dict(medium=label, kernel=kernel, noise=noise, **summarize(rows),
+                            false=false_shear(rows), condition=conditions))
+    return out
+
+
+# -- tables ----------------------------------------------------------------------------------------
+
+_CASES = (
+    Column("case", 40, value("case"), align="<"),
+    Column("mu", 5, value("true_ratio", ".2f")),
+    Column("mu est", 6, value("ratio", ".2f")),
+    Column("dir err", 7, value("direction_deg", ".1f")),
+    NORMAL,
+    TANGENTIAL,
+    Column("ms", 6, value("ms", ".2f")),
+)
+
+
+def format_cases(rows) -> str:
+    """One line per case of :func:`evaluate`, then the :func:`summarize` medians."""
+    return format_table([*rows, dict(case="median", **summarize(rows))], _CASES)
+
+
+def format_mismatch(rows) -> str:
+    """The rows of :func:`mismatch`: medians, false shear and conditions per medium and kernel."""
+    columns = [
+        Column("data", 14, value("medium"), align="<"),
+        Column("kernel", 6, value("kernel"), align="<"),
+        NORMAL,
+        TANGENTIAL,
+        DIRECTION,
+        Column("false shear", 15,
+               lambda r: f"{r['false']['count']}/{r['false']['cases']} max {r['false']['largest']:.2f}"),
+    ]
+    columns += [Column(f"cond h/p={ratio:g}", 12, lambda r, ratio=ratio: f"{r['condition'][ratio]:.3g}")
+                for ratio in rows[0]["condition"]]
+    return format_table(rows, columns)
+
+
+_SUMMARY = (
+    Column("functional", 15, value("functional"), align="<"),
+    Column("normal", 8, value("normal_total", ".2f", scale=100, unit="%")),
+    Column("tangential", 10, value("tangential_total", ".1f", scale=100, unit="%")),
+    Column("direction", 9, value("direction_deg", ".1f", unit="d")),
+    Column("false shear", 11, lambda r: f"{r['false']:>6}/{r['free']:<4}"),
+    Column("missed", 6, lambda r: f"{r['missed']:>3}/{r['sheared']:<2}"),
+    Column("ms", 7, value("ms", ".2f")),
+)
+
+
+def format_summary(rows, *, header: bool = True) -> str:
+    """One line per functional: the :func:`summarize` medians and the :func:`counts` of its rows,
+    given as dicts with ``functional`` and both (``header=False``: the lines alone)."""
+    return format_table(rows, _SUMMARY, header=header)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description="Score the efficiency functionals and kernels "
+                                                 "on the standard accuracy set.")
+    parser.add_argument("--noise", type=float, default=0.01)
+    parser.add_argument("--kernel", choices=KERNELS, default=KERNELS[0],
+                        help="layer: elastomer bonded to a rigid hull (default); cell, point: half-space")
+    parser.add_argument("--medium", choices=loads.MEDIA, default="layer",
+                        help="physics of the simulated data (default layer)")
+    parser.add_argument("--functional", choices=sorted(FUNCTIONALS), action="append")
+    parser.add_argument("--set", choices=("validation", "tuning"), default="validation",
+                        help="validation: nothing was tuned on it (default); tuning: the constants "
+                             "were chosen on it")
+    parser.add_argument("--cases", action="store_true", help="print the per-case table too")
+    parser.add_argument("--mismatch", action="store_true",
+                        help="every kernel on half-space and layer data (the physics set, h/p 0.5 to 2)")
+    args = parser.parse_args(argv)
+    if args.mismatch:
+        print(f"physics set: 48 cases per medium, 16x16, noise {args.noise:g}, automatic parameters")
+        print(format_mismatch(mismatch(noise=args.noise)))
+        return
+    cases = (validation_cases if args.set == "validation" else tuning_cases)(noise=args.noise,
+                                                                             medium=args.medium)
+    print(f"{args.set} set: {len(cases)} cases, 16x16, {args.medium} data, noise {args.noise:g}, "
+          f"kernel {args.kernel}")
+    print(format_summary([]))
+    for name in args.functional or sorted(FUNCTIONALS):
+        functional = FUNCTIONALS[name]
+        rows = evaluate(cases, lambda g, f=functional: Reconstructor(g, kernel=args.kernel, efficiency=f()))
+        if args.cases:
+            print(format_cases(rows))
+        print(format_summary([dict(functional=name, **summarize(rows), **counts(rows))], header=False))
+
+
+if __name__ == "__main__":
+    main()

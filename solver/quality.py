@@ -1,0 +1,119 @@
+"""Quality settings: how to build a solver.
+
+A :class:`Configuration` is one way to reconstruct (kernel, path, sub-cells,
+search resolution, regularization, region of interest) and builds its solver
+for a grid. :data:`CONFIGURATIONS` are the settings the speed/accuracy
+measurement (:mod:`measurement.tradeoff`) compares and the viewer's quality
+presets are picked from; :func:`solver.make_solver` ``(grid, quality=...)``
+builds one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .efficiency import ContactFit
+from .geometry import SensorGrid
+from .inverse import Reconstructor
+from .region import RegionSolver
+
+__all__ = ["Configuration", "CONFIGURATIONS", "PATHS"]
+
+PATHS = ("fit", "exact", "normal", "region")
+
+# Reconstructor arguments a configuration sets itself: build() takes any other (max_shear_ratio ...)
+_SET = ("kernel", "max_condition", "subdivision", "efficiency")
+
+
+@dataclass(frozen=True)
+class Configuration:
+    """One way to reconstruct.
+
+    Attributes
+    ----------
+    name : str
+    kernel : {"layer", "cell", "point"}
+        Stress kernel (:mod:`solver.kernels`); "layer" is the skin as built,
+        "cell" and "point" the paper's half-space kernels.
+    path : {"fit", "exact", "normal", "region"}
+        ``fit``: the fitted compressive, friction-shaped load of every contact
+        (the automatic answer of :meth:`solver.Reconstructor.solve`);
+        ``exact``: the member of the exact solution family at the fitted
+        parameters (the paper's answer); ``normal``: normal forces only;
+        ``region``: ``fit`` on one window per contact.
+    subdivision : int
+        Sub-cells per side of each node's cell in the contact fit (1: the
+        whole cell, the previous profile).
+    iterations : int
+        Gauss-Newton iterations of the automatic search (its resolution).
+    tolerance : float
+        Stopping tolerance of the search.
+    max_condition : float
+        Regularization: largest condition accepted undamped (thick layers).
+    """
+
+    name: str
+    kernel: str = "layer"
+    path: str = "fit"
+    subdivision: int = 2
+    iterations: int = 12
+    tolerance: float = 1e-3
+    max_condition: float = 100.0
+
+    def __post_init__(self):
+        if self.path not in PATHS:
+            raise ValueError(f"path must be one of {PATHS}, got {self.path!r}")
+
+    def build(self, grid: SensorGrid, **options):
+        """A solver for ``grid``: an object with ``solve(stress, shear_ratio=, shear_direction=)``,
+        ``solve_normal(stress)``, ``grid`` and ``kernel``.
+
+        ``options`` are further :class:`~solver.Reconstructor` arguments
+        (``max_shear_ratio`` ...), checked as the solver checks them; those the
+        configuration sets itself (kernel, max_condition, subdivision,
+        efficiency) are refused: change the configuration instead.
+        """
+        clash = sorted(set(options) & set(_SET))
+        if clash:
+            raise ValueError(f"options must not set what the configuration sets ({', '.join(_SET)}), "
+                             f"got {', '.join(clash)}")
+        efficiency = ContactFit(max_iterations=self.iterations, tolerance=self.tolerance)
+        options = dict(options, kernel=self.kernel, max_condition=self.max_condition,
+                       subdivision=self.subdivision, efficiency=efficiency)
+        if self.path == "region":
+            return RegionSolver(grid, **options)
+        return _Configured(Reconstructor(grid, **options), self.path)
+
+
+class _Configured:
+    # a Reconstructor whose solve takes the configuration's path
+    def __init__(self, reconstructor: Reconstructor, path: str):
+        self.reconstructor, self.path = reconstructor, path
+        self.grid, self.kernel = reconstructor.grid, reconstructor.kernel
+
+    def solve(self, stress, *, shear_ratio=None, shear_direction=None):
+        if self.path == "normal":
+            return self.reconstructor.solve_normal(stress)
+        return self.reconstructor.solve(
+            stress,
+            shear_ratio=shear_ratio,
+            shear_direction=shear_direction,
+            exact=self.path == "exact",
+        )
+
+    def solve_normal(self, stress):
+        return self.reconstructor.solve_normal(stress)
+
+
+CONFIGURATIONS = (
+    Configuration("normal only", path="normal"),
+    Configuration("point, exact", kernel="point", path="exact"),
+    Configuration("cell, fit", kernel="cell"),
+    Configuration("layer, whole-cell profile", subdivision=1),
+    Configuration("layer, coarse search", iterations=2, tolerance=1e-2),
+    Configuration("layer, fit"),
+    Configuration("layer, exact", path="exact"),
+    Configuration("layer, exact, weak damping", path="exact", max_condition=1e4),
+    Configuration("layer, exact, strong damping", path="exact", max_condition=30.0),
+    Configuration("layer, region of interest", path="region"),
+)
