@@ -86,7 +86,8 @@ class LivePanel(QtWidgets.QGroupBox):
     @property
     def reader(self) -> LiveSource | None:
         """The live source shown, None when a recording or nothing is."""
-        return self.model.source if self.model.live else None
+        source = self.model.source
+        return source if isinstance(source, LiveSource) else None
 
     # -- connecting ----------------------------------------------------------------------
 

@@ -230,8 +230,8 @@ class LiveSource(Source):
                 except Exception as exc:  # a bug must not end the reading (or the recording)
                     self.failures += 1
                     self.error = f"internal error while decoding: {exc!r}"
-            elif self.recorder is not None:
-                self.recorder.tick(self.now())
+            else:
+                self._tick_recording(self.now())
         if connection is not None:
             self._close(connection)
 

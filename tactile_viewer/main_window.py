@@ -155,9 +155,15 @@ class MainWindow(QtWidgets.QMainWindow):
         build fails or the window closes first.
         """
         kernel, configuration, grid = self.model.kernel, self.model.configuration, source.grid
+        if self.model.is_open and grid.key != self.model.grid.key:
+            configuration = None  # a quality preset was measured on the geometry it came with
         shape = "x".join(map(str, grid.shape[::-1])) if len(grid.shape) == 2 else f"{grid.size}-taxel"
-        task = self.tasks.run(lambda progress: ViewerModel.build(grid, kernel, configuration),
-                              lambda solver: self.model.set_source(source, solver),
+
+        def done(solver):
+            self.model.configuration = configuration
+            self.model.set_source(source, solver)
+
+        task = self.tasks.run(lambda progress: ViewerModel.build(grid, kernel, configuration), done,
                               f"Factoring the {shape} geometry...", determinate=False)
         task.failed.connect(lambda _: source.stop())
         task.succeeded.connect(lambda _: source.stop() if self.tasks.closed else None)
@@ -242,7 +248,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def closeEvent(self, event):
         self.playback.stop()
+        self.tasks.close()  # first: a result arriving while the source stops is dropped
         self.model.close()
-        self.tasks.close()
         self.plotter.close()
         super().closeEvent(event)

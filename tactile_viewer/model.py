@@ -291,8 +291,8 @@ class ViewerModel:
         self.display_changed.emit()
         if isinstance(source, RecordingSource):
             source.seek(source.position if same else 0)
-        else:
-            self._take()  # a frame that arrived while the solver was built
+        elif not self._take() and same:
+            self._schedule()  # a quiet board: its last frame again, with the new solver
 
     def _stop(self, source: Source):
         try:
@@ -321,15 +321,17 @@ class ViewerModel:
             return
         self._take()
 
-    def _take(self):
+    def _take(self) -> bool:
+        # the source's newest frame becomes the one shown; False when none waits
         source = self.source
         frame = source.take_latest() if source is not None else None
         if frame is None:
-            return
+            return False
         previous, self.current = self.current, frame
         if previous is not None and frame.index != previous.index and isinstance(source, RecordingSource):
             self.frame_changed.emit(frame.index)
         self._schedule()
+        return True
 
     def shown(self):
         """The last result is on screen: a live frame that waited is taken now (with ``pace``)."""

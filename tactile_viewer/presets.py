@@ -44,9 +44,21 @@ class PresetMeasurer(QtCore.QObject):
     def __init__(self, model: ViewerModel, panel: ParametersPanel, tasks: TaskRunner, *, notify, parent=None):
         super().__init__(parent)
         self.model, self.panel, self.tasks, self._notify = model, panel, tasks, notify
-        self._measured_for = None  # (geometry key, "measuring" or "done")
-        # after the first frames are drawn: measuring takes a core for a few seconds
-        model.recording_changed.connect(lambda: QtCore.QTimer.singleShot(1000, self._measure_if_shown))
+        self._fronts: dict = {}  # geometry key -> its measured presets
+        self._measuring = None  # the key being measured
+        self._offered = None  # the key whose presets the box offers
+        model.recording_changed.connect(self._on_source)
+
+    def _on_source(self):
+        # the box offers the shown geometry's presets only; unmeasured ones come once things settle
+        key = self.model.grid.key
+        if key == self._offered:
+            return  # the same geometry with another kernel or preset: the box stays as chosen
+        self._offered = key
+        self.panel.set_presets(self._fronts.get(key, {}), describe)
+        if key not in self._fronts:
+            # after the first frames are drawn: measuring takes a core for a few seconds
+            QtCore.QTimer.singleShot(1000, self._measure_if_shown)
 
     def _measure_if_shown(self):
         # measuring builds every configuration, full ones included: keep it to skins where that
@@ -60,12 +72,13 @@ class PresetMeasurer(QtCore.QObject):
         """Measure the front of the shown geometry in the background; emits ``measured`` when offered."""
         grid = self.model.grid
         key = grid.key
-        if self._measured_for == (key, "done"):
+        if key in self._fronts:
+            self.panel.set_presets(self._fronts[key], describe)
             self.measured.emit()
             return
-        if self._measured_for == (key, "measuring"):
+        if self._measuring == key:
             return  # measured comes when it is done
-        self._measured_for = (key, "measuring")
+        self._measuring = key
 
         def work(progress):
             # In another process: measuring takes seconds of Python, which in this process would
@@ -80,12 +93,14 @@ class PresetMeasurer(QtCore.QObject):
                             raise Cancelled("presets not measured: the window closed") from None
 
         def done(chosen):
-            self.panel.set_presets(chosen, describe)
-            self._measured_for = (key, "done")
-            self.measured.emit()
+            self._fronts[key] = chosen
+            self._measuring = None
+            if self.model.is_open and self.model.grid.key == key:  # not another geometry by now
+                self.panel.set_presets(chosen, describe)
+                self.measured.emit()
 
         def failed(exc):
-            self._measured_for = None
+            self._measuring = None
             if not isinstance(exc, Cancelled):
                 self._notify(f"could not measure presets: {exc}")
 

@@ -141,10 +141,10 @@ class Source:
         return recorder
 
     def stop_recording(self) -> Path | None:
-        """Close the recording; the path written, None when none was running or it failed.
+        """Close the recording; the path written, or None (none running, no frame, or it failed).
 
-        Either way :attr:`message` says what happened: a full disk or a vanished
-        folder loses nothing already written, and the source goes on.
+        :attr:`message` says what happened: a full disk or a vanished folder
+        loses nothing already written, and the source goes on.
         """
         recorder, self.recorder = self.recorder, None
         if recorder is None:
@@ -152,13 +152,30 @@ class Source:
         try:
             written = recorder.close()
         except (OSError, ValueError) as exc:
-            self.message.emit("error", "Recording not completed",
-                              f"{recorder.path}: {getattr(exc, 'strerror', None) or exc}. The frames "
-                              f"written before the error ({recorder.written}) are in the file; the live "
-                              "view goes on.")
+            self._recording_failed(recorder, exc, "Recording not completed")
             return None
-        self.message.emit("info", "recording saved", str(written))
+        if written is None:
+            self.message.emit("info", "nothing recorded", f"no frame arrived; {recorder.path} not written")
+        else:
+            self.message.emit("info", "recording saved", str(written))
         return written
+
+    def _recording_failed(self, recorder: Recorder, exc: Exception, title: str) -> None:
+        # a failed write ends the recording, never the source: say what the file keeps
+        if self.recorder is recorder:
+            self.recorder = None
+        self.message.emit("error", title,
+                          f"{recorder.path}: {getattr(exc, 'strerror', None) or exc}. The frames written "
+                          f"before the error ({recorder.written}) are in the file; the live view goes on.")
+
+    def _tick_recording(self, now: float) -> None:
+        # while no frame comes: flush what waits (a quiet line must not hold frames back)
+        recorder = self.recorder
+        if recorder is not None:
+            try:
+                recorder.tick(now)
+            except (OSError, ValueError) as exc:
+                self._recording_failed(recorder, exc, "Recording stopped")
 
     def _publish(self, frames: list[SourceFrame]) -> None:
         # every frame to the recorder, the newest to whoever follows the source
@@ -168,8 +185,11 @@ class Source:
             self.published += 1
             recorder = self.recorder
             if recorder is not None:
-                recorder.add(frame.index if frame.index is not None else self.published - 1, frame.t,
-                             frame.stress)
+                try:
+                    recorder.add(frame.index if frame.index is not None else self.published - 1, frame.t,
+                                 frame.stress)
+                except (OSError, ValueError) as exc:
+                    self._recording_failed(recorder, exc, "Recording stopped")
         with self._lock:
             self._latest = frames[-1]
             notify = not self._notified

@@ -199,3 +199,44 @@ def test_a_recording_that_fails_to_close_is_reported_and_live_goes_on(live, qtbo
     assert "No space left on device" in live.errors[-1][1] and "the live view goes on" in live.errors[-1][1]
     seen = live.model.last.frame
     qtbot.waitUntil(lambda: live.model.last.frame > seen, timeout=5000)  # still live
+
+
+def test_disconnect_keeps_the_last_frame_and_disables_what_needs_a_connection(live, qtbot, tmp_path):
+    panel = live.live_panel
+    enabled = lambda: {name: button.isEnabled() for name, button in panel.buttons.items()}  # noqa: E731
+    assert enabled() == dict(tare=True, record=True, stop_recording=False, disconnect=True)
+    assert panel.start_recording(tmp_path / "take.npz")
+    assert enabled()["stop_recording"] and panel.actions["stop_recording"].isEnabled()
+    reader = panel.reader
+    recorded = reader.published
+    qtbot.waitUntil(lambda: reader.published > recorded + 5, timeout=5000)
+    panel.disconnect_live()
+    assert reader.state == "stopped" and reader.recorder is None and (tmp_path / "take.npz").exists()
+    assert not any(enabled().values()) and not any(a.isEnabled() for a in panel.actions.values())
+    assert "stopped" in panel.status.text() and not panel.banner.isVisible()
+    qtbot.wait(300)  # a frame solved before the stop may still arrive; after it, nothing new
+    shown = live.model.last
+    qtbot.wait(500)  # two status ticks later: still stopped, the last frame still shown
+    assert live.model.last is shown and shown.frame <= reader.stats.last_seq
+    assert not panel.banner.isVisible() and "stopped" in panel.status.text()
+
+
+def test_a_live_source_of_another_kind_shows_without_the_boards_statistics(window, qtbot):
+    # a new kind of live source is one Source subclass; the panel shows what it can of it
+    from solver import SensorGrid
+    from tactile_viewer.model import ViewerModel
+    from tactile_viewer.source import Source, SourceFrame
+
+    class Stream(Source):
+        live = True
+
+    grid = SensorGrid.regular(6, 5, 2e-3, 2e-3)
+    stream = Stream("tcp://lab:9000", grid)
+    stream.start()
+    window.model.set_source(stream, ViewerModel.build(grid, "layer"))
+    stream._publish([SourceFrame(np.full(grid.size, 1e3), 0.0, 3)])
+    qtbot.waitUntil(lambda: window.model.last is not None, timeout=5000)
+    window.live_panel.follow()
+    qtbot.wait(300)  # the panel's status ticks
+    assert window.live_panel.reader is None and window.model.last.frame == 3
+    assert "live: tcp://lab:9000" in window.windowTitle()

@@ -351,3 +351,17 @@ def test_a_screenshot_before_any_frame_is_refused_cleanly(window, tmp_path):
     with pytest.raises(ValueError, match="no frame has been reconstructed yet"):
         window.exports.export_screenshot(tmp_path / "early.png")
     assert not (tmp_path / "early.png").exists()
+
+
+def test_a_quality_preset_does_not_follow_the_user_to_another_geometry(opened, qtbot):
+    from solver import SensorGrid
+    from solver.quality import Configuration
+    from tactile_viewer.recording import Recording
+
+    opened.model.configuration = Configuration("normal only", path="normal")  # measured on the sample
+    grid = SensorGrid.regular(6, 5, 2e-3, 2e-3)
+    stress = 5e3 * np.exp(-(grid.positions**2).sum(axis=1) / (3e-3) ** 2)
+    with qtbot.waitSignal(opened.ready, timeout=20000):
+        opened.show_recording(Recording(grid, np.stack([stress, stress]), [0.0, 0.1]))
+    assert opened.model.configuration is None and not opened.model.last.result.normal_only
+    assert opened.parameters.quality_box.count() == 1  # no presets of another skin on offer

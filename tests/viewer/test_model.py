@@ -642,3 +642,19 @@ def test_a_sources_news_reaches_the_model_and_a_failing_stop_is_reported(recordi
     model.set_source(RecordingSource(recording), reconstructor)  # still shown, the error said
     assert messages[-1] == ("error", "Source did not stop cleanly", "test board (binary): the port hung")
     assert model.recording is not None
+
+
+def test_a_new_solver_for_a_quiet_board_solves_its_last_frame_again(threaded, recording, reconstructor):
+    model, posted = threaded
+    board = Pushed(recording.grid)
+    model.set_source(board, reconstructor)
+    board.push(recording.frames[1], 5)
+    posted.run(model)
+    posted.run(model)
+    assert model.last.frame == 5 and model.kernel == "layer"
+    cell = ViewerModel.build(recording.grid, "cell")
+    model.set_source(board, cell)  # no frame since: the one shown is solved with the new kernel
+    assert model.last is None
+    posted.run(model)
+    assert model.last.frame == 5
+    np.testing.assert_array_equal(model.last.result.forces, cell.solve(recording.frames[1]).forces)

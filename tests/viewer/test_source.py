@@ -197,3 +197,36 @@ def test_stopping_closes_the_recording_and_announces_the_state(tmp_path):
     source.stop()
     assert states == ["running", "stopped"] and source.recorder is None
     assert list(load(tmp_path / "stop.npz").seq) == [7]
+
+
+def test_a_recording_with_no_frame_says_so_and_writes_no_file(tmp_path):
+    source = Pushed("board", GRID)
+    source.start_recording(tmp_path / "empty.npz")
+    messages = []
+    source.message.connect(lambda *m: messages.append(m))
+    assert source.stop_recording() is None and not (tmp_path / "empty.npz").exists()
+    assert messages == [("info", "nothing recorded", f"no frame arrived; {tmp_path / 'empty.npz'} not written")]
+
+
+@pytest.mark.parametrize("when", ["a frame arrives", "the line is quiet"])
+def test_a_write_that_fails_while_recording_stops_the_recording_not_the_source(tmp_path, when):
+    source = Pushed("board", GRID)
+    recorder = source.start_recording(tmp_path / "full.npz", flush_interval=0.0)
+    source.push([SourceFrame(np.zeros(GRID.size), 0.0, 0)])  # one frame written
+
+    def full_disk(*args):
+        raise OSError(28, "No space left on device")
+    messages = []
+    source.message.connect(lambda *m: messages.append(m))
+    if when == "a frame arrives":
+        recorder.add = full_disk
+        source.push([SourceFrame(np.ones(GRID.size), 0.1, 1)])
+    else:
+        recorder.tick = full_disk
+        source._tick_recording(0.5)
+    (level, title, text), = messages
+    assert (level, title) == ("error", "Recording stopped") and source.recorder is None
+    assert "full.npz: No space left on device" in text and "(1) are in the file" in text
+    assert list(load(tmp_path / "full.npz").seq) == [0]  # what was written stays readable
+    source.push([SourceFrame(np.ones(GRID.size), 0.2, 2)])  # and the source goes on
+    assert source.take_latest().index == 2
