@@ -98,7 +98,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.addDockWidget(QtCore.Qt.DockWidgetArea.RightDockWidgetArea, dock)
         self._build_menus()
         self.status = QtWidgets.QLabel("open a recording (File > Open) or connect a board (Live > Connect)")
-        self.statusBar().addPermanentWidget(self.status, 1)
+        # a normal widget, not a permanent one: a passing message ("saved ...") replaces it for its
+        # few seconds instead of being drawn underneath it
+        self.statusBar().addWidget(self.status, 1)
 
         self.model.recording_changed.connect(self._on_source)
         self.model.display_changed.connect(self._redraw)

@@ -365,3 +365,12 @@ def test_a_quality_preset_does_not_follow_the_user_to_another_geometry(opened, q
         opened.show_recording(Recording(grid, np.stack([stress, stress]), [0.0, 0.1]))
     assert opened.model.configuration is None and not opened.model.last.result.normal_only
     assert opened.parameters.quality_box.count() == 1  # no presets of another skin on offer
+
+
+def test_a_passing_message_is_shown_over_the_status_line(opened, qtbot, tmp_path):
+    path = opened.exports.export_screenshot(tmp_path / "shot.png")
+    bar = opened.statusBar()
+    assert bar.currentMessage() == f"saved {path}"
+    qtbot.waitUntil(lambda: not opened.status.isVisible(), timeout=2000)  # the message, not under it
+    bar.clearMessage()
+    qtbot.waitUntil(opened.status.isVisible, timeout=2000)  # then the solve's status line again
