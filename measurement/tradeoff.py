@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver import Reconstructor, RegionSolver, loads, metrics
+from solver import Reconstructor, RegionSolver, loads, make_solver, metrics
 from solver.geometry import SensorGrid
 from solver.quality import CONFIGURATIONS, Configuration
 
@@ -69,7 +69,7 @@ def measure(
     setup = math.inf
     for _ in range(repeat):
         start = time.perf_counter()
-        solver = configuration.build(grid)
+        solver = make_solver(grid, quality=configuration)
         setup = min(setup, time.perf_counter() - start)
     times, rows = [], []
     for case in cases:
@@ -85,7 +85,7 @@ def measure(
     if memory:
         tracemalloc.start()
         try:
-            traced = configuration.build(grid)
+            traced = make_solver(grid, quality=configuration)
             for case in cases[:4]:
                 traced.solve(case.frame.stress)
             peak = tracemalloc.get_traced_memory()[1]
