@@ -156,37 +156,40 @@ class MainWindow(QtWidgets.QMainWindow):
         The source shown so far stays until then; ``source`` is stopped if the
         build fails or the window closes first.
         """
-        kernel, configuration, grid = self.model.kernel, self.model.configuration, source.grid
+        configuration, grid = self.model.configuration, source.grid
         if self.model.is_open and grid.key != self.model.grid.key:
             configuration = None  # a quality preset was measured on the geometry it came with
         shape = "x".join(map(str, grid.shape[::-1])) if len(grid.shape) == 2 else f"{grid.size}-taxel"
-
-        def done(solver):
-            self.model.configuration = configuration
-            self.model.set_source(source, solver)
-
-        task = self.tasks.run(lambda progress: ViewerModel.build(grid, kernel, configuration), done,
-                              f"Factoring the {shape} geometry...", determinate=False)
+        task = self._install(source, self.model.kernel, configuration, f"Factoring the {shape} geometry...")
         task.failed.connect(lambda _: source.stop())
         task.succeeded.connect(lambda _: source.stop() if self.tasks.closed else None)
         return True
 
     def _rebuild(self, kernel, configuration):
         # the same source with another kernel or quality: its frame stays
-        changed = (kernel, configuration) != (self.model.kernel, self.model.configuration)
-        self.model.configuration = configuration
-        if not changed or not self.model.is_open:
+        if not self.model.is_open:
+            self.model.configuration = configuration
             return
-        source, grid = self.model.source, self.model.grid
+        if (kernel, configuration) == (self.model.kernel, self.model.configuration):
+            return
         label = (f"Factoring for the {kernel} kernel..." if kernel != self.model.kernel else
                  f"Setting up '{self.parameters.quality_box.currentText().split(':')[0]}'...")
+        self.model.configuration = configuration
+        self._install(self.model.source, kernel, configuration, label)
+
+    def _install(self, source: Source, kernel: str, configuration, label: str):
+        # the one path from a source to the screen: build its solver in a task, then show it
+        grid = source.grid
+        shown = self.model.source
 
         def done(solver):
-            if self.model.source is source:  # not replaced while this was built
-                self.model.set_source(source, solver)
+            if shown is source and self.model.source is not source:
+                return  # a rebuild for a source replaced while it was built
+            self.model.configuration = configuration
+            self.model.set_source(source, solver)
 
-        self.tasks.run(lambda progress: ViewerModel.build(grid, kernel, configuration), done, label,
-                       determinate=False)
+        return self.tasks.run(lambda progress: ViewerModel.build(grid, kernel, configuration), done, label,
+                              determinate=False)
 
     def _on_source(self):
         source = self.model.source

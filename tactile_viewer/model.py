@@ -301,8 +301,12 @@ class ViewerModel:
             log.exception("stopping %s failed", source.label)
             self.message.emit("error", "Source did not stop cleanly", f"{source.label}: {exc}")
 
+    def _here(self) -> bool:
+        # on the model's own thread, or with no other to hand work to
+        return self._dispatch is None or threading.get_ident() == self._owner
+
     def _source_message(self, level: str, title: str, text: str):
-        if threading.get_ident() == self._owner or self._dispatch is None:
+        if self._here():
             self.message.emit(level, title, text)
         elif not self._closed:
             self._dispatch(lambda: self.message.emit(level, title, text))
@@ -310,7 +314,7 @@ class ViewerModel:
     def _frame_arrived(self):
         # a source produced a frame: on our thread (a recording seeks) take it now; from a
         # reader thread hand it over, then take the newest once the last result is shown
-        if threading.get_ident() == self._owner or self._dispatch is None:
+        if self._here():
             self._take()
         elif not self._closed:
             self._dispatch(self._take_pushed)

@@ -1,8 +1,9 @@
 """The playback clock of a recording: which frame is due now. No Qt.
 
 Playback follows the recording's own timestamps at a chosen speed, so drawing
-slower than the recording skips frames instead of stretching time. The Qt
-layer only asks :meth:`PlaybackClock.due` on its timer.
+slower than the recording skips frames instead of stretching time.
+:class:`~tactile_viewer.source.RecordingSource` asks :meth:`PlaybackClock.due`
+each time its owner's timer advances it.
 """
 
 from __future__ import annotations
