@@ -188,7 +188,7 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
         drawn, solved = [], []
         window.rendered.connect(lambda: drawn.append(time.perf_counter()))  # on screen, not just solved
         window.model.solved.connect(lambda result: solved.append(result.frame))
-        window.live_panel.start_recording(folder / "live.npz")
+        window.live_panel.start_recording(folder / "live.mcap")
         received = window.live_panel.reader.stats.received
         cpu, start = time.process_time(), time.perf_counter()
         while time.perf_counter() - start < seconds:
@@ -200,11 +200,12 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
         _, sim_report = board.communicate(timeout=10)
         sim_cpu = os.times().children_user + os.times().children_system
         recording = load(path)
-        gaps = int(np.sum(np.diff(recording.seq) - 1))
+        sequence = recording.sequence()
+        gaps = int(np.sum(np.diff(sequence) - 1))
         print(f"{seconds:g} s at {rate:g} Hz, {fmt}, {recording.grid.size} values per frame, "
               "pseudo-terminal:", file=out)
         print(f"  recorded {len(recording)} frames, sequence gaps {gaps}, repeats "
-              f"{int(np.sum(np.diff(recording.seq) <= 0))}; "
+              f"{int(np.sum(np.diff(sequence) <= 0))}; "
               f"reader lost {window.live_panel.reader.stats.lost}",
               file=out)
         print(f"  display: {len(drawn) / elapsed:.1f} frames on screen per second, "

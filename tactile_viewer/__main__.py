@@ -1,9 +1,10 @@
 """Command line: ``tactile-viewer [RECORDING] [options]``.
 
 - no option: open the window (on RECORDING if given);
-- ``--screenshot out.png``: render one frame off screen, save PNG and JSON
-  sidecar, exit (batch figures);
-- ``--report``: reconstruct headlessly and print a per-frame table.
+- ``--screenshot out.png``: render one frame off screen, save the PNG and its
+  JSON sidecar ``out.png.view.json``, exit (batch figures);
+- ``--report``: reconstruct headlessly and print a per-frame table;
+- ``--info``: print what the file holds, one fact per line, solving nothing.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import argparse
 import math
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -19,7 +21,7 @@ from solver import make_solver, metrics
 from solver.kernels import KERNELS
 
 from .model import KERNEL_HELP, geometry_text
-from .recording import RecordingError, load
+from .recording import RecordingError, facts, load
 
 
 def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None, out=None):
@@ -67,7 +69,8 @@ def _frame_index(frame, recording):
 
 def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None,
                scale=1, transparent=False, camera="iso", size=(1200, 800), display_map="pressure"):
-    """Render one frame off screen with the window's own scene and save PNG + JSON sidecar."""
+    """Render one frame off screen with the window's own scene; save the PNG and its sidecar
+    ``<PNG>.view.json`` (never over a file that is not an earlier sidecar)."""
     import pyvista as pv
 
     from . import export
@@ -75,6 +78,10 @@ def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear
     from .scene import Scene
     from .source import RecordingSource
 
+    out = Path(out)
+    if not out.suffix:  # pyvista would write <out>.png, a name the user did not give
+        raise ValueError(f"{out}: --screenshot needs a file name with its type, e.g. {out.name}.png")
+    export.check_sidecar(out)  # refused before anything is rendered or written
     recording = load(path)
     model = ViewerModel()
     model.set_source(RecordingSource(recording, path), ViewerModel.build(recording.grid, kernel))
@@ -99,24 +106,30 @@ def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="tactile-viewer", description=__doc__.splitlines()[0])
-    parser.add_argument("recording", nargs="?")
+    parser.add_argument("recording", nargs="?", metavar="RECORDING",
+                        help="a recording to open: .mcap (live recordings), .npz or .csv")
+    parser.add_argument("--info", action="store_true",
+                        help="print frames, span, sequence gaps, receive times, geometry and calibration "
+                             "of RECORDING, one per line, and exit (nothing is solved)")
     parser.add_argument("--report", action="store_true", help="print the reconstruction (headless)")
     parser.add_argument("--frame", type=int)
     parser.add_argument("--kernel", choices=KERNELS, default=KERNELS[0], help=KERNEL_HELP)
     parser.add_argument("--shear-ratio", type=float)
     parser.add_argument("--shear-direction", type=float, help="degrees")
     parser.add_argument("--screenshot", metavar="PNG",
-                        help="render one frame to PNG (+ JSON sidecar) and exit")
+                        help="render one frame to PNG (+ JSON sidecar PNG.view.json) and exit")
     parser.add_argument("--scale", type=int, choices=(1, 2, 4), default=1, help="screenshot size multiplier")
     parser.add_argument("--transparent", action="store_true", help="screenshot with transparent background")
     parser.add_argument("--camera", choices=("iso", "top"), default="iso")
     parser.add_argument("--map", choices=("pressure", "stress", "none"), default="pressure")
     args = parser.parse_args(argv)
     try:
-        if args.report or args.screenshot:
+        if args.report or args.screenshot or args.info:
             if not args.recording:
-                parser.error("a RECORDING is needed with --report or --screenshot")
-            if args.report:
+                parser.error("a RECORDING is needed with --info, --report or --screenshot")
+            if args.info:
+                print("\n".join(facts(load(args.recording))))
+            elif args.report:
                 report(args.recording, frame=args.frame, kernel=args.kernel, shear_ratio=args.shear_ratio,
                        shear_direction_deg=args.shear_direction)
             else:

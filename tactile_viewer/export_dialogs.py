@@ -3,10 +3,17 @@
 The file formats are :mod:`tactile_viewer.export`'s; here are the dialogs and
 the checks that keep a bad folder from ending the app. Whole-recording
 exports run as a task behind a progress dialog.
+
+Only the file picked in the save dialog (which asks before replacing it) is
+replaced. The names the export derives from it -- the ``.png`` ending given to
+a name without it, the sidecar ``<image name>.view.json`` -- never replace a file the
+user did not pick: the image's is refused, the sidecar's is skipped (the image
+kept) and the error names the file left alone.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 from pathlib import Path
 
@@ -69,12 +76,44 @@ class ExportActions:
             try:
                 self.export_screenshot(path, scale=int(scale.currentText()[0]),
                                        transparent=transparent.isChecked())
+            except export.SidecarConflict as exc:  # the image is written: say so, and why the sidecar is not
+                self._error("Screenshot saved without its sidecar", f"{exc.image} was saved; {exc}")
             except (OSError, ValueError) as exc:
                 self._error("Cannot save screenshot", f"{path}: {getattr(exc, 'strerror', None) or exc}")
 
     def export_screenshot(self, path, *, scale: int = 1, transparent: bool = False) -> Path:
-        """Save the scene as PNG plus a JSON sidecar naming the recording, frame and parameters."""
-        path = Path(path).with_suffix(".png")
+        """Save the scene as PNG plus its JSON sidecar naming the recording, frame and parameters.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file picked. A name not ending in ``.png`` is given that ending
+            (``shot`` -> ``shot.png``, ``shot.PNG`` -> ``shot.png``); that name must then be
+            free, since it is not the file picked (nor the one the save dialog asked about).
+        scale : int
+            The image's size in multiples of the window's.
+        transparent : bool
+            Whether the background is transparent.
+
+        Returns
+        -------
+        Path
+            The image written; its sidecar is :func:`export.sidecar_path` of it
+            (``shot.png.view.json``).
+
+        Raises
+        ------
+        ValueError
+            No frame has been reconstructed yet; nothing is written.
+        OSError
+            The folder is missing or cannot be written, or the ``.png`` name made from
+            the name picked is an existing file (:class:`FileExistsError`); nothing is written.
+        export.SidecarConflict
+            The sidecar's name is taken by a file that is not one of our sidecars:
+            the image has been written, the sidecar has not, that file is untouched.
+        """
+        picked = Path(path)
+        path = _png_name(picked)
         if self.model.last is None:
             # the sidecar names the frame and parameters shown: there must be one
             raise ValueError("no frame has been reconstructed yet")
@@ -83,6 +122,10 @@ class ExportActions:
             raise FileNotFoundError(2, "the folder does not exist", str(path.parent))
         if not os.access(path.parent, os.W_OK):
             raise PermissionError(13, "the folder cannot be written", str(path.parent))
+        if path != picked and os.path.lexists(path):
+            found = (f"not replaced: the image would be {path.name} (the name picked, ending in '.png'), "
+                     "which exists and is not the file picked")
+            raise FileExistsError(errno.EEXIST, found, str(path))
         self.scene.screenshot(path, scale=scale, transparent=transparent)
         export.write_sidecar(path, **self.model.describe(), scale=scale, transparent=transparent)
         self._notify(f"saved {path}")
@@ -127,3 +170,10 @@ class ExportActions:
 
         self.tasks.run(work, lambda written: self._notify(f"saved {written}"), "Exporting forces...",
                        determinate=True)
+
+
+def _png_name(picked: Path) -> Path:
+    """The name a screenshot is saved as: the name picked, ending in ``.png`` (lower case: pyvista's)."""
+    if picked.suffix.lower() == ".png":
+        return picked.with_suffix(".png")
+    return picked.with_name(picked.name + ".png")

@@ -17,13 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from solver import SensorGrid
-from solver.arrays import read_only
 
-from .recording import UNIT_SCALES, geometry_fields, grid_from_fields
+from .recording import RAW_UNITS, geometry_fields, grid_from_fields, per_taxel, raw_to_pascals
 
 __all__ = ["LayoutError", "SensorLayout", "load_layout", "save_layout", "RAW_UNITS"]
-
-RAW_UNITS = (*UNIT_SCALES, "counts")
 
 
 class LayoutError(ValueError):
@@ -56,16 +53,8 @@ class SensorLayout:
     def __post_init__(self):
         if self.units not in RAW_UNITS:
             raise ValueError(f"units must be one of {RAW_UNITS}, got {self.units!r}")
-        m = self.grid.size
         for name in ("gain", "offset"):
-            value = np.broadcast_to(np.asarray(getattr(self, name), dtype=float), (m,)) \
-                if np.ndim(getattr(self, name)) == 0 else np.asarray(getattr(self, name), dtype=float)
-            if value.shape != (m,):
-                raise ValueError(f"{name} must be one number or {m} numbers (one per taxel), "
-                                 f"got shape {value.shape}")
-            if not np.all(np.isfinite(value)):
-                raise ValueError(f"{name} must be finite")
-            object.__setattr__(self, name, read_only(value))
+            object.__setattr__(self, name, per_taxel(getattr(self, name), name, self.grid.size))
 
     @property
     def count(self) -> int:
@@ -74,7 +63,7 @@ class SensorLayout:
 
     def to_pascals(self, raw) -> np.ndarray:
         """``(m,)`` or ``(T, m)`` raw values to pascals."""
-        return self.gain * (np.asarray(raw, dtype=float) - self.offset) * UNIT_SCALES.get(self.units, 1.0)
+        return raw_to_pascals(raw, self.units, self.gain, self.offset)
 
 
 def load_layout(path) -> SensorLayout:

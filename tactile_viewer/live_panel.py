@@ -128,13 +128,13 @@ class LivePanel(QtWidgets.QGroupBox):
             self._notify(f"taring: averaging the next {frames} frames")
 
     def record_dialog(self):
-        path, _ = QtWidgets.QFileDialog.getSaveFileName(self.window(), "Record live frames", "live.npz",
-                                                        "NumPy archive (*.npz);;CSV (*.csv)")
+        path, _ = QtWidgets.QFileDialog.getSaveFileName(self.window(), "Record live frames", "live.mcap",
+                                                        "MCAP recording (*.mcap)")
         if path:
             self.start_recording(path)
 
     def start_recording(self, path) -> bool:
-        """Record every received frame (not only the displayed ones) to NPZ or CSV."""
+        """Record every received frame (not only the displayed ones), raw, with its calibration, to MCAP."""
         if not self._connected():
             return False
         self.stop_recording()

@@ -23,21 +23,28 @@ from collections import Counter, deque
 import numpy as np
 
 from .layout import SensorLayout
-from .protocol import Frame, make_decoder
+from .protocol import make_decoder
+from .recording import StressCalibration, Tare
 from .source import Source, SourceFrame
 
-__all__ = ["Calibration", "LiveStats", "LiveSource", "SerialReader"]
+__all__ = ["Calibration", "LiveStats", "LiveSource", "SerialReader", "loaded_while_taring",
+           "LOADED_TARE_NOISE"]
 
 
 class Calibration:
-    """Raw values to pascals, minus a baseline taken by :meth:`tare`. Thread-safe."""
+    """Raw values to pascals (the layout's units, gain, offset), minus a baseline taken by :meth:`tare`.
+
+    Thread-safe: the reader calibrates, the GUI asks for a tare.
+    """
 
     def __init__(self, layout: SensorLayout):
         self.layout = layout
         self.baseline = np.zeros(layout.count)
+        self.warning: str | None = None  # why the last tare looked loaded (None: it did not)
         self._lock = threading.Lock()
         self._taring: list | None = None
         self._tare_count = 0
+        self._completed: Tare | None = None
 
     def tare(self, frames: int = 50) -> None:
         """Average the next ``frames`` frames and subtract that baseline from then on."""
@@ -50,15 +57,67 @@ class Calibration:
     def taring(self) -> bool:
         return self._taring is not None
 
-    def __call__(self, raw: np.ndarray) -> np.ndarray:
+    def stress_calibration(self) -> StressCalibration:
+        """What a recording keeps: the layout's conversion and the baseline in force (from frame 0)."""
+        tares = (Tare(0, self.baseline),) if np.any(self.baseline) else ()
+        return StressCalibration(self.layout.units, self.layout.gain, self.layout.offset, tares)
+
+    def take_completed(self) -> Tare | None:
+        """The tare completed by the last frame calibrated, once (None when none was)."""
+        with self._lock:
+            tare, self._completed = self._completed, None
+        return tare
+
+    def __call__(self, raw: np.ndarray, t: float = math.nan) -> np.ndarray:
+        """Pascals of one frame of raw values received at ``t`` seconds."""
         pascals = self.layout.to_pascals(raw)
         with self._lock:
             if self._taring is not None:
                 self._taring.append(pascals)
                 if len(self._taring) >= self._tare_count:
-                    self.baseline = np.mean(self._taring, axis=0)
+                    samples = np.array(self._taring)
+                    self.warning = loaded_while_taring(samples, self.baseline)
+                    self.baseline = samples.mean(axis=0)
+                    self._completed = Tare(0, self.baseline, t, len(samples))
                     self._taring = None
             return pascals - self.baseline
+
+
+# A contact under the skin raises a group of taxels by many times their noise; an unloaded skin
+# moves its tared zero by a fraction of it. Five times the noise is far above what 50 averaged
+# noisy frames give (about 3/sqrt(50) of it at the highest of 256 taxels).
+LOADED_TARE_NOISE = 5.0
+
+
+def loaded_while_taring(samples: np.ndarray, previous: np.ndarray) -> str | None:
+    """Why the frames averaged by a tare look like a contact, or None when they do not.
+
+    Parameters
+    ----------
+    samples : (n, m) ndarray
+        The frames averaged, pascals before any tare.
+    previous : (m,) ndarray
+        The baseline in force before (zeros: the layout's own zero).
+
+    Notes
+    -----
+    The rise of each taxel over ``previous`` is compared, about the skin's
+    median rise, with the frame-to-frame noise (the median over taxels of
+    each taxel's standard deviation across the samples, or 1e-6 of the
+    largest rise when the samples do not vary). A rise above
+    :data:`LOADED_TARE_NOISE` times that noise is called a contact.
+    """
+    rise = samples.mean(axis=0) - previous
+    excess = rise - np.median(rise)
+    peak = int(np.argmax(excess))
+    noise = float(np.median(samples.std(axis=0))) if len(samples) > 1 else 0.0
+    noise = max(noise, 1e-6 * float(np.abs(excess).max()), np.finfo(float).tiny)
+    if excess[peak] <= LOADED_TARE_NOISE * noise:
+        return None
+    return (f"the skin looked loaded while taring: taxel {peak} stood {excess[peak]:.4g} Pa above the rest "
+            f"({excess[peak] / noise:.0f} times the noise). If something touched it, its load is now "
+            "the zero: retake the tare with nothing on the skin (recordings keep the raw values, so a "
+            "recording can be re-tared when it is opened).")
 
 
 class LiveStats:
@@ -76,6 +135,7 @@ class LiveStats:
         self.lost = 0
         self.out_of_order = 0
         self.last_time: float | None = None
+        self.longest_gap = 0.0  # seconds: the longest wait between two reads that brought frames
         self.last_seq: int | None = None  # unwrapped, continuing across reconnections
         self._wire: int | None = None  # the last uint16 seen on this connection
         self._times: deque = deque()
@@ -87,6 +147,8 @@ class LiveStats:
     def add(self, seq: int | None, t: float) -> int | None:
         """Count one frame received at ``t`` seconds; returns its unwrapped sequence number."""
         self.received += 1
+        if self.last_time is not None:
+            self.longest_gap = max(self.longest_gap, t - self.last_time)
         self.last_time = t
         self._times.append(t)
         while self._times and self._times[0] < t - self.window:
@@ -150,6 +212,7 @@ class LiveSource(Source):
                  reconnect_interval: float = 0.5):
         super().__init__(f"{url} ({fmt})", layout.grid)
         self.url, self.layout, self.fmt = url, layout, fmt
+        self.raw_dtype = "float32" if fmt == "binary" else "float64"  # binary frames carry float32
         self.calibration = Calibration(layout)
         self.decoder = make_decoder(fmt, layout.count)
         self.stats = LiveStats()
@@ -181,6 +244,7 @@ class LiveSource(Source):
         connection = self._open()
         self._set_state("connected")
         self._origin = time.perf_counter()
+        self.clock_origin = time.time()
         self._thread = threading.Thread(target=self._run, args=(connection,), name=f"source {self.url}",
                                         daemon=True)
         self._thread.start()
@@ -194,6 +258,9 @@ class LiveSource(Source):
     def now(self) -> float:
         """Seconds since the reader started (the clock of the frames' receive times)."""
         return time.perf_counter() - self._origin
+
+    def recorded_calibration(self) -> StressCalibration:
+        return self.calibration.stress_calibration()
 
     def rejected(self) -> Counter:
         """Rejected frames by reason so far (a copy)."""
@@ -237,9 +304,28 @@ class LiveSource(Source):
 
     def _handle(self, data: bytes) -> None:
         t = self.now()
-        frames: list[Frame] = self.decoder.feed(data)
-        self._publish([SourceFrame(self.calibration(frame.values), t, self.stats.add(frame.seq, t))
-                       for frame in frames])
+        batch = []
+        for frame in self.decoder.feed(data):
+            stress = self.calibration(frame.values, t)
+            tare = self.calibration.take_completed()
+            if tare is not None:
+                # frames before it go out untared, so the recording says from which frame it applies
+                self._publish(batch)
+                batch = []
+                self._tare_taken(tare)
+            batch.append(SourceFrame(stress, t, self.stats.add(frame.seq, t), frame.values))
+        self._publish(batch)
+
+    def _tare_taken(self, tare: Tare) -> None:
+        recorder = self.recorder
+        if recorder is not None:
+            try:
+                recorder.tare(tare)
+            except (OSError, ValueError) as exc:
+                self._recording_failed(recorder, exc, "Recording stopped")
+        warning = self.calibration.warning
+        if warning is not None:
+            self.message.emit("warning", "Tare taken under load?", warning)
 
 
 class SerialReader(LiveSource):

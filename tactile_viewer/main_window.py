@@ -133,7 +133,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def open_dialog(self):
         path, _ = QtWidgets.QFileDialog.getOpenFileName(
-            self, "Open recording", str(Path.cwd()), "Recordings (*.npz *.csv);;All files (*)")
+            self, "Open recording", str(Path.cwd()), "Recordings (*.mcap *.npz *.csv);;All files (*)")
         if path:
             self.open(path)
 
@@ -241,6 +241,9 @@ class MainWindow(QtWidgets.QMainWindow):
     def _on_message(self, level, title, text):
         if level == "error":
             self._error(title, text)
+        elif level == "warning":
+            log.warning("%s: %s", title, text)
+            self.statusBar().showMessage(f"Warning: {title} {text}", 20000)
         else:
             self._notify(f"{title}: {text}")
 

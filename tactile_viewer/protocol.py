@@ -1,9 +1,22 @@
-"""Serial frame codecs: text lines and binary frames with CRC. No Qt.
+"""Serial frame codecs: text lines (optionally checksummed) and binary frames with CRC. No Qt.
 
 Text
     One frame per line: the ``m`` values separated by commas and/or spaces,
     ``\\n`` terminated (``\\r\\n`` accepted). Lines starting with ``#`` are
     comments; empty lines are ignored. Text frames carry no sequence number.
+
+    A line may end with a checksum: ``*`` and exactly four hex digits, upper
+    or lower case, then the line end::
+
+        1.5,2,-0.25*808D\\r\\n
+
+    The digits are the CRC-16/CCITT-FALSE (:func:`crc16`) of the exact bytes of
+    the line before the ``*``: every byte after the previous ``\\n`` up to the
+    ``*``, leading and trailing spaces included. The ``*``, the four digits and
+    the line end (``\\n``, or ``\\r\\n``: one ``\\r`` before the ``\\n`` is
+    removed first) are not covered. A comment that ends in ``*`` and four hex
+    digits is checked too (a data line whose first digit was corrupted into
+    ``#`` must not vanish as a comment); a ``*`` elsewhere in a comment is text.
 
 Binary (all little-endian)::
 
@@ -12,10 +25,26 @@ Binary (all little-endian)::
     crc = CRC-16/CCITT-FALSE (poly 0x1021, init 0xFFFF, no reflection, no
     final xor) over seq, count and the values; the sync bytes are not covered.
 
+Integrity
+    Binary frames are always checked by their CRC. Text lines are checked only
+    when they carry ``*XXXX``; without it a text frame cannot be checked: a
+    flipped bit that turns a digit into another is returned as a wrong value.
+    A data line with a ``*`` is rejected when its checksum does not match, when
+    the ``*`` is not followed by exactly four hex digits and the line end, or
+    when it has several ``*``. Once a connection has delivered a line with a
+    valid checksum, every later data line must carry one (comments need not),
+    so that a line whose ``*`` was corrupted cannot pass as an unchecked line;
+    :meth:`Decoder.reset` (a reconnection) forgets this. The lines before the
+    first valid checksum of a connection are taken as they come, so a bit error
+    in the ``*`` of that very first checksummed line can still pass it unchecked
+    (``*`` to ``.`` appends the digits to the last value; ``*`` to ``\\n`` sends
+    them as a line of their own).
+
 The decoders are incremental: ``feed(data)`` takes whatever bytes arrived
 and returns the complete frames in them. They survive garbage, truncated
-frames, wrong value counts and absurd lengths by resynchronizing, never
-return a corrupted frame, and count every rejection by reason
+frames, wrong value counts and absurd lengths by resynchronizing, return no
+frame that fails its check (the CRC of a binary frame, the checksum of a text
+line that has one), and count every rejection by reason
 (:attr:`Decoder.rejected`) and every byte skipped while searching for a frame
 (:attr:`Decoder.skipped_bytes`).
 """
@@ -41,6 +70,7 @@ MAX_VALUES = 16384  # longer frames are garbage: no tactile board sends 64 KiB p
 FORMATS = ("text", "binary")
 _HEADER = struct.Struct("<HH")
 _PLAIN = b"0123456789.+-eE, \t\nnaifntyNAIFTY"  # the bytes of lines of plain numbers (and nan, inf)
+_HEX = b"0123456789abcdefABCDEF"  # int(..., 16) alone would also take "0x12", " 12 " and "1_2"
 
 
 def crc16(data: bytes) -> int:
@@ -58,9 +88,29 @@ def encode_binary(seq: int, values) -> bytes:
     return SYNC + payload + struct.pack("<H", crc16(payload))
 
 
-def encode_text(values, *, digits: int = 6) -> bytes:
-    """One text line: the values separated by commas, ``digits`` significant digits."""
-    return (",".join(f"{v:.{digits}g}" for v in np.asarray(values, dtype=float).ravel()) + "\n").encode()
+def encode_text(values, *, digits: int = 6, checksum: bool = False) -> bytes:
+    """One text line: the values separated by commas, ``\\n`` terminated.
+
+    Parameters
+    ----------
+    values : array_like
+        The frame's values (flattened).
+    digits : int
+        Significant digits of each value.
+    checksum : bool
+        Append ``*`` and the CRC-16/CCITT-FALSE of the line's bytes before it in
+        four upper-case hex digits (see the module notes), so that the decoder
+        can reject a corrupted line.
+
+    Returns
+    -------
+    bytes
+        The line, ASCII.
+    """
+    body = ",".join(f"{v:.{digits}g}" for v in np.asarray(values, dtype=float).ravel()).encode()
+    if checksum:
+        return body + b"*%04X\n" % crc16(body)
+    return body + b"\n"
 
 
 @dataclass(frozen=True)
@@ -127,25 +177,45 @@ class Decoder:
 
 
 class TextDecoder(Decoder):
-    """Incremental decoder of text lines.
+    """Incremental decoder of text lines, with or without checksums (see the module notes).
 
     Parameters
     ----------
     count : int, optional
         Values per frame; lines with another count are rejected. None accepts any.
     max_line : int, optional
-        Longest line accepted, bytes (default: 32 per expected value, at least
-        4096); a longer run without newline is discarded up to the next newline.
+        Longest line accepted, bytes, checksum included (default: 32 per expected
+        value, at least 4096); a longer run without newline is discarded up to the
+        next newline.
+
+    Notes
+    -----
+    Besides the reasons of :class:`Decoder`, lines are rejected for ``"bad
+    checksum"`` (four hex digits that do not match the line), ``"malformed
+    checksum"`` (a ``*`` not followed by exactly four hex digits and the line end,
+    or several ``*``) and ``"missing checksum"`` (no ``*XXXX`` on a connection that
+    has delivered a valid one, see :attr:`checked`).
     """
 
     def __init__(self, count: int | None = None, *, max_line: int | None = None):
         super().__init__(count)
         self.max_line = max_line if max_line is not None else max(4096, 32 * (count or 0))
         self._overlong = False  # inside a line already rejected as too long
+        self._checked = False
+
+    @property
+    def checked(self) -> bool:
+        """Whether this connection delivered a line with a valid checksum.
+
+        From then on a line without one is rejected; :meth:`reset` clears it.
+        """
+        return self._checked
 
     def reset(self) -> None:
+        """Drop any partial line and forget :attr:`checked` (a reconnection); the counters are kept."""
         super().reset()
         self._overlong = False
+        self._checked = False
 
     def feed(self, data: bytes) -> list[Frame]:
         out: list[Frame] = []
@@ -168,7 +238,13 @@ class TextDecoder(Decoder):
                 self.skipped_bytes += len(line) + 1
                 continue
             text = line.strip()
-            if text and not text.startswith(b"#"):
+            if not text:
+                continue
+            if self._checked or b"*" in text:
+                text = self._verified(line, text)
+                if text is not None:
+                    lines.append(text)
+            elif not text.startswith(b"#"):
                 lines.append(text)
         del buffer[:start]
         if lines:
@@ -181,6 +257,39 @@ class TextDecoder(Decoder):
             self.skipped_bytes += len(buffer)
             buffer.clear()
         return out
+
+    def _verified(self, line: bytes, text: bytes) -> bytes | None:
+        """The values part of a data line that passes the checksum rules, else None.
+
+        ``line`` is the whole line without its ``\\n``, ``text`` the same stripped.
+        Rejections are counted here; comments give None uncounted unless they
+        carry a checksum that does not match.
+        """
+        if line.endswith(b"\r"):
+            line = line[:-1]
+        if text.startswith(b"#"):
+            # a data line whose first digit was corrupted into "#" still ends in its checksum: it must
+            # be counted, not pass as a comment; a comment's own "*" in other places means nothing
+            if len(line) >= 5 and line[-5] == 0x2A and not line[-4:].translate(None, _HEX):
+                if crc16(line[:-5]) != int(line[-4:], 16):
+                    self.rejected["bad checksum"] += 1
+                else:
+                    self._checked = True
+            return None
+        star = line.find(b"*")
+        if star < 0:
+            self.rejected["missing checksum"] += 1
+            return None
+        # the first "*" must be the one before the last four bytes: a second "*" is never hex
+        if star != len(line) - 5 or line[-4:].translate(None, _HEX):
+            self.rejected["malformed checksum"] += 1
+            return None
+        body = line[:star]
+        if crc16(body) != int(line[-4:], 16):
+            self.rejected["bad checksum"] += 1
+            return None
+        self._checked = True
+        return body.strip()  # an empty one is "not numbers", as a line of separators only
 
     def _lines(self, lines: list, out: list) -> None:
         # numpy's C parser reads a block of well-formed lines about 1.5 times

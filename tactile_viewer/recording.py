@@ -1,9 +1,12 @@
-"""Recordings: a sensor grid, frames of stress and their timestamps, in NPZ or CSV.
+"""Recordings: a sensor grid, frames of stress and their timestamps, in MCAP, NPZ or CSV.
 
-One module for the format: :func:`load` reads it, :func:`save` writes a whole
-recording, :class:`Recorder` writes one frame by frame as a live source delivers
-them, and :func:`grid_from_fields` / :func:`geometry_fields` are the one reader
-and writer of the geometry that every file (layouts included) declares.
+:class:`Recording` is what every format loads into and :func:`load` reads any
+of them. Live recordings are written as MCAP by
+:class:`tactile_viewer.container.Recorder` (raw values with their
+:class:`StressCalibration`, crash-safe, opened lazily); NPZ and CSV are export
+and import formats written whole by :func:`save`. :func:`grid_from_fields` /
+:func:`geometry_fields` are the one reader and writer of the geometry that
+every file (layouts included) declares.
 
 NPZ keys: ``frames (T, m)`` pascals, ``t (T,)`` seconds, ``nx``, ``ny`` (or
 ``taxels`` and ``positions`` for an irregular layout), ``pitch``, ``thickness``
@@ -11,9 +14,9 @@ NPZ keys: ``frames (T, m)`` pascals, ``t (T,)`` seconds, ``nx``, ``ny`` (or
 optional ``sensor_size`` (side of a square taxel, metres, default 0: point
 sensors), optional ``positions (m, 2)``, optional ``truth_forces (T, m, 3)``
 newtons, optional ``seq (T,)`` sequence numbers of live frames, ``units``,
-``description``. A live recording that was never closed (a crash) holds its
-frames in chunks ``chunkNNNNNN_frames``, ``chunkNNNNNN_t``,
-``chunkNNNNNN_seq``; they load as one recording.
+``description``. Live recordings of earlier versions, written as NPZ chunks
+``chunkNNNNNN_frames``, ``chunkNNNNNN_t``, ``chunkNNNNNN_seq`` and never
+closed, load as one recording.
 
 CSV: ``#`` header lines of ``key=value`` (nx, ny, pitch, thickness, optional
 poisson_ratio and sensor_size, units, description, optional ``columns=seq,t``;
@@ -31,11 +34,9 @@ from __future__ import annotations
 
 import io
 import math
-import os
-import threading
 import zipfile
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -43,10 +44,14 @@ import numpy as np
 from solver import SensorGrid
 from solver.arrays import read_only
 
-__all__ = ["Recording", "RecordingError", "load", "save", "Recorder", "grid_from_fields", "geometry_fields",
-           "csv_geometry_header", "MAX_TAXELS"]
+__all__ = ["Recording", "RecordingError", "StressCalibration", "Tare", "load", "save", "grid_from_fields",
+           "geometry_fields", "csv_geometry_header", "raw_to_pascals", "per_taxel",
+           "MAX_TAXELS", "RAW_UNITS", "SUFFIXES", "facts"]
 
 UNIT_SCALES = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
+# what a board may send: pressure units, or counts that the gain turns into pascals
+RAW_UNITS = (*UNIT_SCALES, "counts")
+SUFFIXES = (".mcap", ".npz", ".csv")
 
 # A 1000x1000 skin. A header declaring more is far likelier damaged than real, and believing it
 # would allocate gigabytes before anything could say so.
@@ -119,6 +124,133 @@ class RecordingError(ValueError):
     """A recording file that cannot be read; the message names the file and the problem."""
 
 
+def raw_to_pascals(raw, units: str, gain, offset) -> np.ndarray:
+    """``gain * (raw - offset) * scale(units)``: a board's raw values in pascals.
+
+    ``scale`` is 1, 1e3, 1e6 for ``"Pa"``, ``"kPa"``, ``"MPa"`` and 1 for
+    ``"counts"`` (the gain then is pascals per count).
+    """
+    return np.asarray(gain) * (np.asarray(raw, dtype=float) - offset) * UNIT_SCALES.get(units, 1.0)
+
+
+def per_taxel(value, name: str, m: int) -> np.ndarray:
+    """``value`` as ``m`` finite numbers, read-only (one number is shared by every taxel)."""
+    array = np.asarray(value, dtype=float)
+    if array.ndim == 0:
+        array = np.full(m, float(array))
+    if array.shape != (m,):
+        raise ValueError(f"{name} must be one number or {m} numbers (one per taxel), got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must be finite")
+    return read_only(array)
+
+
+@dataclass(frozen=True, eq=False)
+class Tare:
+    """A baseline subtracted from a recording's frames from ``from_frame`` on.
+
+    Attributes
+    ----------
+    from_frame : int
+        Index of the first frame it applies to.
+    baseline : (m,) ndarray
+        Pascals.
+    t : float
+        Receive time it was taken at, seconds of the recording's clock (nan: unknown).
+    frames : int
+        Frames averaged (0: unknown).
+    """
+
+    from_frame: int
+    baseline: np.ndarray
+    t: float = math.nan
+    frames: int = 0
+
+    def __post_init__(self):
+        if isinstance(self.from_frame, bool) or not isinstance(self.from_frame, (int, np.integer)) \
+                or self.from_frame < 0:
+            raise ValueError(f"from_frame must be a whole number >= 0, got {self.from_frame!r}")
+        baseline = np.asarray(self.baseline, dtype=float)
+        object.__setattr__(self, "baseline", per_taxel(baseline, "baseline", baseline.size))
+        object.__setattr__(self, "from_frame", int(self.from_frame))
+
+    def fields(self) -> dict:
+        return dict(from_frame=self.from_frame, baseline=self.baseline, t=self.t, frames=self.frames)
+
+    @classmethod
+    def from_fields(cls, taxels: int, *, from_frame, baseline, t=math.nan, frames=0) -> Tare:
+        """As written by :meth:`fields` (JSON values); the baseline must have ``taxels`` values."""
+        baseline = np.asarray(baseline, dtype=float)
+        if baseline.shape != (taxels,):
+            raise ValueError(f"a tare baseline must have {taxels} values, got shape {baseline.shape}")
+        return cls(from_frame, baseline, math.nan if t is None else float(t), int(frames))
+
+
+@dataclass(frozen=True, eq=False)
+class StressCalibration:
+    """How a recording's raw values become the stresses shown: units, gain, offset, tares.
+
+    ``stress = gain * (raw - offset) * scale(units) - baseline`` where the
+    baseline is that of the last tare whose ``from_frame`` the frame reached
+    (zero before the first).
+
+    Attributes
+    ----------
+    units : str
+        One of :data:`RAW_UNITS`.
+    gain, offset : (m,) ndarray
+    tares : tuple of Tare
+        In the order they were taken.
+    """
+
+    units: str
+    gain: np.ndarray
+    offset: np.ndarray
+    tares: tuple = ()
+
+    def __post_init__(self):
+        if self.units not in RAW_UNITS:
+            raise ValueError(f"units must be one of {RAW_UNITS}, got {self.units!r}")
+        # one number shared by every taxel stays one number until a tare says how many there are
+        m = max(np.size(self.gain), np.size(self.offset), *(np.size(tare.baseline) for tare in self.tares))
+        object.__setattr__(self, "gain", per_taxel(self.gain, "gain", m))
+        object.__setattr__(self, "offset", per_taxel(self.offset, "offset", m))
+        tares = tuple(sorted(self.tares, key=lambda tare: tare.from_frame))
+        for tare in tares:
+            if tare.baseline.shape != (m,):
+                raise ValueError(f"a tare baseline must have {m} values, got shape {tare.baseline.shape}")
+        object.__setattr__(self, "tares", tares)
+
+    @classmethod
+    def identity(cls, m: int) -> StressCalibration:
+        """Raw values that are pascals already."""
+        return cls("Pa", np.ones(m), np.zeros(m))
+
+    @classmethod
+    def from_fields(cls, taxels: int, *, units, gain, offset, tares=()) -> StressCalibration:
+        """As written by :meth:`fields` (JSON values) for ``taxels`` values per frame."""
+        return cls(units, per_taxel(gain, "gain", taxels), per_taxel(offset, "offset", taxels), tuple(tares))
+
+    def fields(self) -> dict:
+        """``units``, ``gain``, ``offset`` (one number when all taxels share it); tares apart."""
+        def one(value):
+            return float(value[0]) if np.all(value == value[0]) else value
+        return dict(units=self.units, gain=one(self.gain), offset=one(self.offset))
+
+    def retared(self, tare: Tare | None) -> StressCalibration:
+        """The same conversion with ``tare`` as the only baseline (None: no tare)."""
+        return StressCalibration(self.units, self.gain, self.offset, () if tare is None else (tare,))
+
+    def apply(self, raw, rows) -> np.ndarray:
+        """Pascals of the raw values ``(k, m)`` of frames ``rows (k,)`` (or one frame ``(m,)``)."""
+        stress = raw_to_pascals(raw, self.units, self.gain, self.offset)
+        if not self.tares:
+            return stress
+        starts = np.array([tare.from_frame for tare in self.tares])
+        baselines = np.vstack([np.zeros_like(self.tares[0].baseline), *(t.baseline for t in self.tares)])
+        return stress - baselines[np.searchsorted(starts, rows, side="right")]
+
+
 @dataclass(frozen=True, eq=False)
 class Recording:
     """Frames of sensor stress over time.
@@ -126,15 +258,24 @@ class Recording:
     Attributes
     ----------
     grid : SensorGrid
-    frames : (T, m) ndarray
-        Stress at each sensor, pascals, compression positive.
+    frames : (T, m) ndarray or FrameTable
+        Stress at each sensor, pascals, compression positive. A recording
+        opened from MCAP holds a :class:`~tactile_viewer.container.FrameTable`
+        that reads frames from the file on demand and indexes like an array.
     t : (T,) ndarray
         Time of each frame, seconds, non-decreasing.
     truth_forces : (T, m, 3) ndarray or None
         Known nodal forces (simulated recordings), newtons.
     description : str
     seq : (T,) ndarray of int or None
-        Sequence numbers of frames received live (gaps are lost frames).
+        Sequence numbers of frames received live (gaps are lost frames); an
+        MCAP recording reads them on demand (:meth:`sequence`).
+    received : float or None
+        UNIX seconds at which frame 0 was received (None: the file keeps no
+        receive clock).
+    truncated : bool
+        The file was cut short (a crash, a full disk); it holds every frame
+        of its complete chunks.
     """
 
     grid: SensorGrid
@@ -143,17 +284,20 @@ class Recording:
     truth_forces: np.ndarray | None = None
     description: str = ""
     seq: np.ndarray | None = None
+    received: float | None = None
+    truncated: bool = False
 
     def __post_init__(self):
-        frames = np.array(self.frames, dtype=float)
-        if frames.ndim != 2 or frames.shape[1] != self.grid.size:
+        lazy = not isinstance(self.frames, (np.ndarray, list, tuple))
+        frames = self.frames if lazy else np.array(self.frames, dtype=float)
+        if len(frames.shape) != 2 or frames.shape[1] != self.grid.size:
             raise ValueError(f"frames must have shape (T, {self.grid.size}), got {frames.shape}")
         t = np.array(self.t, dtype=float)
         if t.shape != (frames.shape[0],):
             raise ValueError(f"t must have shape ({frames.shape[0]},), got {t.shape}")
         if not np.all(np.isfinite(t)) or np.any(np.diff(t) < 0):
             raise ValueError("t must be finite and non-decreasing")
-        object.__setattr__(self, "frames", read_only(frames))
+        object.__setattr__(self, "frames", frames if lazy else read_only(frames))
         object.__setattr__(self, "t", read_only(t))
         if self.truth_forces is not None:
             truth = np.array(self.truth_forces, dtype=float)
@@ -170,14 +314,44 @@ class Recording:
     def __len__(self) -> int:
         return self.frames.shape[0]
 
+    @property
+    def calibration(self) -> StressCalibration | None:
+        """How raw values became these frames, when the file keeps raw values (MCAP); else None."""
+        return getattr(self.frames, "calibration", None)
+
+    def recalibrated(self, calibration: StressCalibration) -> Recording:
+        """The same recording shown through ``calibration`` (a tare retaken or cleared).
+
+        Raises
+        ------
+        ValueError
+            When the recording keeps no raw values (NPZ and CSV hold stresses only).
+        """
+        if self.calibration is None:
+            raise ValueError("this recording keeps no raw values (NPZ or CSV): its tare cannot change")
+        return replace(self, frames=self.frames.with_calibration(calibration))
+
+    def sequence(self) -> np.ndarray | None:
+        """Sequence numbers of the frames (read from an MCAP file on first use), or None."""
+        if self.seq is not None:
+            return self.seq
+        return self.frames.sequence() if hasattr(self.frames, "sequence") else None
+
 
 def load(path) -> Recording:
-    """Read a recording (``.npz`` or ``.csv``); :class:`RecordingError` names what is wrong."""
+    """Read a recording (``.mcap``, ``.npz`` or ``.csv``); :class:`RecordingError` names what is wrong.
+
+    An MCAP recording opens lazily (:func:`tactile_viewer.container.open_recording`).
+    """
     path = Path(path)
     suffix = path.suffix.lower()
-    if suffix not in (".npz", ".csv"):
-        raise RecordingError(f"{path}: unknown recording type {path.suffix!r}, expected .npz or .csv")
+    if suffix not in SUFFIXES:
+        raise RecordingError(f"{path}: unknown recording type {path.suffix!r}, expected one of {SUFFIXES}")
     try:
+        if suffix == ".mcap":
+            from .container import open_recording  # the container reads through this module
+
+            return open_recording(path)
         if suffix == ".npz":
             return _load_npz(path)
         return _load_csv(path)
@@ -355,100 +529,48 @@ def save(recording: Recording, path) -> Path:
     return path
 
 
-class Recorder:
-    """Writes every frame it is given to a recording, incrementally.
+def facts(recording: Recording) -> list[str]:
+    """What ``tactile-viewer FILE --info`` prints: one line per fact, nothing solved.
 
-    ``.npz``: each flush appends one chunk (frames, t, seq) to the archive, which
-    is a valid, loadable recording after every flush; :meth:`close` rewrites it
-    as one plain recording. ``.csv``: rows ``seq, t, v0, ...`` appended and
-    flushed. Flushes happen at least every ``flush_interval`` seconds of receive
-    time, so a crash loses at most that much.
+    ``frames``, ``span`` (seconds), ``sequence gaps`` (frames missing between
+    the numbers received, and any repeated or reordered ones), ``first
+    received`` and ``last received`` (UNIX seconds, the recorder's receive
+    clock), ``cut short``, ``geometry`` and ``calibration``. What a format does
+    not keep is said to be unknown.
     """
-
-    def __init__(self, path, grid: SensorGrid, *, flush_interval: float = 1.0, description: str = ""):
-        path = Path(path)
-        self.kind = path.suffix.lower()
-        if self.kind not in (".npz", ".csv"):
-            raise ValueError(f"{path}: unknown recording type {path.suffix!r}, expected .npz or .csv")
-        self.path = path
-        self.flush_interval = flush_interval
-        self.description = description or "live recording"
-        self.written = 0
-        self._rows: list = []
-        self._closed = False
-        self._chunks = 0
-        self._last_flush: float | None = None
-        self._lock = threading.Lock()
-        # the geometry as every recording declares it (recording.geometry_fields), positions always
-        self._meta = dict(geometry_fields(grid), units="Pa")
-        self._meta["positions"] = grid.positions
-        if self.kind == ".npz":
-            with zipfile.ZipFile(path, "w") as archive:
-                for key, value in (*self._meta.items(), ("description", self.description)):
-                    _write_member(archive, key, np.asarray(value))
-        else:
-            header = csv_geometry_header(grid) + "# units=Pa\n"
-            header += f"# description={' '.join(self.description.split())}\n# columns=seq,t\n"
-            path.write_text(header, encoding="utf-8")
-
-    def add(self, seq: int, t: float, stress: np.ndarray) -> None:
-        """Queue one frame (``t`` in seconds); flushes when ``flush_interval`` has passed."""
-        with self._lock:
-            if self._closed:
-                return  # the reader took this recorder just before it was stopped: the frame is past the end
-            self._rows.append((seq, t, stress))
-            if self._last_flush is None:
-                self._last_flush = t
-            if t - self._last_flush >= self.flush_interval:
-                self._flush(t)
-
-    def tick(self, now: float) -> None:
-        """Flush if frames have waited ``flush_interval`` (called while the line is quiet)."""
-        with self._lock:
-            if self._rows and now - self._last_flush >= self.flush_interval:
-                self._flush(now)
-
-    def _flush(self, now: float | None = None) -> None:
-        rows, self._rows = self._rows, []
-        self._last_flush = now
-        if rows:
-            seq = np.array([r[0] for r in rows], dtype=np.int64)
-            t = np.array([r[1] for r in rows])
-            frames = np.array([r[2] for r in rows])
-            if self.kind == ".npz":
-                with zipfile.ZipFile(self.path, "a") as archive:
-                    name = f"chunk{self._chunks:06d}"
-                    for key, value in (("frames", frames), ("t", t), ("seq", seq)):
-                        _write_member(archive, f"{name}_{key}", value)
-                self._chunks += 1
-            else:
-                with open(self.path, "a", encoding="utf-8") as f:
-                    np.savetxt(f, np.column_stack([seq, t, frames]), delimiter=",",
-                               fmt=["%d", "%.6f"] + ["%.9g"] * frames.shape[1])
-            self.written += len(rows)
-
-    def close(self) -> Path | None:
-        """Write what is left; an NPZ becomes one plain recording (chunks joined).
-
-        Returns the path, or None (and no file) when no frame was recorded.
-        """
-        with self._lock:
-            self._flush()
-            self._closed = True
-            if self.written == 0:
-                self.path.unlink(missing_ok=True)
-                return None
-            if self.kind == ".npz":
-                recording = load(self.path)
-                temporary = self.path.with_name(self.path.name + ".tmp")
-                with open(temporary, "wb") as handle:
-                    np.savez(handle, frames=recording.frames, t=recording.t,
-                             seq=recording.seq if recording.seq is not None else np.zeros(0, np.int64),
-                             description=self.description, **self._meta)
-                os.replace(temporary, self.path)
-        return self.path
-
-
-def _write_member(archive: zipfile.ZipFile, key: str, value: np.ndarray) -> None:
-    with archive.open(f"{key}.npy", "w", force_zip64=True) as member:
-        np.lib.format.write_array(member, np.asarray(value), allow_pickle=False)
+    grid = recording.grid
+    lines = [f"frames {len(recording)}", f"span {float(recording.t[-1] - recording.t[0]):.3f} s"]
+    sequence = recording.sequence()
+    if sequence is None:
+        lines.append("sequence gaps unknown (the file keeps no sequence numbers)")
+    else:
+        steps = np.diff(sequence)
+        gaps = f"sequence gaps {int(np.sum(steps[steps > 1] - 1))}"
+        backwards = int(np.sum(steps <= 0))
+        lines.append(gaps + (f" ({backwards} repeated or reordered)" if backwards else ""))
+    if recording.received is None:
+        lines += ["first received unknown (the file keeps no receive clock)", "last received unknown"]
+    else:
+        lines += [f"first received {recording.received:.6f}",
+                  f"last received {recording.received + float(recording.t[-1]):.6f}"]
+    lines.append("cut short yes: it ends at its last complete chunk (a crash or a full disk)"
+                 if recording.truncated else "cut short no")
+    size = (f"{grid.shape[1]}x{grid.shape[0]} taxels" if len(grid.shape) == 2
+            else f"{grid.size} taxels (irregular)")
+    lines.append(f"geometry {size}, pitch {grid.pitch * 1e3:g} mm, thickness {grid.thickness * 1e3:g} mm, "
+                 f"poisson ratio {grid.poisson_ratio:g}, sensor size {grid.sensor_size * 1e3:g} mm")
+    calibration = recording.calibration
+    if calibration is None:
+        lines.append("calibration none kept: the frames are stresses in pascals (NPZ and CSV keep no "
+                     "raw values)")
+    else:
+        fields = calibration.fields()
+        def shown(value):
+            if np.ndim(value) == 0:
+                return f"{value:g}"
+            return f"per taxel ({np.min(value):g} to {np.max(value):g})"
+        tares = "; ".join(f"from frame {tare.from_frame} (taken at {tare.t:.3f} s, {tare.frames} frames)"
+                          for tare in calibration.tares) or "none"
+        lines.append(f"calibration raw {recording.frames.raw_dtype.name} in {fields['units']}, "
+                     f"gain {shown(fields['gain'])}, offset {shown(fields['offset'])}, tares: {tares}")
+    return lines

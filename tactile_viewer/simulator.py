@@ -5,7 +5,9 @@ makes a stable symlink to it, so a restarted board reappears at the same
 path), or writes to any pyserial URL (``--url socket://host:port``). Frames
 of a Hertzian contact circling the skin with turning shear, from
 :mod:`solver.loads`, go out at ``--rate`` Hz (up to 1 kHz) in text or binary
-format, in kPa, with optional injected garbage bytes and dropped frames.
+format, in kPa, with optional injected garbage bytes and dropped frames;
+``--checksum`` ends each text line with its ``*XXXX`` CRC-16 (binary frames
+always carry one).
 ``--layout PATH`` writes the sensor layout JSON that goes with the stream,
 the elastomer's Poisson ratio (``--poisson-ratio``) and the taxel size
 (``--sensor-size``) included.
@@ -66,11 +68,17 @@ class Board:
     dropout : float
         Probability per frame of not sending it (its sequence number is used up).
     seed : int
+    checksum : bool
+        End each text line with ``*XXXX``, its CRC-16 (:func:`~tactile_viewer.protocol.encode_text`);
+        text format only, binary frames always carry a CRC.
     """
 
     def __init__(self, layout: SensorLayout, *, fmt="binary", rate=100.0, noise=0.01, garbage=0.0,
-                 dropout=0.0, seed=0):
-        self.layout, self.fmt, self.rate = layout, fmt, rate
+                 dropout=0.0, seed=0, checksum=False):
+        if checksum and fmt != "text":
+            raise ValueError(f"checksum applies to the text format only (binary frames always carry a CRC), "
+                             f"got fmt={fmt!r}")
+        self.layout, self.fmt, self.rate, self.checksum = layout, fmt, rate, checksum
         self.rng = np.random.default_rng(seed)
         self.cycle = contact_cycle(layout.grid)
         self.noise = noise * float(np.abs(self.cycle).max())
@@ -96,7 +104,10 @@ class Board:
             self.dropped += 1
             return out
         values = stress * self.scale
-        out += encode_binary(seq, values) if self.fmt == "binary" else encode_text(values)
+        if self.fmt == "binary":
+            out += encode_binary(seq, values)
+        else:
+            out += encode_text(values, checksum=self.checksum)
         self.sent += 1
         return out
 
@@ -135,6 +146,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="tactile-sim", description=__doc__.splitlines()[0])
     parser.add_argument("--rate", type=float, default=100.0, help="frames per second (max 1000)")
     parser.add_argument("--format", choices=("binary", "text"), default="binary")
+    parser.add_argument("--checksum", action="store_true",
+                        help="end each text line with *XXXX, its CRC-16 (text format only)")
     parser.add_argument("--nx", type=int, default=16)
     parser.add_argument("--ny", type=int, default=16)
     parser.add_argument("--pitch", type=float, default=2e-3, help="metres")
@@ -157,6 +170,9 @@ def main(argv=None) -> int:
         parser.error(f"--rate must be in (0, 1000], got {args.rate:g}")
     if not (math.isfinite(args.noise) and args.noise >= 0):
         parser.error(f"--noise must be finite and >= 0, got {args.noise:g}")
+    if args.checksum and args.format != "text":
+        parser.error(f"--checksum needs --format text (binary frames always carry a CRC), "
+                     f"got --format {args.format}")
     for name in ("garbage", "dropout"):
         if not 0 <= getattr(args, name) <= 1:
             parser.error(f"--{name} must be a probability in [0, 1], got {getattr(args, name):g}")
@@ -169,7 +185,7 @@ def main(argv=None) -> int:
     if args.layout:
         save_layout(layout, args.layout)
     board = Board(layout, fmt=args.format, rate=args.rate, noise=args.noise, garbage=args.garbage,
-                  dropout=args.dropout, seed=args.seed)
+                  dropout=args.dropout, seed=args.seed, checksum=args.checksum)
 
     stopping = []
     # installed before the device path is printed: whoever reads it may stop us at once

@@ -14,6 +14,7 @@ and its transports. A new kind of source (a network stream) is one subclass.
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,8 +22,9 @@ import numpy as np
 
 from solver import SensorGrid
 
+from .container import Recorder
 from .playback import PlaybackClock
-from .recording import Recorder, Recording
+from .recording import Recording, StressCalibration
 
 __all__ = ["Signal", "SourceFrame", "Source", "RecordingSource"]
 
@@ -58,11 +60,15 @@ class SourceFrame:
     index : int or None
         The frame's index in a recording, a live frame's unwrapped sequence
         number, None when the source numbers nothing (text frames).
+    raw : (m,) ndarray or None
+        The values as the source received them, before calibration (what a
+        recording stores); None when ``stress`` is what was received.
     """
 
     stress: np.ndarray
     t: float
     index: int | None
+    raw: np.ndarray | None = None
 
 
 class Source:
@@ -88,13 +94,14 @@ class Source:
         Emitted when :attr:`state` changes.
     message : Signal
         News for people, emitted as ``(level, title, text)`` with level
-        ``"info"`` or ``"error"``: a recording saved, a recording that could
-        not be completed.
+        ``"info"``, ``"warning"`` or ``"error"``: a recording saved, a tare
+        that looked loaded, a recording that could not be completed.
     recorder : Recorder or None
         Where every produced frame is written, while recording.
     """
 
     live = False
+    raw_dtype = "float64"  # how its raw values are recorded: as they arrive
 
     def __init__(self, label: str, grid: SensorGrid):
         self.label = label
@@ -104,6 +111,7 @@ class Source:
         self.message = Signal()
         self.recorder: Recorder | None = None
         self.published = 0  # frames produced so far
+        self.clock_origin = time.time()  # UNIX seconds of the frames' time 0
         self._state = "stopped"
         self._latest: SourceFrame | None = None
         self._notified = False
@@ -134,9 +142,23 @@ class Source:
             frame, self._latest, self._notified = self._latest, None, False
         return frame
 
+    def recorded_calibration(self) -> StressCalibration:
+        """How the raw values of its frames become stresses (recorded beside them)."""
+        return StressCalibration.identity(self.grid.size)
+
     def start_recording(self, path, *, flush_interval: float = 1.0) -> Recorder:
-        """Write every frame produced from now on to ``path`` (``.npz`` or ``.csv``)."""
-        recorder = Recorder(path, self.grid, flush_interval=flush_interval, description=self.label)
+        """Write every frame produced from now on to ``path`` (``.mcap``): raw values and calibration.
+
+        Raises
+        ------
+        ValueError
+            For a path not ending in ``.mcap``.
+        OSError
+            When the file cannot be created.
+        """
+        recorder = Recorder(path, self.grid, calibration=self.recorded_calibration(), dtype=self.raw_dtype,
+                            flush_interval=flush_interval, description=self.label,
+                            clock_origin=self.clock_origin)
         self.recorder = recorder
         return recorder
 
@@ -164,6 +186,7 @@ class Source:
         # a failed write ends the recording, never the source: say what the file keeps
         if self.recorder is recorder:
             self.recorder = None
+        recorder.abandon()
         self.message.emit("error", title,
                           f"{recorder.path}: {getattr(exc, 'strerror', None) or exc}. The frames written "
                           f"before the error ({recorder.written}) are in the file; the live view goes on.")
@@ -187,7 +210,7 @@ class Source:
             if recorder is not None:
                 try:
                     recorder.add(frame.index if frame.index is not None else self.published - 1, frame.t,
-                                 frame.stress)
+                                 frame.stress if frame.raw is None else frame.raw)
                 except (OSError, ValueError) as exc:
                     self._recording_failed(recorder, exc, "Recording stopped")
         with self._lock:
@@ -221,6 +244,13 @@ class RecordingSource(Source):
         self.speed = 1.0
         self.loop = False
         self._clock = PlaybackClock(recording.t)
+        if recording.received is not None:
+            self.clock_origin = recording.received
+        if recording.calibration is not None:
+            self.raw_dtype = recording.frames.raw_dtype.name
+
+    def recorded_calibration(self) -> StressCalibration:
+        return self.recording.calibration or super().recorded_calibration()
 
     @property
     def name(self) -> str:
@@ -232,7 +262,9 @@ class RecordingSource(Source):
 
     def frame(self, index: int) -> SourceFrame:
         """Frame ``index`` of the recording (nothing is produced)."""
-        return SourceFrame(self.recording.frames[index], float(self.recording.t[index]), index)
+        frames = self.recording.frames
+        raw = frames.raw(index) if self.recording.calibration is not None else None
+        return SourceFrame(frames[index], float(self.recording.t[index]), index, raw)
 
     def seek(self, index: int, *, now: float | None = None) -> None:
         """Produce frame ``index``; ``now`` (seconds) restarts the clock from it.

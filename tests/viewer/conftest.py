@@ -1,6 +1,8 @@
-"""Fixtures for window tests: a real MainWindow under Xvfb (pytest-xvfb), no leaked plotters."""
+"""Fixtures: a real MainWindow under Xvfb (pytest-xvfb), no leaked plotters; a simulated board."""
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -45,3 +47,31 @@ def opened(window, qtbot):
     with qtbot.waitSignal(window.ready, timeout=20000):
         assert window.open(SAMPLES / "hertz_shear_turning.npz")
     return window
+
+
+class Board:
+    """A tactile-sim subprocess behind a stable symlink, restartable at the same path."""
+
+    def __init__(self, folder):
+        self.link = folder / "board"
+        self.layout = folder / "layout.json"
+        self.process = None
+
+    def start(self, *options):
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "tactile_viewer.simulator", "--link", str(self.link), "--layout",
+             str(self.layout), *options], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.process.stdout.readline()  # the device path: the link and layout exist from here on
+        return self
+
+    def stop(self):
+        if self.process is not None and self.process.poll() is None:
+            self.process.terminate()
+            self.process.communicate(timeout=10)
+
+
+@pytest.fixture
+def board(tmp_path):
+    made = Board(tmp_path)
+    yield made
+    made.stop()

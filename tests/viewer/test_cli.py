@@ -90,3 +90,39 @@ def test_kernel_choices_are_the_solvers(capsys):
     with pytest.raises(SystemExit) as info:
         main(["x.npz", "--report", "--kernel", "spline"])
     assert info.value.code == 2 and "invalid choice: 'spline'" in capsys.readouterr().err
+
+
+def test_info_prints_one_fact_per_line_of_a_live_recording_cut_short(tmp_path, capsys):
+    from tactile_viewer.container import Recorder
+    from tactile_viewer.recording import StressCalibration, Tare
+    from tests.viewer.skins import grid32
+
+    path = tmp_path / "cut.mcap"
+    calibration = StressCalibration("kPa", 2.0, 0.5, (Tare(0, np.zeros(6), t=0.0, frames=50),))
+    recorder = Recorder(path, grid32(), calibration=calibration, flush_interval=0.5, clock_origin=1.7e9)
+    for k, seq in enumerate([0, 1, 2, 5, 6, 7, 8]):  # frames 3 and 4 lost on the way
+        recorder.add(seq, k / 10, np.ones(6))
+    # never closed (a crash): the frames of the complete chunk are there
+    assert main([str(path), "--info"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[:6] == ["frames 6", "span 0.500 s", "sequence gaps 2", "first received 1700000000.000000",
+                         "last received 1700000000.500000",
+                         "cut short yes: it ends at its last complete chunk (a crash or a full disk)"]
+    assert lines[6] == ("geometry 3x2 taxels, pitch 2 mm, thickness 1.5 mm, poisson ratio 0.5, "
+                        "sensor size 0 mm")
+    assert lines[7] == ("calibration raw float32 in kPa, gain 2, offset 0.5, tares: from frame 0 "
+                        "(taken at 0.000 s, 50 frames)")
+
+
+def test_info_says_what_an_npz_does_not_keep(capsys):
+    assert main([str(SAMPLES / "hertz_static.npz"), "--info"]) == 0
+    out = capsys.readouterr().out
+    assert "sequence gaps unknown (the file keeps no sequence numbers)\n" in out
+    assert "first received unknown (the file keeps no receive clock)\n" in out
+    assert "calibration none kept" in out and "cut short no\n" in out
+
+
+def test_info_needs_a_recording(capsys):
+    with pytest.raises(SystemExit):
+        main(["--info"])
+    assert "a RECORDING is needed with --info" in capsys.readouterr().err

@@ -2,16 +2,22 @@
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
 
 from solver import Reconstructor, SensorGrid, loads
+from tactile_viewer import export
 from tactile_viewer.export import (
     CSV_COLUMNS,
+    SIDECAR_MARKER,
+    SidecarConflict,
+    check_sidecar,
     load_forces,
     reconstruct_frames,
     save_forces,
+    sidecar_path,
     write_sidecar,
 )
 from tactile_viewer.recording import Recording
@@ -131,7 +137,93 @@ def test_an_unknown_export_type_is_rejected(recording, reconstructor, tmp_path):
 def test_the_sidecar_names_what_the_image_shows(tmp_path):
     path = write_sidecar(tmp_path / "shot.png", recording="rec.npz", frame=3, shear_ratio=0.2,
                          condition=math.inf, display={"map": "pressure"})
-    assert path == tmp_path / "shot.json"
+    assert path == tmp_path / "shot.png.view.json" == sidecar_path(tmp_path / "shot.png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["shot.png.view.json"]  # the image is not touched
     info = json.loads(path.read_text())
-    assert info == {"recording": "rec.npz", "frame": 3, "shear_ratio": 0.2, "condition": None,
-                    "display": {"map": "pressure"}}
+    assert info == {SIDECAR_MARKER: 1, "recording": "rec.npz", "frame": 3, "shear_ratio": 0.2,
+                    "condition": None, "display": {"map": "pressure"}}
+    assert next(iter(info)) == "tactile_viewer_sidecar"  # the marker leads
+
+
+@pytest.mark.parametrize("image", ["board.png", "board.PNG", "board.v2.png", "board"])
+def test_the_sidecar_name_keeps_the_image_name_whole(tmp_path, image):
+    assert sidecar_path(tmp_path / image) == tmp_path / f"{image}.view.json"
+
+
+def test_a_sidecar_never_takes_the_name_of_a_file_of_the_same_stem(tmp_path):
+    # the tester's case: board.png's sidecar used to be board.json, the sensor layout
+    layout = tmp_path / "board.json"
+    layout.write_bytes(b'{"nx": 4, "ny": 4, "pitch": 0.002}\n')
+    before = layout.read_bytes()
+    path = write_sidecar(tmp_path / "board.png", frame=1)
+    assert path == tmp_path / "board.png.view.json"
+    assert layout.read_bytes() == before
+    assert json.loads(path.read_text())["frame"] == 1
+
+
+def test_an_earlier_sidecar_of_ours_is_replaced(tmp_path):
+    first = write_sidecar(tmp_path / "shot.png", frame=1, display={"map": "pressure"})
+    assert check_sidecar(tmp_path / "shot.png") == first  # ours: free to replace
+    second = write_sidecar(tmp_path / "shot.png", frame=7)
+    assert second == first
+    assert json.loads(second.read_text()) == {SIDECAR_MARKER: 1, "frame": 7}  # all of it replaced
+
+
+FOREIGN = {
+    "text": (lambda p: p.write_bytes(b"my notes\n"), "is not JSON"),
+    "binary": (lambda p: p.write_bytes(b"\xff\xfe\x00PNG"), "is not JSON"),
+    "JSON list": (lambda p: p.write_bytes(b"[1, 2]\n"), "is a JSON list, not an object"),
+    "JSON without the marker": (lambda p: p.write_bytes(b'{"frame": 3, "scale": 1}\n'),
+                                "is JSON without that key"),
+    "large": (lambda p: p.write_bytes(b" " * (2 << 20)), "has 2097152 bytes, more than any sidecar"),
+}
+
+
+@pytest.mark.parametrize("kind", list(FOREIGN))
+def test_an_unrelated_file_of_the_sidecar_name_is_never_modified(tmp_path, kind):
+    make, found = FOREIGN[kind]
+    foreign = tmp_path / "shot.png.view.json"
+    make(foreign)
+    before = foreign.read_bytes()
+    expected = rf"^{re.escape(str(foreign))}: the sidecar of shot\.png was not written: .*'tactile_viewer_sidecar'.*{found}$"
+    with pytest.raises(SidecarConflict, match=expected) as caught:
+        check_sidecar(tmp_path / "shot.png")
+    assert caught.value.path == foreign and caught.value.image == tmp_path / "shot.png"
+    with pytest.raises(SidecarConflict, match=expected):
+        write_sidecar(tmp_path / "shot.png", frame=3)
+    assert foreign.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["shot.png.view.json"]  # nothing written beside it
+
+
+@pytest.mark.parametrize("kind", ["folder", "link to nothing"])
+def test_a_folder_or_a_broken_link_of_the_sidecar_name_is_left_alone(tmp_path, kind):
+    taken = tmp_path / "shot.png.view.json"
+    if kind == "folder":
+        taken.mkdir()
+    else:
+        taken.symlink_to(tmp_path / "nowhere")
+    with pytest.raises(SidecarConflict, match=rf"^{re.escape(str(taken))}: .* this file is a {kind}$"):
+        write_sidecar(tmp_path / "shot.png", frame=3)
+    assert not (tmp_path / "nowhere").exists()  # the link was not followed to create its target
+    assert taken.is_dir() if kind == "folder" else taken.is_symlink()
+
+
+def test_a_file_that_appears_during_the_check_is_not_overwritten(tmp_path, monkeypatch):
+    image = tmp_path / "shot.png"
+    checked = export._foreign
+
+    def appears(path):
+        found = checked(path)  # free when checked...
+        path.write_bytes(b"someone else's\n")  # ...taken before the write
+        return found
+
+    monkeypatch.setattr(export, "_foreign", appears)
+    with pytest.raises(SidecarConflict, match=r"shot\.png\.view\.json: .* appeared while the sidecar was being written"):
+        write_sidecar(image, frame=3)
+    assert sidecar_path(image).read_bytes() == b"someone else's\n"
+
+
+def test_the_marker_is_not_taken_from_the_caller(tmp_path):
+    with pytest.raises(TypeError, match="'tactile_viewer_sidecar' is written by write_sidecar"):
+        write_sidecar(tmp_path / "shot.png", tactile_viewer_sidecar=0)
+    assert not list(tmp_path.iterdir())

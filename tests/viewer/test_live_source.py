@@ -209,21 +209,23 @@ def test_reader_skips_garbage(pty, make_reader):
     assert reader.take_latest().index == 1
 
 
-@pytest.mark.parametrize("suffix", [".npz", ".csv"])
-def test_reader_records_every_frame(pty, make_reader, tmp_path, suffix):
+def test_reader_records_every_frame(pty, make_reader, tmp_path):
     reader = make_reader()
     reader.start()
-    recorder = reader.start_recording(tmp_path / f"rec{suffix}", flush_interval=0.05)
+    recorder = reader.start_recording(tmp_path / "rec.mcap", flush_interval=0.05)
     assert reader.recorder is recorder
     for start in range(0, 300, 50):  # bursts, so that the reader sees many reads
         write_all(pty[0], b"".join(encode_binary(s, values(s % 7)) for s in range(start, start + 50)))
         time.sleep(0.01)
     wait_for(lambda: reader.stats.received == 300, what="300 frames")
     path = reader.stop_recording()
-    assert path == tmp_path / f"rec{suffix}" and reader.recorder is None
+    assert path == tmp_path / "rec.mcap" and reader.recorder is None
     loaded = recording.load(path)
-    np.testing.assert_array_equal(loaded.seq, np.arange(300))  # every frame, no gap
-    np.testing.assert_allclose(loaded.frames, np.array([values(s % 7) for s in range(300)]) * 1000, rtol=1e-8)
+    np.testing.assert_array_equal(loaded.sequence(), np.arange(300))  # every frame, no gap
+    np.testing.assert_allclose(loaded.frames[:], np.array([values(s % 7) for s in range(300)]) * 1000, rtol=1e-8)
+    # the raw values as the board sent them (kPa, float32), the conversion beside them
+    np.testing.assert_array_equal(loaded.frames.raw(slice(None)), np.float32([values(s % 7) for s in range(300)]))
+    assert loaded.calibration.units == "kPa" and loaded.frames.raw_dtype == np.float32
     assert np.all(np.diff(loaded.t) >= 0)
     assert reader.stats.lost == 0
 
@@ -313,7 +315,7 @@ def test_a_new_transport_is_one_subclass(tmp_path):
     arrived = threading.Event()
     source = QueueSource(chunks, reconnect_interval=0.01)
     source.frame_arrived.connect(arrived.set)
-    source.start_recording(tmp_path / "queue.npz", flush_interval=0.0)
+    source.start_recording(tmp_path / "queue.mcap", flush_interval=0.0)
     source.start()
     try:
         for k in range(3):
@@ -328,5 +330,5 @@ def test_a_new_transport_is_one_subclass(tmp_path):
     finally:
         source.stop()
     assert source.opened == 2 and source.stats.lost == 0
-    saved = recording.load(tmp_path / "queue.npz")
-    assert len(saved) == 4 and list(saved.seq) == [0, 1, 2, 3]
+    saved = recording.load(tmp_path / "queue.mcap")
+    assert len(saved) == 4 and list(saved.sequence()) == [0, 1, 2, 3]

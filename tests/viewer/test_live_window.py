@@ -1,40 +1,9 @@
 """Live mode end to end: tactile-sim on a real pseudo-terminal, the window reading it."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 
 from tactile_viewer.recording import load
-
-
-class Board:
-    """A tactile-sim subprocess behind a stable symlink, restartable at the same path."""
-
-    def __init__(self, folder):
-        self.link = folder / "board"
-        self.layout = folder / "layout.json"
-        self.process = None
-
-    def start(self, *options):
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "tactile_viewer.simulator", "--link", str(self.link), "--layout",
-             str(self.layout), *options], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        self.process.stdout.readline()  # the device path: the link and layout exist from here on
-        return self
-
-    def stop(self):
-        if self.process is not None and self.process.poll() is None:
-            self.process.terminate()
-            self.process.communicate(timeout=10)
-
-
-@pytest.fixture
-def board(tmp_path):
-    made = Board(tmp_path)
-    yield made
-    made.stop()
 
 
 @pytest.fixture
@@ -84,30 +53,31 @@ def test_a_1khz_recording_has_every_frame(window, board, qtbot, tmp_path):
     board.start("--rate", "1000", "--seed", "9")
     assert window.live_panel.connect_live(str(board.link), board.layout)
     qtbot.waitUntil(lambda: window.live_panel.reader is not None and window.live_panel.reader.stats.received > 100, timeout=20000)
-    assert window.live_panel.start_recording(tmp_path / "live.npz")
+    assert window.live_panel.start_recording(tmp_path / "live.mcap")
     recorder = window.live_panel.reader.recorder
     qtbot.waitUntil(lambda: recorder.written >= 2000, timeout=20000)  # flushed every second
     path = window.live_panel.stop_recording()
     recording = load(path)
     assert len(recording) >= 2000
-    np.testing.assert_array_equal(np.diff(recording.seq), 1)  # no gap, no repeat
+    np.testing.assert_array_equal(np.diff(recording.sequence()), 1)  # no gap, no repeat
     assert recording.grid.shape == (16, 16) and np.all(np.diff(recording.t) >= 0)
     assert window.live_panel.reader.stats.lost == 0 and window.live_panel.reader.failures == 0
 
 
-def test_recording_to_csv_while_the_display_skips(window, board, qtbot, tmp_path):
+def test_recording_text_frames_while_the_display_skips(window, board, qtbot, tmp_path):
     board.start("--rate", "500", "--format", "text")
     assert window.live_panel.connect_live(str(board.link), board.layout, fmt="text")
     qtbot.waitUntil(lambda: window.live_panel.reader is not None and window.live_panel.reader.stats.received > 50, timeout=20000)
     drawn = []
     window.model.solved.connect(drawn.append)
-    assert window.live_panel.start_recording(tmp_path / "live.csv")
+    assert window.live_panel.start_recording(tmp_path / "live.mcap")
     qtbot.waitUntil(lambda: window.live_panel.reader.recorder.written >= 500, timeout=20000)
     received_while = window.live_panel.reader.stats.received
     path = window.live_panel.stop_recording()
     recording = load(path)
     assert len(recording) >= 500
-    np.testing.assert_array_equal(np.diff(recording.seq), 1)  # text frames are numbered on arrival
+    np.testing.assert_array_equal(np.diff(recording.sequence()), 1)  # text frames are numbered on arrival
+    assert recording.frames.raw_dtype == np.float64  # as text sent them
     assert len(drawn) < received_while  # the display skipped frames; the recorder did not
     assert window.live_panel.reader.failures == 0
 
@@ -188,8 +158,8 @@ def test_exporting_the_live_frame_on_screen(live, qtbot, tmp_path):
 
 
 def test_a_recording_that_fails_to_close_is_reported_and_live_goes_on(live, qtbot, tmp_path):
-    assert live.live_panel.start_recording(tmp_path / "full.npz")
-    qtbot.waitUntil(lambda: live.live_panel.reader.recorder.written > 0 or bool(live.live_panel.reader.recorder._rows), timeout=5000)
+    assert live.live_panel.start_recording(tmp_path / "full.mcap")
+    qtbot.waitUntil(lambda: live.live_panel.reader.recorder.added > 0, timeout=5000)
 
     def full_disk():
         raise OSError(28, "No space left on device")
@@ -205,13 +175,13 @@ def test_disconnect_keeps_the_last_frame_and_disables_what_needs_a_connection(li
     panel = live.live_panel
     enabled = lambda: {name: button.isEnabled() for name, button in panel.buttons.items()}  # noqa: E731
     assert enabled() == dict(tare=True, record=True, stop_recording=False, disconnect=True)
-    assert panel.start_recording(tmp_path / "take.npz")
+    assert panel.start_recording(tmp_path / "take.mcap")
     assert enabled()["stop_recording"] and panel.actions["stop_recording"].isEnabled()
     reader = panel.reader
     recorded = reader.published
     qtbot.waitUntil(lambda: reader.published > recorded + 5, timeout=5000)
     panel.disconnect_live()
-    assert reader.state == "stopped" and reader.recorder is None and (tmp_path / "take.npz").exists()
+    assert reader.state == "stopped" and reader.recorder is None and (tmp_path / "take.mcap").exists()
     assert not any(enabled().values()) and not any(a.isEnabled() for a in panel.actions.values())
     assert "stopped" in panel.status.text() and not panel.banner.isVisible()
     qtbot.wait(300)  # a frame solved before the stop may still arrive; after it, nothing new

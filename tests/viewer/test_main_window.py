@@ -147,7 +147,7 @@ def test_screenshot_export_has_the_size_asked_and_is_not_blank(opened, tmp_path,
     width, height = opened.plotter.window_size
     assert pixels.shape[:2] == (height * scale, width * scale)
     assert pixels[..., :3].std() > 10  # not one flat colour
-    sidecar = json.loads(path.with_suffix(".json").read_text())
+    sidecar = json.loads(path.with_name(path.name + ".view.json").read_text())
     assert sidecar["frame"] == 0 and sidecar["recording"].endswith("hertz_shear_turning.npz")
     assert sidecar["scale"] == scale and sidecar["mode"] == "auto"
     assert sidecar["poisson_ratio"] == 0.5 and sidecar["sensor_size"] == 0.0  # the sample's material
@@ -374,3 +374,88 @@ def test_a_passing_message_is_shown_over_the_status_line(opened, qtbot, tmp_path
     qtbot.waitUntil(lambda: not opened.status.isVisible(), timeout=2000)  # the message, not under it
     bar.clearMessage()
     qtbot.waitUntil(opened.status.isVisible, timeout=2000)  # then the solve's status line again
+
+
+def test_a_window_screenshot_leaves_the_layout_of_the_same_stem_alone(opened, tmp_path, monkeypatch):
+    from PyQt6 import QtWidgets
+
+    # the tester's case: board.png's sidecar was board.json, and overwrote the sensor layout
+    layout = tmp_path / "board.json"
+    layout.write_bytes(b'{"nx": 16, "ny": 16, "pitch": 0.002, "thickness": 0.002}\n')
+    before = layout.read_bytes()
+    monkeypatch.setattr(QtWidgets.QDialog, "exec", lambda self: QtWidgets.QDialog.DialogCode.Accepted)
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: (str(tmp_path / "board.png"), "")))
+    opened.exports.screenshot_dialog()
+    assert opened.errors == []
+    assert layout.read_bytes() == before
+    assert read_png(tmp_path / "board.png")[..., :3].std() > 10
+    sidecar = json.loads((tmp_path / "board.png.view.json").read_text())
+    assert sidecar["tactile_viewer_sidecar"] == 1 and sidecar["frame"] == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["board.json", "board.png", "board.png.view.json"]
+
+
+def test_a_window_screenshot_replaces_its_own_earlier_sidecar(opened, tmp_path):
+    from tactile_viewer.export import sidecar_path
+
+    first = opened.exports.export_screenshot(tmp_path / "shot.png", scale=1)
+    assert json.loads(sidecar_path(first).read_text())["scale"] == 1
+    again = opened.exports.export_screenshot(tmp_path / "shot.png", scale=2)
+    assert json.loads(sidecar_path(again).read_text())["scale"] == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["shot.png", "shot.png.view.json"]
+
+
+def test_a_window_screenshot_keeps_the_image_but_not_an_unrelated_sidecar_name(opened, tmp_path, monkeypatch):
+    import re
+
+    from PyQt6 import QtWidgets
+
+    from tactile_viewer.export import SidecarConflict
+
+    image = tmp_path / "board.png"
+    foreign = tmp_path / "board.png.view.json"
+    foreign.write_bytes(b"board 7: recalibrated on Tuesday\n")
+    before = foreign.read_bytes()
+    found = (rf"{re.escape(str(foreign))}: the sidecar of board\.png was not written: a sidecar replaces only "
+             r"an earlier sidecar \(a JSON object with the key 'tactile_viewer_sidecar'\), and this file is not JSON")
+    with pytest.raises(SidecarConflict, match=f"^{found}$"):
+        opened.exports.export_screenshot(image)
+    assert foreign.read_bytes() == before
+    assert read_png(image)[..., :3].std() > 10  # the image asked for is written
+    image.unlink()
+    # through the menu: the image is saved, the sidecar skipped, and the message says both
+    monkeypatch.setattr(QtWidgets.QDialog, "exec", lambda self: QtWidgets.QDialog.DialogCode.Accepted)
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: (str(image), "")))
+    opened.exports.screenshot_dialog()
+    title, text = opened.errors[-1]
+    assert title == "Screenshot saved without its sidecar"
+    assert re.fullmatch(f"{re.escape(str(image))} was saved; {found}", text), text
+    assert foreign.read_bytes() == before
+    assert read_png(image)[..., :3].std() > 10
+
+
+def test_a_png_name_added_to_the_name_picked_never_replaces_a_file(opened, tmp_path, monkeypatch):
+    from PyQt6 import QtWidgets
+
+    # "board" picked: the save dialog asked about "board", not about the board.png the export would write
+    unrelated = tmp_path / "board.png"
+    unrelated.write_bytes(b"not ours\n")
+    picked = tmp_path / "board"
+    with pytest.raises(FileExistsError, match=r"not replaced: the image would be board\.png \(the name picked, "
+                                              r"ending in '\.png'\), which exists and is not the file picked"):
+        opened.exports.export_screenshot(picked)
+    monkeypatch.setattr(QtWidgets.QDialog, "exec", lambda self: QtWidgets.QDialog.DialogCode.Accepted)
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName", staticmethod(lambda *a, **k: (str(picked), "")))
+    opened.exports.screenshot_dialog()
+    assert opened.errors[-1] == ("Cannot save screenshot",
+                                 f"{picked}: not replaced: the image would be board.png (the name picked, "
+                                 "ending in '.png'), which exists and is not the file picked")
+    assert unrelated.read_bytes() == b"not ours\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["board.png"]
+    # a free name: saved under it, the sidecar after the full image name
+    assert opened.exports.export_screenshot(tmp_path / "fresh") == tmp_path / "fresh.png"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["board.png", "fresh.png", "fresh.png.view.json"]
+    # a case variant of the ending is a derived name too (pyvista writes only ".png")
+    (tmp_path / "shout.png").write_bytes(b"not ours either\n")
+    with pytest.raises(FileExistsError, match=r"the image would be shout\.png .* not the file picked"):
+        opened.exports.export_screenshot(tmp_path / "shout.PNG")
+    assert (tmp_path / "shout.png").read_bytes() == b"not ours either\n"

@@ -629,10 +629,10 @@ def test_a_sources_news_reaches_the_model_and_a_failing_stop_is_reported(recordi
     model.set_source(board, reconstructor)
     messages = []
     model.message.connect(lambda *m: messages.append(m))
-    board.start_recording(tmp_path / "take.npz")
+    board.start_recording(tmp_path / "take.mcap")
     board.push(recording.frames[0], 0)
     model.set_source(RecordingSource(recording), reconstructor)  # closing the board closes its recording
-    assert messages == [("info", "recording saved", str(tmp_path / "take.npz"))]
+    assert messages == [("info", "recording saved", str(tmp_path / "take.mcap"))]
 
     class Stuck(Pushed):
         def stop(self):

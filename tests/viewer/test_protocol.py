@@ -1,18 +1,20 @@
 """Serial frame codecs: CRC, round trips, every rejection path, chunking invariance and fuzzing.
 
 The decoders promise to survive anything a serial line can deliver (garbage, cut frames, bit
-errors, absurd headers), never to return a corrupted frame, and to count every rejection. The
-hypothesis tests below hold them to that on random streams; the fixed cases pin each reason.
+errors, absurd headers), never to return a frame that fails its check (the CRC of a binary frame,
+the checksum of a text line that carries one), and to count every rejection. The hypothesis tests
+below hold them to that on random streams; the fixed cases pin each reason.
 """
 
 import dataclasses
 import math
+import re
 import struct
 from itertools import pairwise
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given, seed, settings
 from hypothesis import strategies as st
 
 from tactile_viewer.protocol import (
@@ -154,6 +156,27 @@ def valid_text_lines(count=COUNT):
     return st.builds(text_line, st.lists(f64, min_size=count, max_size=count), separators, st.booleans())
 
 
+def checked_line(values, separator: str, crlf: bool, lower: bool = False) -> bytes:
+    """A text line with its checksum, built from the documented definition, not with encode_text."""
+    body = separator.join(f"{v:.6g}" for v in values).encode()
+    digits = f"{crc16_reference(body):04X}"
+    return body + b"*" + (digits.lower() if lower else digits).encode() + (b"\r\n" if crlf else b"\n")
+
+
+def valid_checked_lines(count=COUNT):
+    return st.builds(checked_line, st.lists(f64, min_size=count, max_size=count), separators, st.booleans(),
+                     st.booleans())
+
+
+@st.composite
+def flipped_checked_lines(draw):
+    """A checked line with one bit flipped anywhere, its line end included."""
+    line = bytearray(draw(valid_checked_lines()))
+    bit = draw(st.integers(0, 8 * len(line) - 1))
+    line[bit // 8] ^= 1 << (bit % 8)
+    return bytes(line)
+
+
 # letters without "n": no line can spell nan, inf or infinity, so every one is "not numbers"
 letter_lines = st.builds(lambda word, crlf: word.encode() + (b"\r\n" if crlf else b"\n"),
                          st.text("abcdefghijklmopqrstuvwxyz ;:", min_size=1, max_size=16)
@@ -168,11 +191,16 @@ text_pieces = st.one_of(
     st.sampled_from([b"\n", b"\r\n", b"   \n", b"\t\r\n"]),  # blank lines
     # separators only, and bytes numpy splits on but bytes.split does not: "not numbers"
     st.sampled_from([b",\n", b" , ,\r\n", b"1\xa02\xa03\n", b"1\x1c2\x1c3\x1c4\n", b"\xa0\n"]),
+    # checked lines, intact or flipped, switch the decoder to checking: however the stream is split,
+    # it must switch at the same line
+    valid_checked_lines(),
+    flipped_checked_lines(),
+    st.sampled_from([b"# boot*0000\n", b"*FFFF\n", b"1,2*3*4\n", b"1*12g4\r\n"]),  # bad and odd checksums
 )
 
 # random bytes made mostly of what numbers, separators and line ends are written with, so the random
 # text holds many lines that almost parse, each fast-path byte and each byte numpy alone splits on
-text_bytes = st.lists(st.sampled_from(list(b"0123456789.+-eE,, \t\r\n\n#naifINF\xa0\x1c\x85x")),
+text_bytes = st.lists(st.sampled_from(list(b"0123456789.+-eE,, \t\r\n\n#naifINF\xa0\x1c\x85x**bcdBCD")),
                       max_size=300).map(bytes)
 
 # ---------------------------------------------------------------- CRC
@@ -358,6 +386,238 @@ def test_text_a_line_too_long_is_rejected_even_when_it_arrives_whole():
     assert state(split) == state(whole)
 
 
+# ---------------------------------------------------------------- text checksums
+
+# the module docstring's example; crc16_reference, the definition bit by bit, gives its CRC
+KNOWN_BODY, KNOWN_CRC = b"1.5,2,-0.25", 0x808D
+
+
+def checksummed(body: bytes) -> bytes:
+    """``body`` with its checksum and newline, from the bit-by-bit definition."""
+    return body + b"*%04X\n" % crc16_reference(body)
+
+
+def test_the_checksum_of_a_known_line_is_its_crc16_by_definition():
+    assert crc16_reference(KNOWN_BODY) == KNOWN_CRC == crc16(KNOWN_BODY)
+    assert encode_text([1.5, 2, -0.25], checksum=True) == b"1.5,2,-0.25*808D\n"
+    assert encode_text([1.5, 2, -0.25]) == b"1.5,2,-0.25\n"  # off by default: the plain line as before
+
+
+@pytest.mark.parametrize("line", [b"1.5,2,-0.25*808D\n", b"1.5,2,-0.25*808d\r\n", b"1.5,2,-0.25*808D\r\n"])
+def test_text_accepts_a_checksum_in_either_case_and_with_crlf(line):
+    decoder = TextDecoder(3)
+    assert not decoder.checked
+    assert as_tuples(decoder.feed(line)) == [(None, [1.5, 2.0, -0.25])]
+    assert decoder.checked and state(decoder) == ({}, 0, 1, 0)
+
+
+def test_the_checksum_covers_the_exact_bytes_before_the_star():
+    # leading spaces and a "\r" before the "*" are part of the line, hence of its checksum
+    for body in (b" 1.5,2,-0.25", b"1.5,2,-0.25 ", b"1.5,2,-0.25\r", b"\t1.5, 2 ,-0.25"):
+        decoder = TextDecoder(3)
+        assert as_tuples(decoder.feed(checksummed(body))) == [(None, [1.5, 2.0, -0.25])], body
+        # the same line with the checksum of the bare values is not that line's checksum
+        wrong = TextDecoder(3)
+        assert wrong.feed(body + b"*808D\n") == [] and wrong.rejected == {"bad checksum": 1}, body
+
+
+@settings(max_examples=150, deadline=None)
+@given(values=st.lists(f64, min_size=1, max_size=40), fixed_count=st.booleans())
+def test_text_round_trip_with_checksum(values, fixed_count):
+    line = encode_text(values, checksum=True)
+    # the plain line, then "*", four upper-case hex digits of its CRC, the newline
+    plain = encode_text(values)
+    assert re.fullmatch(rb"[^*\n]+\*[0-9A-F]{4}\n", line) and line[:-6] == plain[:-1]
+    assert int(line[-5:-1], 16) == crc16_reference(plain[:-1])
+    decoder = TextDecoder(len(values) if fixed_count else None)
+    frames = decoder.feed(line)
+    assert len(frames) == 1 and frames[0].values.tolist() == [float(f"{v:.6g}") for v in values]
+    assert state(decoder) == ({}, 0, 1, 0) and decoder.checked
+
+
+def test_text_rejects_a_checksum_that_does_not_match():
+    decoder = TextDecoder(3)
+    good = encode_text([4, 5, 6], checksum=True)
+    frames = decoder.feed(good + b"1.5,2,-0.25*808E\n" + good)  # the last digit off by one
+    assert as_tuples(frames) == [(None, [4, 5, 6])] * 2
+    assert decoder.rejected == {"bad checksum": 1}
+
+
+MALFORMED = [
+    b"1,2,3*12F",  # three digits
+    b"1,2,3*12F0A",  # five digits
+    b"1,2,3*12G0",  # not hex
+    b"1,2,3*0x1F",  # int(..., 16) would take these three
+    b"1,2,3* 1F0",
+    b"1,2,3*1_F0",
+    b"1,2,3*",  # no digits
+    b"1,2,3*12F0 ",  # anything after the digits but the line end
+    b"1,2,3*12F0\r\r",  # only one "\r" is the line end
+    b"*12F0*12F0",
+]
+
+
+@pytest.mark.parametrize("line", MALFORMED)
+@pytest.mark.parametrize("checked_before", [True, False])
+def test_text_rejects_a_malformed_checksum(line, checked_before):
+    # a line with a "*" is checked even on a stream that has not had a checksum yet
+    good = encode_text([4, 5, 6], checksum=checked_before)
+    decoder = TextDecoder(3)
+    frames = decoder.feed(good + line + b"\n" + good)
+    assert as_tuples(frames) == [(None, [4, 5, 6])] * 2
+    assert decoder.rejected == {"malformed checksum": 1}
+
+
+def test_text_rejects_several_stars_even_when_the_digits_match_the_rest_of_the_line():
+    decoder = TextDecoder(None)
+    line = checksummed(b"1,2*3")  # the CRC of everything before the last "*" is right
+    assert decoder.feed(line) == [] and decoder.rejected == {"malformed checksum": 1}
+
+
+def test_text_rejects_a_line_without_checksum_once_the_connection_has_had_one():
+    decoder = TextDecoder(3)
+    frames = decoder.feed(b"1,2,3\n")  # before any checksum: accepted as ever
+    frames += decoder.feed(encode_text([4, 5, 6], checksum=True))
+    assert decoder.checked
+    # in the same feed and in later ones: the state lasts for the connection
+    frames += decoder.feed(b"7,8,9\n" + encode_text([1, 1, 1], checksum=True))
+    frames += decoder.feed(b"7,8,9\r\n")
+    assert as_tuples(frames) == [(None, [1, 2, 3]), (None, [4, 5, 6]), (None, [1, 1, 1])]
+    assert decoder.rejected == {"missing checksum": 2}
+
+
+def test_text_reset_forgets_that_the_connection_had_checksums():
+    decoder = TextDecoder(3)
+    decoder.feed(encode_text([4, 5, 6], checksum=True) + b"1,2,3\n")
+    assert decoder.checked and decoder.rejected == {"missing checksum": 1}
+    decoder.reset()  # a reconnection, maybe to another board that sends no checksum
+    assert not decoder.checked
+    assert as_tuples(decoder.feed(b"1,2,3\n")) == [(None, [1, 2, 3])]
+    assert decoder.rejected == {"missing checksum": 1} and decoder.accepted == 2  # counters kept
+
+
+def test_text_lines_without_checksum_are_accepted_on_a_stream_that_never_had_one():
+    decoder = TextDecoder(3)
+    stream = b"# board v2, 3 taxels * 1 row\n1,2,3\r\n# x*1234 and *\n4 5 6\n"
+    assert as_tuples(decoder.feed(stream)) == [(None, [1, 2, 3]), (None, [4, 5, 6])]
+    # a "*" inside a comment is no checksum unless it ends the comment with four hex digits
+    assert state(decoder) == ({}, 0, 2, 0) and not decoder.checked
+
+
+def test_text_a_comment_may_carry_a_checksum():
+    decoder = TextDecoder(3)
+    assert decoder.feed(checksummed(b"# board v2")) == []
+    assert decoder.checked and decoder.rejected == {}  # a verified comment: nothing returned, nothing rejected
+    assert decoder.feed(b"1,2,3\n") == [] and decoder.rejected == {"missing checksum": 1}
+
+
+def test_text_a_checked_line_whose_first_digit_turned_into_a_comment_mark_is_counted():
+    # "3" (0x33) and "#" (0x23) differ by one bit: the corrupted line must not vanish as a comment
+    line = checksummed(b"3.5,2,1")
+    corrupted = b"#" + line[1:]
+    assert corrupted[0] ^ line[0] == 0x10
+    decoder = TextDecoder(3)
+    assert decoder.feed(corrupted) == [] and decoder.rejected == {"bad checksum": 1}
+
+
+def test_text_an_empty_line_with_a_valid_checksum_is_not_numbers():
+    decoder = TextDecoder(None)
+    assert decoder.feed(b"*FFFF\n  *%04X\n" % crc16_reference(b"  ")) == []
+    assert decoder.rejected == {"not numbers": 2} and decoder.checked
+
+
+def test_text_without_checksum_a_single_bit_flip_can_give_a_wrong_value():
+    # the limit the module notes state, and why the checksum exists: "1" (0x31) becomes "0" (0x30)
+    plain, checked = TextDecoder(3), TextDecoder(3)
+    assert as_tuples(plain.feed(b"0,2,3\n")) == [(None, [0, 2, 3])]  # sent as 1,2,3
+    line = bytearray(encode_text([1, 2, 3], checksum=True))
+    line[0] ^= 1
+    assert checked.feed(bytes(line)) == [] and checked.rejected == {"bad checksum": 1}
+
+
+def test_text_before_the_first_valid_checksum_a_corrupted_star_passes_unchecked():
+    # the hole the module notes state: until a line has verified, a line without "*" may be plain text;
+    # "*" (0x2A) flipped into "." (0x2E) makes the digits part of the last value when they are all decimal
+    body = next(b for b in (b"1,2,%d" % k for k in range(1000)) if f"{crc16_reference(b):04X}".isdigit())
+    corrupted = checksummed(body).replace(b"*", b".")
+    fresh = TextDecoder(3)
+    (frame,) = fresh.feed(corrupted)
+    assert frame.values[2] != float(body.split(b",")[2])  # a wrong value, accepted
+    # the same line once the connection has verified a checksum: rejected
+    checked = TextDecoder(3)
+    assert checked.feed(encode_text([4, 5, 6], checksum=True) + corrupted) != []
+    assert checked.rejected == {"missing checksum": 1} and checked.accepted == 1
+
+
+def test_text_checked_lines_are_parsed_as_one_block(monkeypatch):
+    # the per-line path is 1.5 times slower: checked lines must reach numpy's block parser like plain ones
+    calls = []
+    monkeypatch.setattr(TextDecoder, "_line", lambda self, text, out: calls.append(text))
+    rng = np.random.default_rng(7)  # fixed seed: any values will do, the same each run
+    values = rng.uniform(-50, 50, (20, 16))
+    decoder = TextDecoder(16)
+    frames = decoder.feed(b"".join(encode_text(v, checksum=True) for v in values))
+    assert len(frames) == 20 and calls == []
+    np.testing.assert_allclose([f.values for f in frames], values, rtol=5.000001e-6)
+
+
+# a stream of checked lines with each kind of line end; the first one verifies and so makes the
+# connection a checked one (a flip in that very first line is the documented hole, tested above)
+FLIP_STREAM = (checksummed(b"12.5,-3,0.25,7") + checksummed(b" 1e-3, 2 ,3,4").replace(b"\n", b"\r\n")
+               + checksummed(b"31,0,-0,15") + checksummed(b"+9.75,100,8e+2,-6").replace(b"\n", b"\r\n"))
+FLIP_FROM = FLIP_STREAM.index(b"\n") + 1
+
+
+def decode_flipped(stream: bytes, bit: int, count, chunks=None):
+    """Frames and rejections of ``stream`` with ``bit`` flipped; the stream goes on with a good line."""
+    flipped = bytearray(stream)
+    flipped[bit // 8] ^= 1 << (bit % 8)
+    tail = checksummed(b"5,5,5,5")  # a line that lost its newline is ended by the next one, as live
+    decoder = TextDecoder(count)
+    data = bytes(flipped) + tail
+    frames = feed_all(decoder, chunks(data) if chunks else [data])
+    sent = as_tuples(TextDecoder(count).feed(stream + tail))
+    return as_tuples(frames), sent, decoder
+
+
+def assert_lost_never_wrong(frames, sent, decoder, where):
+    # lost, never altered: what comes out is the sent frames less some, in order
+    assert is_subsequence(frames, sent), where
+    lost = len(sent) - len(frames)
+    rejections = sum(decoder.rejected.values())
+    # every loss is counted (a flipped newline joins two lines into one rejected line)
+    assert (lost == 0) == (rejections == 0) and lost <= 2 * rejections, (where, lost, decoder.rejected)
+
+
+@pytest.mark.parametrize("count", [COUNT, None])
+def test_text_every_single_bit_flip_of_a_checked_stream_is_lost_and_counted_never_wrong(count):
+    reasons = set()
+    for bit in range(8 * FLIP_FROM, 8 * len(FLIP_STREAM)):
+        frames, sent, decoder = decode_flipped(FLIP_STREAM, bit, count)
+        assert_lost_never_wrong(frames, sent, decoder, bit)
+        reasons |= set(decoder.rejected)
+    # every rule had work to do: the flips met each of them
+    assert reasons == {"bad checksum", "malformed checksum", "missing checksum"}
+
+
+@seed(20261124)  # fixed seed: every run and CI draw the same streams; a failure reproduces as it is
+@settings(max_examples=300, deadline=None)
+@given(first=valid_checked_lines(), lines=st.lists(valid_checked_lines(), min_size=1, max_size=6),
+       count=st.sampled_from([COUNT, None]), data=st.data())
+def test_text_a_single_bit_flip_anywhere_in_checked_lines_never_yields_a_wrong_frame(first, lines, count,
+                                                                                       data):
+    # the first line arrives intact: it is what makes the connection a checked one
+    stream = first + b"".join(lines)
+    # half the flips hit the bytes that shape a line (its first, "*", "\r", "\n"): uniform flips
+    # would seldom try them, and they are where a line can change form instead of failing its CRC
+    shaping = [i for i in range(len(first), len(stream))
+               if stream[i] in b"*\r\n" or stream[i - 1] == ord("\n")]
+    byte = data.draw(st.one_of(st.integers(len(first), len(stream) - 1), st.sampled_from(shaping)))
+    bit = 8 * byte + data.draw(st.integers(0, 7))
+    frames, sent, decoder = decode_flipped(stream, bit, count, chunks=lambda d: data.draw(splits(d)))
+    assert_lost_never_wrong(frames, sent, decoder, bit)
+
+
 # ---------------------------------------------------------------- binary rejections
 
 GOOD = encode_binary(0x0102, [1.5, -2.0, 3.25])  # contains no 0xA5: no false sync in any case below
@@ -518,7 +778,7 @@ def test_text_decoding_does_not_depend_on_how_the_stream_is_split(pieces, tail, 
     split = TextDecoder(count, max_line=max_line)
     frames = feed_all(split, data.draw(splits(stream)))
     assert as_tuples(frames) == as_tuples(expected)
-    assert state(split) == state(whole)
+    assert state(split) == state(whole) and split.checked == whole.checked
 
 
 # ---------------------------------------------------------------- fuzzing
@@ -556,7 +816,7 @@ def test_text_random_bytes_never_raise_nor_yield_a_bad_frame(data, count, splitt
     assert decoder.pending == len(data) - (data.rfind(b"\n") + 1)  # the unterminated rest
     split = TextDecoder(count)
     assert as_tuples(feed_all(split, splitting.draw(splits(data)))) == as_tuples(frames)
-    assert state(split) == state(decoder)
+    assert state(split) == state(decoder) and split.checked == decoder.checked
 
 
 @settings(max_examples=200, deadline=None)
@@ -599,7 +859,8 @@ def test_binary_garbage_without_sync_bytes_loses_no_frame(pieces, count):
 def test_text_random_garbage_between_lines_never_raises_nor_yields_a_bad_frame(pieces, count):
     stream = b"".join(piece for _, piece in pieces)
     decoder = TextDecoder(count)
-    # text has no checksum: garbage glued to a line can change it, so only the form is checked
+    # lines without checksum cannot be checked: garbage glued to one can change its values, so only
+    # their form is checked
     for frame in decoder.feed(stream):
         assert count is None or frame.values.size == count
         assert np.all(np.isfinite(frame.values))

@@ -1,5 +1,5 @@
 """Recordings in NPZ and CSV (tactile_viewer/recording.py): round trips, units, every malformed-file
-path, and the live Recorder."""
+path, calibrations. The MCAP recorder and reader are in test_container.py."""
 
 import re
 
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from solver import SensorGrid
-from tactile_viewer.recording import Recorder, Recording, RecordingError, grid_from_fields, load, save
-from tests.viewer.skins import NU, TAXEL, frames_for, grid32, grid_with_material
+from tactile_viewer.recording import Recording, RecordingError, grid_from_fields, load, save
+from tests.viewer.skins import NU, TAXEL
 
 HEADER = "# nx=2\n# ny=1\n# pitch=1e-3\n# thickness=1e-3\n"  # a 2x1 grid: rows of t, v0, v1
 
@@ -228,8 +228,8 @@ MALFORMED = [
     ("units.csv", write_csv("0, 1, 2\n", header=HEADER + "# units=bar\n"), "units must be one of .* got 'bar'"),
     ("latin1.csv", lambda p: p.write_bytes(HEADER.encode() + b"0, 1, \xb52\n"), "can't decode byte 0xb5"),
     # neither
-    ("data.txt", lambda p: p.write_text("1 2 3"), r"unknown recording type '\.txt', expected \.npz or \.csv"),
-    ("noextension", lambda p: p.write_text("1 2 3"), r"unknown recording type '', expected \.npz or \.csv"),
+    ("data.txt", lambda p: p.write_text("1 2 3"), r"unknown recording type '\.txt', expected one of \('\.mcap', '\.npz', '\.csv'\)"),
+    ("noextension", lambda p: p.write_text("1 2 3"), r"unknown recording type '', expected one of \('\.mcap', '\.npz', '\.csv'\)"),
 ]
 
 
@@ -373,132 +373,3 @@ def test_a_huge_declared_grid_is_refused_before_anything_is_allocated(tmp_path):
 def test_declared_geometries_are_checked(fields, message):
     with pytest.raises(ValueError, match=message):
         grid_from_fields(pitch=1e-3, thickness=1e-3, **fields)
-
-
-# -- Recorder -------------------------------------------------------------------------------------
-
-@pytest.mark.parametrize("suffix", [".npz", ".csv"])
-def test_recorder_file_is_loadable_after_every_flush(tmp_path, suffix):
-    # a crash can come at any time: close() is never called here, the file on disk must be enough
-    path = tmp_path / f"live{suffix}"
-    recorder = Recorder(path, grid32(), flush_interval=0.5)
-    stress = frames_for(13, seed=1)  # fixed seed
-    exact = suffix == ".npz"
-
-    def check(count):
-        loaded = load(path)
-        assert len(loaded) == count == recorder.written
-        np.testing.assert_array_equal(loaded.seq, np.arange(count) + 1000)
-        np.testing.assert_allclose(loaded.t, np.arange(count) / 10, atol=1e-9)
-        if exact:
-            np.testing.assert_array_equal(loaded.frames, stress[:count])
-        else:
-            np.testing.assert_allclose(loaded.frames, stress[:count], rtol=1e-8)  # 9 digits in CSV
-        assert loaded.grid.shape == (2, 3) and loaded.grid.pitch == 2e-3
-
-    for k in range(5):
-        recorder.add(1000 + k, k / 10, stress[k])  # t = 0 .. 0.4: less than flush_interval since the first
-    assert recorder.written == 0
-    with pytest.raises(RecordingError):
-        load(path)  # nothing flushed yet: no frames (but a valid header)
-    recorder.add(1005, 0.5, stress[5])  # 0.5 s after the first frame: flushes all six
-    check(6)
-    for k in range(6, 10):
-        recorder.add(1000 + k, k / 10, stress[k])
-    check(6)  # t = 0.9: not yet
-    recorder.add(1010, 1.0, stress[10])
-    check(11)  # 0.5 s after the last flush
-    recorder.add(1011, 1.1, stress[11])
-    recorder.add(1012, 1.2, stress[12])
-    recorder.tick(1.4)  # a quiet line, but only 0.4 s since the last flush
-    check(11)
-    recorder.tick(1.5)  # the frames waiting must not wait for the next one to arrive
-    check(13)
-    recorder.tick(5.0)  # nothing waiting: nothing written
-    check(13)
-
-
-def test_recorder_close_makes_a_plain_npz(tmp_path):
-    path = tmp_path / "live.npz"
-    recorder = Recorder(path, grid32(), flush_interval=0.25, description="bench run")
-    stress = frames_for(20, seed=2)  # fixed seed
-    for k in range(20):
-        recorder.add(k, k / 20, stress[k])
-    assert 0 < recorder.written < 20  # some flushed in chunks, the rest waits for close
-    assert recorder.close() == path
-    with np.load(path) as data:
-        assert {"frames", "t", "seq"} <= set(data.files)
-        assert not [name for name in data.files if name.startswith("chunk")]
-        np.testing.assert_array_equal(data["frames"], stress)
-    loaded = load(path)
-    np.testing.assert_array_equal(loaded.frames, stress)  # already pascals: the recording says "Pa"
-    np.testing.assert_array_equal(loaded.t, np.arange(20) / 20)
-    np.testing.assert_array_equal(loaded.seq, np.arange(20))
-    assert loaded.description == "bench run"
-    assert not path.with_name(path.name + ".tmp").exists()
-
-
-def test_recorder_close_csv(tmp_path):
-    path = tmp_path / "live.csv"
-    recorder = Recorder(path, grid32(), description="two\nlines")
-    stress = frames_for(4, seed=3)  # fixed seed
-    for k in range(4):
-        recorder.add(7 + k, 0.001 * k, stress[k])
-    assert recorder.close() == path
-    text = path.read_text()
-    assert "# columns=seq,t\n" in text and "# description=two lines\n" in text
-    loaded = load(path)
-    np.testing.assert_array_equal(loaded.seq, [7, 8, 9, 10])
-    np.testing.assert_allclose(loaded.t, 0.001 * np.arange(4), atol=1e-9)
-    np.testing.assert_allclose(loaded.frames, stress, rtol=1e-8)
-
-
-@pytest.mark.parametrize("suffix", [".npz", ".csv"])
-def test_recorder_keeps_poisson_ratio_and_sensor_size(tmp_path, suffix):
-    # both while recording (a crash leaves the unclosed file) and after close() rewrote it
-    path = tmp_path / f"live{suffix}"
-    recorder = Recorder(path, grid_with_material(), flush_interval=0.1)
-    stress = frames_for(5, seed=4)  # fixed seed
-    for k in range(5):
-        recorder.add(k, k / 10, stress[k])
-    unclosed = load(path).grid
-    assert unclosed.poisson_ratio == NU and unclosed.sensor_size == TAXEL
-    assert recorder.close() == path
-    closed = load(path)
-    assert closed.grid.poisson_ratio == NU and closed.grid.sensor_size == TAXEL and len(closed) == 5
-    if suffix == ".csv":
-        text = path.read_text()
-        assert f"# poisson_ratio={NU!r}\n" in text and f"# sensor_size={TAXEL!r}\n" in text
-
-
-@pytest.mark.parametrize("suffix", [".npz", ".CSV"])
-def test_recorder_close_without_frames_leaves_no_file(tmp_path, suffix):
-    path = tmp_path / f"empty{suffix}"
-    recorder = Recorder(path, grid32())
-    assert path.exists()  # created at once, so that a bad path fails when recording starts
-    assert recorder.close() is None
-    assert not path.exists()
-
-
-def test_recorder_rejects_unknown_extensions(tmp_path):
-    with pytest.raises(ValueError, match=r"unknown recording type '\.txt', expected \.npz or \.csv"):
-        Recorder(tmp_path / "live.txt", grid32())
-    assert not (tmp_path / "live.txt").exists()
-
-
-
-@pytest.mark.parametrize("suffix", [".npz", ".csv"])
-def test_recorder_records_an_irregular_layout(tmp_path, suffix):
-    rng = np.random.default_rng(14)  # fixed seed: the same scattered taxels and frames every run
-    grid = SensorGrid(rng.uniform(-4e-3, 4e-3, (9, 2)), 1.5e-3, 2e-3, (9,))
-    path = tmp_path / f"scattered{suffix}"
-    recorder = Recorder(path, grid, flush_interval=0.1)
-    stress = rng.uniform(0, 1e3, (4, 9))
-    for k in range(4):
-        recorder.add(k, k / 10, stress[k])
-    assert load(path).grid.shape == (9,)  # unclosed, as after a crash
-    recorder.close()
-    back = load(path)
-    assert back.grid.shape == (9,) and len(back) == 4
-    np.testing.assert_array_equal(back.grid.positions, grid.positions)
-    np.testing.assert_allclose(back.frames, stress, rtol=1e-8)

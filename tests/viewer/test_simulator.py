@@ -14,7 +14,7 @@ import serial
 
 from solver import SensorGrid
 from tactile_viewer.layout import SensorLayout, load_layout
-from tactile_viewer.protocol import BinaryDecoder, TextDecoder, make_decoder
+from tactile_viewer.protocol import BinaryDecoder, TextDecoder, crc16, make_decoder
 from tactile_viewer.simulator import Board, contact_cycle, main
 
 
@@ -118,6 +118,39 @@ def test_text_garbage_lines_are_rejected_or_skipped(layout):
     # a bad line is rejected (not numbers, wrong count); a blank or '#' one is skipped uncounted
     assert 0 < sum(decoder.rejected.values()) <= board.garbage_bursts
     np.testing.assert_allclose([f.values for f in frames], [clean(board, k) for k in range(300)], rtol=5e-6)
+
+
+def test_board_checksum_ends_each_text_line_with_its_crc(layout):
+    plain = Board(layout, fmt="text", rate=50.0, noise=0.01, seed=4)  # fixed seed, the same for both
+    checked = Board(layout, fmt="text", rate=50.0, noise=0.01, seed=4, checksum=True)
+    data, reference = stream(checked, 200), stream(plain, 200)
+    lines = data.splitlines()
+    assert len(lines) == 200
+    for line in lines:
+        body, digits = re.fullmatch(rb"([^*]+)\*([0-9A-F]{4})", line).groups()
+        assert int(digits, 16) == crc16(body)
+    # the same frames as without checksum, each followed by its "*XXXX"
+    assert re.sub(rb"\*[0-9A-F]{4}\n", b"\n", data) == reference
+    decoder, frames = decode("text", layout.count, data, seed=3)
+    assert len(frames) == 200 and not decoder.rejected and decoder.checked
+    _, expected = decode("text", layout.count, reference)
+    np.testing.assert_array_equal([f.values for f in frames], [f.values for f in expected])
+
+
+def test_board_checksum_rejects_text_garbage_lines_as_missing_their_checksum(layout):
+    board = Board(layout, fmt="text", rate=50.0, noise=0.0, garbage=0.3, seed=9, checksum=True)  # fixed seed
+    decoder, frames = decode("text", layout.count, stream(board, 300), seed=2)
+    assert board.garbage_bursts > 50 and len(frames) == board.sent == 300
+    np.testing.assert_allclose([f.values for f in frames], [clean(board, k) for k in range(300)], rtol=5e-6)
+    # after the first checked line, a garbage line (blank and "#" ones aside) lacks a checksum
+    assert decoder.rejected["missing checksum"] > 0
+    assert 0 < sum(decoder.rejected.values()) <= board.garbage_bursts
+
+
+def test_board_refuses_a_checksum_for_binary_frames(layout):
+    with pytest.raises(ValueError, match=r"checksum applies to the text format only \(binary frames always "
+                                         r"carry a CRC\), got fmt='binary'"):
+        Board(layout, fmt="binary", checksum=True)
 
 
 def test_board_sends_in_the_layout_units():
@@ -236,6 +269,36 @@ def test_cli_text_format(tmp_path, processes):
     cycle = contact_cycle(layout.grid) * 1e-3
     for frame in frames[1:]:  # the first may be the tail of a cut line that still parses
         assert np.abs(frame.values / cycle - 1).max(axis=1).min() < 1e-5  # one of the cycle's frames
+
+
+def test_cli_text_format_with_checksum(tmp_path, processes):
+    process, link, layout_path = run_sim(tmp_path, "--format", "text", "--checksum", "--rate", "200",
+                                         "--duration", "0.5", "--nx", "3", "--ny", "2", "--noise", "0")
+    processes.append(process)
+    process.stdout.readline()
+    data = read_link_until_exit(link, process)
+    assert process.wait(timeout=10) == 0
+    layout = load_layout(layout_path)
+    decoder = TextDecoder(layout.count)
+    frames = decoder.feed(data)
+    # the port may open in the middle of a line: at most that one fails its checksum
+    assert len(frames) >= 80 and decoder.checked and sum(decoder.rejected.values()) <= 1
+    assert all(re.fullmatch(rb"[^*]+\*[0-9A-F]{4}", line) for line in data.splitlines()[1:])
+    cycle = contact_cycle(layout.grid) * 1e-3
+    for frame in frames:  # a cut first line fails its checksum instead of passing as a tail that parses
+        assert np.abs(frame.values / cycle - 1).max(axis=1).min() < 1e-5
+
+
+@pytest.mark.parametrize("options", [["--checksum"], ["--checksum", "--format", "binary"]])
+def test_cli_refuses_checksum_with_binary_frames(options, capsys, tmp_path):
+    with pytest.raises(SystemExit) as info:
+        main([*options, "--link", str(tmp_path / "board")])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: tactile-sim")
+    assert err.splitlines()[-1].endswith("--checksum needs --format text (binary frames always carry a CRC), "
+                                         "got --format binary")
+    assert not (tmp_path / "board").exists()
 
 
 def test_cli_sigterm_exits_cleanly_and_removes_the_link(tmp_path, processes):

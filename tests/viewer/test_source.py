@@ -147,7 +147,7 @@ class Pushed(Source):
 
 def test_any_source_records_every_frame_it_produces(tmp_path):
     source = Pushed("test stream", GRID)
-    source.start_recording(tmp_path / "stream.npz", flush_interval=0.0)
+    source.start_recording(tmp_path / "stream.mcap", flush_interval=0.0)
     frames = [SourceFrame(np.full(GRID.size, 10.0 * k), 0.01 * k, 100 + k) for k in range(5)]
     source.push(frames[:2])
     source.push(frames[2:])
@@ -155,7 +155,7 @@ def test_any_source_records_every_frame_it_produces(tmp_path):
     source.message.connect(lambda *m: messages.append(m))
     written = source.stop_recording()
     back = load(written)
-    assert len(back) == 5 and list(back.seq) == [100, 101, 102, 103, 104]  # every frame, not the newest
+    assert len(back) == 5 and list(back.sequence()) == [100, 101, 102, 103, 104]  # every frame, not the newest
     np.testing.assert_array_equal(back.frames[:, 0], [0, 10, 20, 30, 40])
     assert back.description == "test stream"
     assert messages == [("info", "recording saved", str(written))]
@@ -164,14 +164,14 @@ def test_any_source_records_every_frame_it_produces(tmp_path):
 
 def test_unnumbered_frames_are_recorded_in_order(tmp_path):
     source = Pushed("text", GRID)
-    source.start_recording(tmp_path / "text.csv", flush_interval=0.0)
+    source.start_recording(tmp_path / "text.mcap", flush_interval=0.0)
     source.push([SourceFrame(np.zeros(GRID.size), 0.01 * k, None) for k in range(3)])
-    assert list(load(source.stop_recording()).seq) == [0, 1, 2]
+    assert list(load(source.stop_recording()).sequence()) == [0, 1, 2]
 
 
 def test_a_recording_that_fails_to_close_says_so_and_the_source_goes_on(tmp_path):
     source = Pushed("board", GRID)
-    recorder = source.start_recording(tmp_path / "full.npz", flush_interval=0.0)
+    recorder = source.start_recording(tmp_path / "full.mcap", flush_interval=0.0)
     source.push([SourceFrame(np.zeros(GRID.size), 0.0, 0)])
 
     def full_disk():
@@ -182,7 +182,7 @@ def test_a_recording_that_fails_to_close_says_so_and_the_source_goes_on(tmp_path
     assert source.stop_recording() is None and source.recorder is None
     (level, title, text), = messages
     assert (level, title) == ("error", "Recording not completed")
-    assert "full.npz: No space left on device" in text and "(1) are in the file" in text
+    assert "full.mcap: No space left on device" in text and "(1) are in the file" in text
     source.push([SourceFrame(np.ones(GRID.size), 0.1, 1)])  # still producing
     assert source.take_latest().index == 1
 
@@ -192,26 +192,26 @@ def test_stopping_closes_the_recording_and_announces_the_state(tmp_path):
     states = []
     source.state_changed.connect(lambda: states.append(source.state))
     source.start()
-    source.start_recording(tmp_path / "stop.npz", flush_interval=0.0)
+    source.start_recording(tmp_path / "stop.mcap", flush_interval=0.0)
     source.push([SourceFrame(np.zeros(GRID.size), 0.0, 7)])
     source.stop()
     assert states == ["running", "stopped"] and source.recorder is None
-    assert list(load(tmp_path / "stop.npz").seq) == [7]
+    assert list(load(tmp_path / "stop.mcap").sequence()) == [7]
 
 
 def test_a_recording_with_no_frame_says_so_and_writes_no_file(tmp_path):
     source = Pushed("board", GRID)
-    source.start_recording(tmp_path / "empty.npz")
+    source.start_recording(tmp_path / "empty.mcap")
     messages = []
     source.message.connect(lambda *m: messages.append(m))
-    assert source.stop_recording() is None and not (tmp_path / "empty.npz").exists()
-    assert messages == [("info", "nothing recorded", f"no frame arrived; {tmp_path / 'empty.npz'} not written")]
+    assert source.stop_recording() is None and not (tmp_path / "empty.mcap").exists()
+    assert messages == [("info", "nothing recorded", f"no frame arrived; {tmp_path / 'empty.mcap'} not written")]
 
 
 @pytest.mark.parametrize("when", ["a frame arrives", "the line is quiet"])
 def test_a_write_that_fails_while_recording_stops_the_recording_not_the_source(tmp_path, when):
     source = Pushed("board", GRID)
-    recorder = source.start_recording(tmp_path / "full.npz", flush_interval=0.0)
+    recorder = source.start_recording(tmp_path / "full.mcap", flush_interval=0.0)
     source.push([SourceFrame(np.zeros(GRID.size), 0.0, 0)])  # one frame written
 
     def full_disk(*args):
@@ -226,7 +226,7 @@ def test_a_write_that_fails_while_recording_stops_the_recording_not_the_source(t
         source._tick_recording(0.5)
     (level, title, text), = messages
     assert (level, title) == ("error", "Recording stopped") and source.recorder is None
-    assert "full.npz: No space left on device" in text and "(1) are in the file" in text
-    assert list(load(tmp_path / "full.npz").seq) == [0]  # what was written stays readable
+    assert "full.mcap: No space left on device" in text and "(1) are in the file" in text
+    assert list(load(tmp_path / "full.mcap").sequence()) == [0]  # what was written stays readable
     source.push([SourceFrame(np.ones(GRID.size), 0.2, 2)])  # and the source goes on
     assert source.take_latest().index == 2

@@ -1,0 +1,345 @@
+"""MCAP recordings (tactile_viewer/container.py): the recorder, the lazy reader, files cut short at any
+byte, a full disk, damaged chunks, declared sizes, raw values with their calibration."""
+
+import errno
+import hashlib
+import io
+import struct
+
+import numpy as np
+import pytest
+from mcap.writer import CompressionType, Writer
+
+from solver import SensorGrid
+from tactile_viewer import container
+from tactile_viewer.container import Recorder, open_recording
+from tactile_viewer.recording import RecordingError, StressCalibration, Tare, load
+from tactile_viewer.source import Source, SourceFrame
+from tests.viewer.skins import NU, TAXEL, frames_for, grid32, grid_with_material
+
+
+def record(path, stress, *, flush_interval=0.5, step=0.1, close=True, **options):
+    recorder = Recorder(path, grid32(), flush_interval=flush_interval, **options)
+    for k, frame in enumerate(stress):
+        recorder.add(1000 + k, k * step, frame)
+    if close:
+        recorder.close()
+    return recorder
+
+
+def test_a_recording_is_loadable_after_every_chunk(tmp_path):
+    # a crash can come at any time: close() is never called here, the file on disk must be enough
+    path = tmp_path / "live.mcap"
+    recorder = Recorder(path, grid32(), flush_interval=0.5, dtype="float64")
+    stress = frames_for(13, seed=1)  # fixed seed
+
+    def check(count):
+        loaded = load(path)
+        assert len(loaded) == count == recorder.written
+        np.testing.assert_array_equal(loaded.sequence(), np.arange(count) + 1000)
+        np.testing.assert_allclose(loaded.t, np.arange(count) / 10, atol=1e-6)
+        np.testing.assert_array_equal(loaded.frames[:], stress[:count])
+        assert loaded.grid.shape == (2, 3) and loaded.grid.pitch == 2e-3
+
+    for k in range(5):
+        recorder.add(1000 + k, k / 10, stress[k])  # t = 0 .. 0.4: less than flush_interval since the first
+    assert recorder.written == 0
+    with pytest.raises(RecordingError, match="no frames"):
+        load(path)  # nothing in a complete chunk yet: metadata only
+    recorder.add(1005, 0.5, stress[5])  # 0.5 s after the first frame: a chunk of all six
+    check(6)
+    for k in range(6, 10):
+        recorder.add(1000 + k, k / 10, stress[k])
+    check(6)  # t = 0.9: not yet
+    recorder.add(1010, 1.0, stress[10])
+    check(11)
+    recorder.add(1011, 1.1, stress[11])
+    recorder.add(1012, 1.2, stress[12])
+    recorder.tick(1.4)  # a quiet line, but only 0.4 s since the last chunk
+    check(11)
+    recorder.tick(1.5)  # the frames waiting must not wait for the next one to arrive
+    check(13)
+    recorder.tick(5.0)  # nothing waiting: nothing written
+    check(13)
+    assert recorder.close() == path
+    check(13)
+    assert not load(path).truncated
+
+
+def test_binary_frames_are_stored_as_float32(tmp_path):
+    stress = frames_for(40, seed=2).astype(np.float32)  # fixed seed; float32 as a binary board sends
+    record(tmp_path / "f32.mcap", stress)
+    record(tmp_path / "f64.mcap", stress, dtype="float64")
+    loaded = load(tmp_path / "f32.mcap")
+    assert loaded.frames.raw_dtype == np.float32
+    np.testing.assert_array_equal(loaded.frames[:], stress)
+    # 6 values of 4 instead of 8 bytes, plus 31 bytes of message header and 16 of index per frame
+    saved = (tmp_path / "f64.mcap").stat().st_size - (tmp_path / "f32.mcap").stat().st_size
+    assert saved == 40 * 6 * 4
+
+
+def test_frames_index_like_an_array_and_read_lazily(tmp_path, monkeypatch):
+    stress = frames_for(50, seed=3)  # fixed seed
+    record(tmp_path / "lazy.mcap", stress, flush_interval=0.3, dtype="float64")
+    decoded = []
+    original = container._decode_chunk
+    monkeypatch.setattr(container, "_decode_chunk", lambda *a: decoded.append(a[1].first) or original(*a))
+    loaded = open_recording(tmp_path / "lazy.mcap")
+    assert decoded == [] and loaded.frames.shape == (50, 6) and len(loaded) == 50  # nothing read at open
+    np.testing.assert_array_equal(loaded.frames[7], stress[7])
+    np.testing.assert_array_equal(loaded.frames[-1], stress[-1])
+    np.testing.assert_array_equal(loaded.frames[[49, 0, 20]], stress[[49, 0, 20]])
+    np.testing.assert_array_equal(loaded.frames[10:30:3], stress[10:30:3])
+    np.testing.assert_array_equal(np.asarray(loaded.frames), stress)
+    assert len(set(decoded)) == len(loaded.frames._index.chunks) > 10  # each chunk read when needed
+    with pytest.raises(IndexError):
+        loaded.frames[50]
+
+
+def test_geometry_and_description_round_trip(tmp_path):
+    rng = np.random.default_rng(14)  # fixed seed: the same scattered taxels and frames every run
+    scattered = SensorGrid(rng.uniform(-4e-3, 4e-3, (9, 2)), 1.5e-3, 2e-3, (9,))
+    for grid in (grid_with_material(), scattered):
+        path = tmp_path / f"g{grid.size}.mcap"
+        recorder = Recorder(path, grid, description="bench run", clock_origin=1.7e9)
+        for k in range(3):
+            recorder.add(k, k / 10, np.ones(grid.size))
+        recorder.close()
+        back = load(path)
+        assert back.grid.shape == grid.shape and back.description == "bench run"
+        np.testing.assert_array_equal(back.grid.positions, grid.positions)
+        assert back.grid.poisson_ratio == grid.poisson_ratio and back.grid.sensor_size == grid.sensor_size
+        assert back.received == pytest.approx(1.7e9)
+    assert load(tmp_path / "g6.mcap").grid.poisson_ratio == NU and TAXEL == load(tmp_path / "g6.mcap").grid.sensor_size
+
+
+def test_no_frame_leaves_no_file(tmp_path):
+    path = tmp_path / "empty.mcap"
+    recorder = Recorder(path, grid32())
+    assert path.exists()  # created at once, so that a bad path fails when recording starts
+    assert recorder.close() is None
+    assert not path.exists()
+
+
+@pytest.mark.parametrize(("name", "options", "message"), [
+    ("live.npz", {}, r"a recording is written as \.mcap, got '\.npz'"),
+    ("live.mcap", {"dtype": "int16"}, r"dtype must be one of \['float32', 'float64'\], got 'int16'"),
+    ("live.mcap", {"flush_interval": -1}, r"flush_interval must be >= 0 seconds, got -1"),
+])
+def test_recorder_arguments_are_checked(tmp_path, name, options, message):
+    with pytest.raises(ValueError, match=message):
+        Recorder(tmp_path / name, grid32(), **options)
+    assert not (tmp_path / name).exists()
+
+
+def test_a_frame_of_the_wrong_size_is_refused(tmp_path):
+    recorder = Recorder(tmp_path / "live.mcap", grid32())
+    with pytest.raises(ValueError, match=r"a frame must have 6 values, got shape \(5,\)"):
+        recorder.add(0, 0.0, np.ones(5))
+
+
+def test_a_folder_that_cannot_be_written_says_so(tmp_path):
+    with pytest.raises(OSError, match="No such file or directory"):
+        Recorder(tmp_path / "missing" / "live.mcap", grid32())
+
+
+# -- crashes and full disks -----------------------------------------------------------------------
+
+def test_a_file_cut_at_any_byte_opens_with_every_complete_chunk(tmp_path):
+    # a kill or a full disk leaves the file ended at some byte: whatever byte, the file opens with
+    # exactly the frames of the chunks that were complete, and nothing else
+    stress = frames_for(30, seed=5)  # fixed seed
+    path = tmp_path / "whole.mcap"
+    recorder = Recorder(path, grid32(), flush_interval=0.35, dtype="float64")
+    ends = []  # (file size, frames in complete chunks) after each chunk
+    for k in range(30):
+        recorder.add(k, k / 10, stress[k])
+        if recorder.written and (not ends or ends[-1][1] != recorder.written):
+            ends.append((path.stat().st_size, recorder.written))
+    recorder.close()
+    data = path.read_bytes()
+    cut_path = tmp_path / "cut.mcap"
+    for cut in range(len(data) - 1, 8, -7):
+        cut_path.write_bytes(data[:cut])
+        complete = max((frames for size, frames in ends if size <= cut), default=0)
+        try:
+            loaded = load(cut_path)
+        except RecordingError as error:
+            assert complete == 0 and "no frames" in str(error)
+            continue
+        assert len(loaded) >= complete  # a chunk whose index was cut off is walked instead
+        np.testing.assert_array_equal(loaded.frames[:], stress[:len(loaded)])
+        np.testing.assert_array_equal(loaded.sequence(), np.arange(len(loaded)))
+
+
+class FullDisk(io.FileIO):
+    """A file on a disk with ``room`` bytes left: the write that overflows writes what fits, then fails."""
+
+    room = 0
+
+    def write(self, data):
+        fits = max(0, min(len(data), FullDisk.room - self.tell()))
+        if fits < len(data):
+            super().write(bytes(data[:fits]))
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return super().write(data)
+
+
+class Publisher(Source):
+    def send(self, k, stress):
+        self._publish([SourceFrame(stress, k / 100, k)])
+
+
+def test_a_full_disk_stops_the_recording_and_keeps_what_fit(tmp_path, monkeypatch):
+    grid = grid32()
+    path = tmp_path / "full.mcap"
+    FullDisk.room = 4000  # metadata and a few chunks of 6-value frames
+    monkeypatch.setattr(container, "open", lambda name, mode: io.BufferedWriter(FullDisk(name, "w"))
+                        if mode == "wb" else open(name, mode), raising=False)
+    source = Publisher("board", grid)
+    messages = []
+    source.message.connect(lambda *m: messages.append(m))
+    source.start_recording(path, flush_interval=0.05)
+    stress = frames_for(200, seed=6)  # fixed seed
+    for k in range(200):
+        source.send(k, stress[k])  # the source goes on after the failure
+    assert source.published == 200 and source.recorder is None
+    [(level, title, text)] = messages
+    assert level == "error" and title == "Recording stopped"
+    assert str(path) in text and "No space left on device" in text
+    kept = int(text.split("(")[1].split(")")[0])
+    loaded = load(path)
+    assert loaded.truncated and len(loaded) >= kept > 0
+    np.testing.assert_array_equal(loaded.frames[:], stress[:len(loaded)])
+
+
+def test_a_damaged_chunk_is_named_and_the_others_still_read(tmp_path):
+    stress = frames_for(30, seed=7)  # fixed seed
+    path = tmp_path / "flipped.mcap"
+    record(path, stress, dtype="float64")
+    loaded = load(path)
+    chunk = loaded.frames._index.chunks[1]
+    data = bytearray(path.read_bytes())
+    data[chunk.data_offset + int(chunk.offsets[0]) + 40] ^= 0x10  # a bit of a value in chunk 1
+    path.write_bytes(bytes(data))
+    damaged = load(path)
+    with pytest.raises(RecordingError, match=rf"frames {chunk.first} to \d+ are damaged \(chunk checksum"):
+        damaged.frames[chunk.first]
+    np.testing.assert_array_equal(damaged.frames[0], stress[0])
+
+
+# -- declared sizes and foreign files ---------------------------------------------------------------
+
+def metadata_record(name, fields):
+    body = struct.pack("<I", len(name)) + name.encode()
+    pairs = b"".join(struct.pack("<I", len(k)) + k.encode() + struct.pack("<I", len(v)) + v.encode()
+                     for k, v in fields.items())
+    body += struct.pack("<I", len(pairs)) + pairs
+    return struct.pack("<BQ", 0x0C, len(body)) + body
+
+
+def test_not_an_mcap_file(tmp_path):
+    path = tmp_path / "text.mcap"
+    path.write_text("frames,t\n1,2\n")
+    with pytest.raises(RecordingError, match=r"text\.mcap: not an MCAP recording \(no MCAP magic"):
+        load(path)
+
+
+def test_an_mcap_file_of_another_program(tmp_path):
+    path = tmp_path / "other.mcap"
+    with open(path, "wb") as stream:
+        writer = Writer(stream, compression=CompressionType.NONE)
+        writer.start()
+        writer.add_metadata("robot", {"arm": "left"})
+        writer.add_message(writer.register_channel("/joints", "json", 0), log_time=1, data=b"{}", publish_time=1)
+        writer.finish()
+    with pytest.raises(RecordingError, match="missing metadata 'tactile-viewer.recording'"):
+        load(path)
+
+
+def test_a_huge_metadata_record_is_refused_before_reading_it(tmp_path):
+    path = tmp_path / "bomb.mcap"
+    path.write_bytes(container._MAGIC + struct.pack("<BQ", 0x0C, 2**40) + b"x" * 100)
+    loaded_error = pytest.raises(RecordingError, match="no frames|missing metadata")
+    with loaded_error:
+        load(path)  # the record claims more than the file holds: the file ends before it
+
+
+@pytest.mark.parametrize(("field", "value", "message"), [
+    ("taxels", "4000000000", r"'taxels' must be in \[1, 1000000\], got 4000000000"),
+    ("taxels", "six", r"'taxels' must be a whole number, got 'six'"),
+    ("dtype", "int8", r"'dtype' must be one of \['float32', 'float64'\], got 'int8'"),
+])
+def test_declared_sizes_are_checked_before_anything_is_read(tmp_path, field, value, message):
+    # a damaged or hostile header: refused before any frame is read or any array of its size made
+    path = tmp_path / "declared.mcap"
+    with open(path, "wb") as stream:
+        writer = Writer(stream)
+        writer.start()
+        fields = {"version": "1", "description": "", "taxels": "6", "dtype": "float32", "channel": "1"}
+        writer.add_metadata("tactile-viewer.recording", dict(fields, **{field: value}))
+        writer.add_metadata("tactile-viewer.geometry", {"nx": "3", "ny": "2", "pitch": "0.002",
+                                                       "thickness": "0.0015"})
+        writer.add_metadata("tactile-viewer.calibration", {"units": '"Pa"', "gain": "1", "offset": "0"})
+        writer.finish()
+    with pytest.raises(RecordingError, match=message):
+        load(path)
+
+
+def test_frames_of_another_size_than_declared_are_refused(tmp_path):
+    path = tmp_path / "short.mcap"
+    record(path, frames_for(5, seed=8))  # fixed seed
+    loaded = load(path)
+    other = loaded.frames.with_calibration(loaded.calibration)
+    other._m = 5  # as if the header declared 5 taxels for frames of 6 values
+    other._cache = container._ChunkCache(loaded.frames._index, 5, loaded.frames.raw_dtype)
+    with pytest.raises(RecordingError, match="frame 0 is not a frame of 5 float32 values"):
+        other[0]
+
+
+# -- raw values and calibration ---------------------------------------------------------------------
+
+def test_raw_values_are_kept_and_calibrated_on_load(tmp_path):
+    raw = frames_for(12, seed=9) / 1e3  # fixed seed; kPa as a board sends them
+    calibration = StressCalibration("kPa", 2.0, 0.25, (Tare(0, np.full(6, 10.0), t=0.0, frames=50),))
+    path = tmp_path / "raw.mcap"
+    recorder = Recorder(path, grid32(), calibration=calibration, dtype="float64", flush_interval=0.2)
+    for k in range(12):
+        recorder.add(k, k / 10, raw[k])
+        if k == 5:
+            recorder.tare(Tare(0, np.full(6, 30.0), t=0.5, frames=20))  # applies from frame 6 on
+    recorder.close()
+    loaded = load(path)
+    expected = 2.0 * (raw - 0.25) * 1e3 - 10.0
+    expected[6:] -= 20.0
+    np.testing.assert_allclose(loaded.frames[:], expected)
+    np.testing.assert_array_equal(loaded.frames.raw(slice(None)), raw)
+    assert [tare.from_frame for tare in loaded.calibration.tares] == [0, 6]
+    assert loaded.calibration.tares[1].frames == 20 and loaded.calibration.tares[1].t == 0.5
+
+
+def test_a_tare_retaken_on_a_reopened_recording_changes_the_forces_not_the_file(tmp_path):
+    raw = frames_for(10, seed=10)  # fixed seed
+    path = tmp_path / "retare.mcap"
+    record(path, raw, dtype="float64")
+    before = hashlib.sha256(path.read_bytes()).hexdigest()
+    loaded = load(path)
+    baseline = loaded.frames[3]
+    retared = loaded.recalibrated(loaded.calibration.retared(Tare(0, baseline)))
+    np.testing.assert_allclose(retared.frames[3], 0, atol=1e-9)
+    np.testing.assert_allclose(retared.frames[:], raw - baseline)
+    cleared = retared.recalibrated(retared.calibration.retared(None))
+    np.testing.assert_array_equal(cleared.frames[:], raw)
+    np.testing.assert_array_equal(loaded.frames[:], raw)  # the opened recording is unchanged
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == before
+
+
+def test_calibration_arguments_are_checked():
+    with pytest.raises(ValueError, match=r"units must be one of \('Pa', 'kPa', 'MPa', 'counts'\), got 'psi'"):
+        StressCalibration("psi", 1.0, 0.0)
+    with pytest.raises(ValueError, match=r"gain must be one number or 3 numbers \(one per taxel\)"):
+        StressCalibration("Pa", np.ones(3), np.zeros(3)).from_fields(3, units="Pa", gain=[1, 2], offset=0)
+    with pytest.raises(ValueError, match=r"a tare baseline must have 3 values, got shape \(2,\)"):
+        StressCalibration("Pa", np.ones(3), np.zeros(3), (Tare(0, np.zeros(2)),))
+    with pytest.raises(ValueError, match="from_frame must be a whole number >= 0, got -1"):
+        Tare(-1, np.zeros(3))

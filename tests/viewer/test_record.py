@@ -1,0 +1,116 @@
+"""tactile-record (tactile_viewer/record.py): killed at any instant, its file opens with every frame but
+the last second; Ctrl+C, SIGTERM and --duration stop it cleanly; its errors are named."""
+
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from tactile_viewer.recording import load
+
+# tactile-record on a slow disk: every write of the file goes out in 4 KiB pieces 2 ms apart, and a
+# marker file exists while a write is under way, so that a kill can be aimed inside one
+SLOW_DISK = """
+import io, sys, time
+from pathlib import Path
+from tactile_viewer import container, record
+
+marker = Path(sys.argv[1])
+
+class SlowDisk(io.FileIO):
+    def write(self, data):
+        marker.touch()
+        view, done = memoryview(data), 0
+        while done < len(view):
+            done += super().write(view[done:done + 4096])
+            time.sleep(0.002)
+        marker.unlink()
+        return done
+
+container.open = lambda name, mode: io.BufferedWriter(SlowDisk(name, "w")) if mode == "wb" else io.open(name, mode)
+sys.exit(record.main(sys.argv[2:]))
+"""
+
+
+def spawn(board, out, *extra, marker=None):
+    arguments = [str(board.link), "--layout", str(board.layout), "--out", str(out), *extra]
+    command = ([sys.executable, "-c", SLOW_DISK, str(marker)] if marker else
+               [sys.executable, "-m", "tactile_viewer.record"]) + arguments
+    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def wait_for(condition, timeout=10.0):
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.001)
+
+
+def test_killed_at_any_instant_the_file_opens_with_every_frame_but_the_last_second(board, tmp_path):
+    board.start("--rate", "1000", "--seed", "4")
+    rng = np.random.default_rng(21)  # fixed seed: the same kill instants every run
+    inside_a_write = 0
+    for k in range(10):
+        path, marker = tmp_path / f"kill{k}.mcap", tmp_path / f"writing{k}"
+        slow = k % 2 == 1  # every other one on the slow disk, killed inside a chunk's write
+        process = spawn(board, path, marker=marker if slow else None)
+        assert process.stdout.readline().startswith("recording")
+        time.sleep(float(rng.uniform(1.0, 2.5)))
+        if slow:
+            wait_for(marker.exists)
+            time.sleep(float(rng.uniform(0.0, 0.2)))
+            inside_a_write += marker.exists()
+        killed = time.time()
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+        recording = load(path)
+        assert recording.truncated  # never finished: it opens all the same
+        np.testing.assert_array_equal(np.diff(recording.sequence()), 1)  # every frame up to its end
+        behind = killed - (recording.received + float(recording.t[-1]))
+        # a chunk closes each second; on the slow disk, writing one takes up to about 0.6 s more
+        assert 0 <= behind <= (1.9 if slow else 1.3), f"kill {k}: the file ends {behind:.2f} s before it"
+        assert np.all(np.isfinite(recording.frames[-1]))
+    assert inside_a_write >= 4  # the kills did land inside writes
+
+
+@pytest.mark.parametrize("stop", ["SIGTERM", "SIGINT", "--duration"])
+def test_a_stop_leaves_a_complete_file_and_says_what_was_recorded(board, tmp_path, stop):
+    board.start("--rate", "500", "--seed", "5")
+    path = tmp_path / "take.mcap"
+    process = spawn(board, path, *(["--duration", "1.5"] if stop == "--duration" else []))
+    assert process.stdout.readline().startswith(f"recording {board.link} (binary) to {path}")
+    if stop != "--duration":
+        assert "frames/s" in process.stdout.readline()  # once a second: rate, recorded, lost, rejected
+        process.send_signal(getattr(signal, stop))
+    out, err = process.communicate(timeout=20)
+    assert process.returncode == 0, err
+    last = out.strip().splitlines()[-1]
+    assert last.startswith("stopped: ") and "lost 0" in last and "rejected 0" in last
+    recorded = int(last.split()[1])
+    recording = load(path)
+    assert not recording.truncated and len(recording) == recorded > 200
+    assert recording.grid.shape == (16, 16) and recording.frames.raw_dtype == np.float32
+
+
+@pytest.mark.parametrize(("arguments", "code", "message"), [
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--out", "{tmp}/a.mcap"], 1, "cannot open socket://"),
+    (["{link}", "--layout", "{tmp}/missing.json", "--out", "{tmp}/a.mcap"], 2, "missing.json"),
+    (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.npz"], 1,
+     r"cannot record: .*a\.npz: a recording is written as \.mcap, got '\.npz'"),
+    (["{link}", "--layout", "{layout}", "--out", "{tmp}/no/such/folder/a.mcap"], 1,
+     "cannot record: .*No such file or directory"),
+    (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.mcap", "--duration", "0"], 2,
+     "--duration must be > 0 seconds, got 0.0"),
+])
+def test_errors_are_named_and_nothing_is_left_running(board, tmp_path, arguments, code, message):
+    board.start("--rate", "100")
+    filled = [a.format(layout=board.layout, link=board.link, tmp=tmp_path) for a in arguments]
+    done = subprocess.run([sys.executable, "-m", "tactile_viewer.record", *filled], capture_output=True,
+                          text=True, timeout=30)
+    assert done.returncode == code
+    assert re.search(message, done.stderr), done.stderr
+    assert not (tmp_path / "a.mcap").exists()
