@@ -117,6 +117,12 @@ class MainWindow(QtWidgets.QMainWindow):
         menu.addSeparator()
         menu.addAction("&Quit", self.close).setShortcut(QtGui.QKeySequence.StandardKey.Quit)
         self.live_panel.add_actions(self.menuBar().addMenu("&Live"))
+        # a live recording keeps the raw values: its tare can be retaken, cleared or restored later
+        tare = self.menuBar().addMenu("&Recording")
+        self.tare_actions = {
+            how: tare.addAction(label, lambda how=how: self.retare(how))
+            for how, label in (("here", "&Tare from this frame (50 frames)"), ("clear", "&Clear tare"),
+                               ("recorded", "&Restore the tares taken while recording"))}
         view = self.menuBar().addMenu("&View")
         view.addAction("&Top", lambda: self._camera("top"))
         view.addAction("&Iso", lambda: self._camera("iso"))
@@ -128,6 +134,10 @@ class MainWindow(QtWidgets.QMainWindow):
         for action in self._exports:
             action.setEnabled(on)
         self._exports[2].setEnabled(on and not live)  # a live source has no "whole recording"
+        source = self.model.source
+        raw = on and not live and getattr(getattr(source, "recording", None), "calibration", None) is not None
+        for action in self.tare_actions.values():
+            action.setEnabled(raw)
 
     # -- sources ------------------------------------------------------------------------
 
@@ -202,6 +212,16 @@ class MainWindow(QtWidgets.QMainWindow):
             self.ready.emit()  # no frame yet: the first to arrive is solved and drawn as it comes
         else:
             self._first_frame = True  # ready follows with its first solve
+
+    def retare(self, how: str) -> bool:
+        """Retake ("here"), clear or restore ("recorded") the tare of the recording shown (not its file)."""
+        try:
+            done = self.model.retare(how)
+        except ValueError as exc:
+            self._error("Cannot change the tare", str(exc))
+            return False
+        self._notify(f"showing {done}; the file keeps its raw values")
+        return True
 
     # -- drawing ------------------------------------------------------------------------------
 

@@ -25,7 +25,7 @@ from solver import Reconstruction, Reconstructor, SensorGrid, make_solver
 from solver.arrays import read_only
 from solver.kernels import KERNELS
 
-from .recording import Recording
+from .recording import Recording, Tare
 from .source import RecordingSource, Signal, Source, SourceFrame
 from .worker import LatestWorker
 
@@ -293,6 +293,52 @@ class ViewerModel:
             source.seek(source.position if same else 0)
         elif not self._take() and same:
             self._schedule()  # a quiet board: its last frame again, with the new solver
+
+    def retare(self, how: str, *, frames: int = 50) -> str:
+        """Change the tare of the recording shown (its file keeps the raw values and is not changed).
+
+        Parameters
+        ----------
+        how : {"here", "clear", "recorded"}
+            ``"here"``: the baseline is the mean of ``frames`` frames from the
+            current one on, applied to every frame; ``"clear"``: no tare;
+            ``"recorded"``: the tares taken while recording.
+        frames : int
+            Frames averaged by ``"here"``.
+
+        Returns
+        -------
+        str
+            What was done, for the status line.
+
+        Raises
+        ------
+        ValueError
+            When no recording with raw values (MCAP) is shown, or for an unknown ``how``.
+        """
+        source = self.source
+        if not isinstance(source, RecordingSource) or source.recording.calibration is None:
+            raise ValueError("only a recording that keeps raw values (a live recording, .mcap) can be "
+                             "re-tared")
+        if how not in ("here", "clear", "recorded"):
+            raise ValueError(f"how must be 'here', 'clear' or 'recorded', got {how!r}")
+        if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
+            raise ValueError(f"frames must be a positive integer, got {frames!r}")
+        calibration = source.recording.calibration
+        if how == "recorded":
+            calibration = source.loaded_calibration
+            text = f"the tares taken while recording ({len(calibration.tares)})"
+        elif how == "clear":
+            calibration = calibration.retared(None)
+            text = "no tare"
+        else:
+            rows = np.arange(source.position, min(source.position + frames, len(source)))
+            untared = calibration.retared(None).apply(source.recording.frames.raw(rows), rows)
+            taken = float(source.recording.t[rows[0]])
+            calibration = calibration.retared(Tare(0, untared.mean(axis=0), taken, len(rows)))
+            text = f"tare from frames {rows[0]} to {rows[-1]}"
+        source.recalibrate(calibration)
+        return text
 
     def _stop(self, source: Source):
         try:

@@ -248,9 +248,23 @@ class RecordingSource(Source):
             self.clock_origin = recording.received
         if recording.calibration is not None:
             self.raw_dtype = recording.frames.raw_dtype.name
+        self.loaded_calibration = recording.calibration  # with the tares taken while recording
 
     def recorded_calibration(self) -> StressCalibration:
         return self.recording.calibration or super().recorded_calibration()
+
+    def recalibrate(self, calibration: StressCalibration) -> None:
+        """Show the recording through ``calibration`` (a tare retaken or cleared) from the current frame.
+
+        The file is not changed: it keeps the raw values.
+
+        Raises
+        ------
+        ValueError
+            When the recording keeps no raw values (NPZ, CSV).
+        """
+        self.recording = self.recording.recalibrated(calibration)
+        self.seek(self.position)
 
     @property
     def name(self) -> str:

@@ -332,3 +332,60 @@ def test_a_new_transport_is_one_subclass(tmp_path):
     assert source.opened == 2 and source.stats.lost == 0
     saved = recording.load(tmp_path / "queue.mcap")
     assert len(saved) == 4 and list(saved.sequence()) == [0, 1, 2, 3]
+
+
+def test_a_read_only_target_is_refused_and_the_reader_goes_on(pty, make_reader, tmp_path, monkeypatch):
+    import errno
+
+    from tactile_viewer import container
+
+    def read_only(name, mode):
+        if "w" in mode:  # a folder turned read-only (root ignores chmod, so the refusal is injected)
+            raise PermissionError(errno.EACCES, "Permission denied", str(name))
+        return open(name, mode)
+    monkeypatch.setattr(container, "open", read_only, raising=False)
+    reader = make_reader()
+    reader.start()
+    with pytest.raises(PermissionError, match="Permission denied"):
+        reader.start_recording(tmp_path / "locked" / "take.mcap")
+    assert reader.recorder is None
+    write_all(pty[0], b"".join(encode_binary(s, values(s)) for s in range(5)))
+    wait_for(lambda: reader.stats.received == 5, what="frames after the refusal")
+    assert reader.state == "connected" and reader.failures == 0
+
+
+def test_a_tare_taken_while_recording_is_recorded_from_its_frame_and_a_loaded_one_warns(pty, make_reader,
+                                                                                       tmp_path):
+    reader = make_reader()
+    messages = []
+    reader.message.connect(lambda *m: messages.append(m))
+    reader.start()
+    recorder = reader.start_recording(tmp_path / "tared.mcap", flush_interval=0.05)
+    write_all(pty[0], b"".join(encode_binary(s, values(0)) for s in range(10)))
+    wait_for(lambda: reader.stats.received == 10, what="ten frames")
+    reader.calibration.tare(5)
+    loaded = values(0) + np.where(np.arange(6) == 2, 50.0, 0.0)  # a press on taxel 2 while taring
+    rng = np.random.default_rng(3)  # fixed seed: the noise of the tared frames
+    write_all(pty[0], b"".join(encode_binary(s, loaded + rng.normal(0, 0.01, 6)) for s in range(10, 20)))
+    wait_for(lambda: reader.stats.received == 20, what="twenty frames")
+    path = reader.stop_recording()
+    saved = recording.load(path)
+    [tare] = saved.calibration.tares
+    assert tare.from_frame == 14 and tare.frames == 5 and recorder.added == 20  # the frame completing it
+    np.testing.assert_allclose(saved.frames[:10], np.tile(values(0), (10, 1)) * 1e3, rtol=1e-6)
+    assert np.all(saved.frames[10:14, 2] > 50e3)  # pressed and not yet tared
+    np.testing.assert_allclose(saved.frames[14:].mean(axis=0), 0, atol=20)  # tared from there on
+    (level, title, text), = [m for m in messages if m[0] == "warning"]
+    assert title == "Tare taken under load?" and "taxel 2 stood" in text
+
+
+def test_a_tare_of_an_unloaded_skin_does_not_warn_and_a_pressed_one_does():
+    from tactile_viewer.live_source import loaded_while_taring
+
+    rng = np.random.default_rng(8)  # fixed seed: 50 frames of 1 Pa noise on 256 taxels
+    quiet = rng.normal(0, 1.0, (50, 256)) + 300.0  # a uniform drift of the zero is no contact
+    assert loaded_while_taring(quiet, np.zeros(256)) is None
+    pressed = quiet.copy()
+    pressed[:, 40] += 8.0  # 8 times the noise on one taxel
+    assert "taxel 40 stood" in loaded_while_taring(pressed, np.zeros(256))
+    assert loaded_while_taring(pressed, pressed.mean(axis=0)) is None  # the same load as the last tare

@@ -459,3 +459,32 @@ def test_a_png_name_added_to_the_name_picked_never_replaces_a_file(opened, tmp_p
     with pytest.raises(FileExistsError, match=r"the image would be shout\.png .* not the file picked"):
         opened.exports.export_screenshot(tmp_path / "shout.PNG")
     assert (tmp_path / "shout.png").read_bytes() == b"not ours either\n"
+
+
+def test_the_tare_of_a_live_recording_is_retaken_and_cleared_from_the_menu(window, qtbot, tmp_path):
+    from tactile_viewer.container import Recorder
+    from tactile_viewer.recording import StressCalibration, Tare, load
+
+    sample = load(SAMPLES / "hertz_shear_turning.npz")
+    path = tmp_path / "take.mcap"
+    offset = np.full(sample.grid.size, 500.0)  # pascals of a board's zero
+    recorder = Recorder(path, sample.grid, dtype="float64",
+                        calibration=StressCalibration("Pa", 1.0, 0.0, (Tare(0, offset),)))
+    for k in range(10):
+        recorder.add(k, float(sample.t[k]), np.asarray(sample.frames[k]) + offset)
+    recorder.close()
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        assert window.open(path)
+    assert all(action.isEnabled() for action in window.tare_actions.values())
+    np.testing.assert_allclose(window.model.last.stress, sample.frames[0], atol=1e-9)
+    with qtbot.waitSignal(window.model.solved, timeout=10000):
+        window.tare_actions["clear"].trigger()
+    np.testing.assert_allclose(window.model.last.stress, sample.frames[0] + offset, atol=1e-9)
+    assert "showing no tare; the file keeps its raw values" in window.statusBar().currentMessage()
+    with qtbot.waitSignal(window.model.solved, timeout=10000):
+        window.tare_actions["here"].trigger()
+    np.testing.assert_allclose(window.model.last.stress, sample.frames[0] - sample.frames[:10].mean(axis=0),
+                               atol=1e-9)
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        assert window.open(SAMPLES / "hertz_static.npz")  # stresses only: nothing to re-tare
+    assert not any(action.isEnabled() for action in window.tare_actions.values())

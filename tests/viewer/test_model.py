@@ -658,3 +658,45 @@ def test_a_new_solver_for_a_quiet_board_solves_its_last_frame_again(threaded, re
     posted.run(model)
     assert model.last.frame == 5
     np.testing.assert_array_equal(model.last.result.forces, cell.solve(recording.frames[1]).forces)
+
+
+# -- re-taring a recording that keeps raw values ---------------------------------------------------
+
+def test_a_tare_retaken_cleared_or_restored_changes_what_is_solved_not_the_file(recording, reconstructor,
+                                                                                tmp_path):
+    import hashlib
+
+    from tactile_viewer.container import Recorder
+    from tactile_viewer.recording import StressCalibration, Tare, load
+
+    path = tmp_path / "take.mcap"
+    offset = np.linspace(50.0, 80.0, recording.grid.size)  # a board's zero drifting per taxel, pascals
+    recorder = Recorder(path, recording.grid, dtype="float64", calibration=StressCalibration(
+        "Pa", 1.0, 0.0, (Tare(0, offset, t=0.0, frames=50),)))
+    for k in range(4):
+        recorder.add(k, float(recording.t[k]), np.asarray(recording.frames[k]) + offset)
+    recorder.close()
+    before = hashlib.sha256(path.read_bytes()).hexdigest()
+    model = ViewerModel()
+    model.set_source(RecordingSource(load(path), path), reconstructor)
+    model.set_frame(2)
+    np.testing.assert_allclose(model.solve().stress, recording.frames[2], atol=1e-9)  # the recorded tare
+    assert model.retare("clear") == "no tare"
+    np.testing.assert_allclose(model.solve().stress, recording.frames[2] + offset, atol=1e-9)
+    assert model.retare("here", frames=2) == "tare from frames 2 to 3"
+    assert model.frame == 2
+    np.testing.assert_allclose(model.solve().stress, (recording.frames[2] - recording.frames[3]) / 2, atol=1e-9)
+    assert model.retare("recorded") == "the tares taken while recording (1)"
+    np.testing.assert_allclose(model.solve().stress, recording.frames[2], atol=1e-9)
+    with pytest.raises(ValueError, match=r"how must be 'here', 'clear' or 'recorded', got 'now'"):
+        model.retare("now")
+    with pytest.raises(ValueError, match="frames must be a positive integer, got 0"):
+        model.retare("here", frames=0)
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == before  # the raw values are untouched
+
+
+def test_retare_errors_are_named(model):
+    with pytest.raises(ValueError, match=r"only a recording that keeps raw values \(a live recording, \.mcap\)"):
+        model.retare("here")  # an NPZ holds stresses only
+    with pytest.raises(ValueError, match="only a recording"):
+        ViewerModel().retare("clear")

@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 
 from tactile_viewer.recording import load
+from tests.viewer.conftest import Board
 
-# tactile-record on a slow disk: every write of the file goes out in 4 KiB pieces 2 ms apart, and a
-# marker file exists while a write is under way, so that a kill can be aimed inside one
+# tactile-record on a slow disk: every write of the file goes out in 4 KiB pieces 5 ms apart (a
+# second of frames takes about 1.3 s), and a marker file exists while a write is under way, so
+# that a kill can be aimed inside one (the marker stays when the write dies with the process)
 SLOW_DISK = """
 import io, sys, time
 from pathlib import Path
@@ -27,7 +29,7 @@ class SlowDisk(io.FileIO):
         view, done = memoryview(data), 0
         while done < len(view):
             done += super().write(view[done:done + 4096])
-            time.sleep(0.002)
+            time.sleep(0.005)
         marker.unlink()
         return done
 
@@ -43,6 +45,15 @@ def spawn(board, out, *extra, marker=None):
     return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+@pytest.fixture(scope="module")
+def board(tmp_path_factory):
+    """One 1 kHz binary board for the whole module (starting one costs seconds)."""
+    made = Board(tmp_path_factory.mktemp("board"))
+    made.start("--rate", "1000", "--seed", "4")
+    yield made
+    made.stop()
+
+
 def wait_for(condition, timeout=10.0):
     deadline = time.monotonic() + timeout
     while not condition():
@@ -51,7 +62,6 @@ def wait_for(condition, timeout=10.0):
 
 
 def test_killed_at_any_instant_the_file_opens_with_every_frame_but_the_last_second(board, tmp_path):
-    board.start("--rate", "1000", "--seed", "4")
     rng = np.random.default_rng(21)  # fixed seed: the same kill instants every run
     inside_a_write = 0
     for k in range(10):
@@ -59,27 +69,30 @@ def test_killed_at_any_instant_the_file_opens_with_every_frame_but_the_last_seco
         slow = k % 2 == 1  # every other one on the slow disk, killed inside a chunk's write
         process = spawn(board, path, marker=marker if slow else None)
         assert process.stdout.readline().startswith("recording")
-        time.sleep(float(rng.uniform(1.0, 2.5)))
+        # on the slow disk the first chunk is on disk about 2.3 s in: kill inside a later one
+        time.sleep(float(rng.uniform(2.6, 3.5) if slow else rng.uniform(1.0, 2.5)))
         if slow:
             wait_for(marker.exists)
-            time.sleep(float(rng.uniform(0.0, 0.2)))
-            inside_a_write += marker.exists()
+            time.sleep(float(rng.uniform(0.0, 0.05)))
         killed = time.time()
         process.send_signal(signal.SIGKILL)
         process.wait()
+        inside_a_write += slow and marker.exists()
         recording = load(path)
         assert recording.truncated  # never finished: it opens all the same
-        np.testing.assert_array_equal(np.diff(recording.sequence()), 1)  # every frame up to its end
+        steps = np.diff(recording.sequence())
+        # every frame received up to its end; the slow disk stalls the reader beyond what the
+        # pseudo-terminal buffers, so there the board itself drops frames (gaps, never repeats)
+        assert np.all(steps >= 1) and (slow or np.all(steps == 1))
         behind = killed - (recording.received + float(recording.t[-1]))
-        # a chunk closes each second; on the slow disk, writing one takes up to about 0.6 s more
-        assert 0 <= behind <= (1.9 if slow else 1.3), f"kill {k}: the file ends {behind:.2f} s before it"
+        # a chunk closes each second; on the slow disk, writing one takes up to about 1.3 s more
+        assert 0 <= behind <= (2.6 if slow else 1.3), f"kill {k}: the file ends {behind:.2f} s before it"
         assert np.all(np.isfinite(recording.frames[-1]))
-    assert inside_a_write >= 4  # the kills did land inside writes
+    assert inside_a_write >= 3  # the kills did land inside writes (counted from the marker left)
 
 
 @pytest.mark.parametrize("stop", ["SIGTERM", "SIGINT", "--duration"])
 def test_a_stop_leaves_a_complete_file_and_says_what_was_recorded(board, tmp_path, stop):
-    board.start("--rate", "500", "--seed", "5")
     path = tmp_path / "take.mcap"
     process = spawn(board, path, *(["--duration", "1.5"] if stop == "--duration" else []))
     assert process.stdout.readline().startswith(f"recording {board.link} (binary) to {path}")
@@ -107,7 +120,6 @@ def test_a_stop_leaves_a_complete_file_and_says_what_was_recorded(board, tmp_pat
      "--duration must be > 0 seconds, got 0.0"),
 ])
 def test_errors_are_named_and_nothing_is_left_running(board, tmp_path, arguments, code, message):
-    board.start("--rate", "100")
     filled = [a.format(layout=board.layout, link=board.link, tmp=tmp_path) for a in arguments]
     done = subprocess.run([sys.executable, "-m", "tactile_viewer.record", *filled], capture_output=True,
                           text=True, timeout=30)
