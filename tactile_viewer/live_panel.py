@@ -11,6 +11,8 @@ failed recording) comes back through the model's ``message``.
 from __future__ import annotations
 
 import math
+import time
+from collections import deque
 
 from PyQt6 import QtCore, QtGui, QtWidgets
 
@@ -23,6 +25,7 @@ __all__ = ["LivePanel", "TARE_FRAMES", "SILENCE_S"]
 
 TARE_FRAMES = 50  # frames averaged by a tare
 SILENCE_S = 1.0  # seconds without a frame before the banner says NO DATA
+DISPLAY_WINDOW_S = 2.0  # seconds of drawn frames the on-screen rate is measured over
 
 
 class LivePanel(QtWidgets.QGroupBox):
@@ -53,6 +56,12 @@ class LivePanel(QtWidgets.QGroupBox):
         self.status = QtWidgets.QLabel("")
         self.status.setWordWrap(True)
         box.addWidget(self.status)
+        # seen at a glance while every frame goes to a file
+        self.recording_indicator = QtWidgets.QLabel("")
+        self.recording_indicator.setStyleSheet("color: #b00020; font-weight: bold")
+        self.recording_indicator.hide()
+        box.addWidget(self.recording_indicator)
+        self._drawn: deque = deque()  # when frames reached the screen (monotonic seconds)
         buttons = QtWidgets.QHBoxLayout()
         self.buttons = {}
         for label, name, slot in (("Tare", "tare", self.tare), ("Record...", "record", self.record_dialog),
@@ -121,6 +130,20 @@ class LivePanel(QtWidgets.QGroupBox):
 
     # -- acting on the source --------------------------------------------------------------
 
+    def frame_drawn(self):
+        """A frame reached the screen (the window's ``rendered``)."""
+        now = time.monotonic()
+        self._drawn.append(now)
+        while self._drawn and self._drawn[0] < now - DISPLAY_WINDOW_S:
+            self._drawn.popleft()
+
+    def display_rate(self) -> float:
+        """Frames drawn per second over the last :data:`DISPLAY_WINDOW_S` seconds."""
+        now = time.monotonic()
+        while self._drawn and self._drawn[0] < now - DISPLAY_WINDOW_S:
+            self._drawn.popleft()
+        return len(self._drawn) / DISPLAY_WINDOW_S
+
     def tare(self, frames: int = TARE_FRAMES):
         """Average the next ``frames`` frames as the zero of every taxel."""
         if self._connected():
@@ -181,6 +204,7 @@ class LivePanel(QtWidgets.QGroupBox):
         reader = self.reader
         if reader is None or reader.state == "stopped":
             self.banner.hide()
+            self.recording_indicator.hide()
             self.status.setText(f"{reader.label}: stopped" if reader is not None else "")
             return
         stats = reader.stats
@@ -191,7 +215,8 @@ class LivePanel(QtWidgets.QGroupBox):
             state = reader.state + (f": {reader.error}" if reader.error else "")
             self.banner.setText(f"NO DATA: {since} ({state})")
         rejected = reader.rejected()
-        parts = [f"{reader.label}: {reader.state}", f"{stats.rate(reader.now()):.0f} fps",
+        parts = [f"{reader.label}: {reader.state}",
+                 f"{stats.rate(reader.now()):.0f} fps received, {self.display_rate():.0f} fps on screen",
                  f"received {stats.received}", f"lost {stats.lost}"]
         if rejected or reader.decoder.skipped_bytes:
             parts.append("rejected " + (", ".join(f"{k} {v}" for k, v in sorted(rejected.items())) or "0")
@@ -202,6 +227,9 @@ class LivePanel(QtWidgets.QGroupBox):
             parts.append(f"{reader.failures} chunks failed: {reader.error}")
         if reader.calibration.taring:
             parts.append("taring")
-        if reader.recorder is not None:
-            parts.append(f"recording {reader.recorder.path.name} ({reader.recorder.written} frames saved)")
+        recorder = reader.recorder
+        self.recording_indicator.setVisible(recorder is not None)
+        if recorder is not None:
+            self.recording_indicator.setText(f"\u25cf REC {recorder.path.name}: {recorder.added} frames "
+                                             f"({recorder.written} on disk)")
         self.status.setText("\n".join(parts))

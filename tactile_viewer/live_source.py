@@ -15,6 +15,7 @@ the port and the reader never touches the scene.
 
 from __future__ import annotations
 
+import bisect
 import math
 import threading
 import time
@@ -171,11 +172,20 @@ class LiveStats:
         return self.last_seq
 
     def rate(self, now: float | None = None) -> float:
-        """Frames per second over the last ``window`` seconds (0 when silent)."""
+        """Frames per second over the last ``window`` seconds (0 when silent).
+
+        Frames that arrive together share one receive time, so the frames
+        that came with the window's first read are left out of the count:
+        what arrived after it, over the time since it. (Counting them would
+        read 110 on a 100 Hz board read ten frames at a time.)
+        """
         times = self._times
         if len(times) < 2 or (now is not None and now - times[-1] > self.window):
             return 0.0
-        return (len(times) - 1) / (times[-1] - times[0]) if times[-1] > times[0] else 0.0
+        span = times[-1] - times[0]
+        if span <= 0:
+            return 0.0
+        return (len(times) - bisect.bisect_right(times, times[0])) / span
 
     def silence(self, now: float) -> float:
         """Seconds since the last frame (inf before the first)."""

@@ -79,6 +79,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.playback = PlaybackPanel(self.model)
         self.live_panel = LivePanel(self.model, install=self.show_source, error=self._error,
                                     notify=self._notify)
+        self.rendered.connect(self.live_panel.frame_drawn)
         self.presets = PresetMeasurer(self.model, self.parameters, self.tasks, notify=self._notify,
                                       parent=self)
         self.exports = ExportActions(self, self.model, self.scene, self.tasks, error=self._error,

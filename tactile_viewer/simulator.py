@@ -184,8 +184,6 @@ def main(argv=None) -> int:
     layout = SensorLayout(grid, args.units)
     if args.layout:
         save_layout(layout, args.layout)
-    board = Board(layout, fmt=args.format, rate=args.rate, noise=args.noise, garbage=args.garbage,
-                  dropout=args.dropout, seed=args.seed, checksum=args.checksum)
 
     stopping = []
     # installed before the device path is printed: whoever reads it may stop us at once
@@ -201,6 +199,10 @@ def main(argv=None) -> int:
         os.set_blocking(master, False)
         write = lambda data: _write_all(master, data, stall=1.0)  # noqa: E731
         print(name + (f" (link {args.link})" if args.link else ""), flush=True)
+    # the device exists from here on: a viewer may connect at once and sees frames once the
+    # contact is computed (a few seconds of finely integrated loads)
+    board = Board(layout, fmt=args.format, rate=args.rate, noise=args.noise, garbage=args.garbage,
+                  dropout=args.dropout, seed=args.seed, checksum=args.checksum)
     unsent = 0
     start = time.perf_counter()
     try:

@@ -81,6 +81,15 @@ def test_rate_measures_only_the_window():
     assert stats.rate() == pytest.approx(10.0)
 
 
+def test_rate_of_frames_read_in_batches():
+    # a 100 Hz board read ten frames at a time: every ten frames share one receive time
+    stats = LiveStats(window=1.0)
+    for batch in range(30):
+        for k in range(10):
+            stats.add(batch * 10 + k, batch / 10)
+    assert stats.rate() == pytest.approx(100.0)  # counting the first read's frames would give 110
+
+
 def test_lost_frames_from_gaps():
     stats = LiveStats()
     assert [stats.add(s, 0.0) for s in (100, 101, 104, 105, 110)] == [100, 101, 104, 105, 110]

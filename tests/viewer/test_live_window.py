@@ -210,3 +210,15 @@ def test_a_live_source_of_another_kind_shows_without_the_boards_statistics(windo
     qtbot.wait(300)  # the panel's status ticks
     assert window.live_panel.reader is None and window.model.last.frame == 3
     assert "live: tcp://lab:9000" in window.windowTitle()
+
+
+def test_the_recording_indicator_shows_while_recording_and_both_rates_are_shown(live, qtbot, tmp_path):
+    panel = live.live_panel
+    assert not panel.recording_indicator.isVisible()
+    assert panel.start_recording(tmp_path / "take.mcap")
+    qtbot.waitUntil(lambda: panel.recording_indicator.isVisible(), timeout=5000)
+    qtbot.waitUntil(lambda: "REC take.mcap" in panel.recording_indicator.text(), timeout=5000)
+    qtbot.waitUntil(lambda: panel.display_rate() > 0, timeout=5000)
+    assert "fps received" in panel.status.text() and "fps on screen" in panel.status.text()
+    panel.stop_recording()
+    qtbot.waitUntil(lambda: not panel.recording_indicator.isVisible(), timeout=5000)

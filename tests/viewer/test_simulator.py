@@ -384,3 +384,33 @@ def test_cli_duration_bounds_the_frame_count():
     counts = re.search(r"sent (\d+) frames, dropped (\d+)", out.stderr)
     sent, dropped = int(counts[1]), int(counts[2])
     assert sent + dropped == 10 and dropped > 0
+
+
+def test_the_port_and_layout_exist_before_the_contact_is_computed(tmp_path, monkeypatch, capsys):
+    # a viewer told the port connects at once: the slow part (the finely integrated contact) comes
+    # after the device path is printed, the link made and the layout written
+    import threading
+
+    from tactile_viewer import simulator
+
+    link, layout = tmp_path / "board", tmp_path / "board.json"
+    seen = {}
+    release = threading.Event()
+
+    def slow_cycle(grid, *args, **kwargs):
+        release.wait(10)
+        return np.zeros((4, grid.size))
+
+    def look():
+        deadline = time.monotonic() + 10
+        while not link.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        seen.update(link=link.exists(), layout=layout.exists(), opened=serial.Serial(str(link)).is_open)
+        release.set()
+    monkeypatch.setattr(simulator, "contact_cycle", slow_cycle)
+    checker = threading.Thread(target=look)
+    checker.start()
+    assert main(["--link", str(link), "--layout", str(layout), "--duration", "0.05"]) == 0
+    checker.join()
+    assert seen == dict(link=True, layout=True, opened=True)  # all while the contact was computing
+    assert capsys.readouterr().out.startswith("/dev/pts/")
