@@ -105,23 +105,32 @@ def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="tactile-viewer", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="tactile-viewer", description="Contact forces on a robot skin from its normal-stress sensors: "
+        "open RECORDING in the viewer (no option), or describe, report or render it headlessly.")
     parser.add_argument("recording", nargs="?", metavar="RECORDING",
                         help="a recording to open: .mcap (live recordings), .npz or .csv")
     parser.add_argument("--info", action="store_true",
                         help="print frames, span, sequence gaps, receive times, geometry and calibration "
                              "of RECORDING, one per line, and exit (nothing is solved)")
     parser.add_argument("--report", action="store_true", help="print the reconstruction (headless)")
-    parser.add_argument("--frame", type=int)
+    parser.add_argument("--frame", type=int, metavar="N",
+                        help="the frame to report or render, numbered from 0 as everywhere; default: "
+                             "every frame for --report, 0 for --screenshot")
     parser.add_argument("--kernel", choices=KERNELS, default=KERNELS[0], help=KERNEL_HELP)
-    parser.add_argument("--shear-ratio", type=float)
-    parser.add_argument("--shear-direction", type=float, help="degrees")
+    parser.add_argument("--shear-ratio", type=float, metavar="MU",
+                        help="fixed shear ratio (default: found automatically)")
+    parser.add_argument("--shear-direction", type=float, metavar="DEG",
+                        help="fixed shear direction, degrees from +x (default: found automatically)")
     parser.add_argument("--screenshot", metavar="PNG",
                         help="render one frame to PNG (+ JSON sidecar PNG.view.json) and exit")
     parser.add_argument("--scale", type=int, choices=(1, 2, 4), default=1, help="screenshot size multiplier")
     parser.add_argument("--transparent", action="store_true", help="screenshot with transparent background")
-    parser.add_argument("--camera", choices=("iso", "top"), default="iso")
-    parser.add_argument("--map", choices=("pressure", "stress", "none"), default="pressure")
+    parser.add_argument("--camera", choices=("iso", "top"), default="iso",
+                        help="screenshot view: iso (oblique, default) or top (looking down on the skin)")
+    parser.add_argument("--map", choices=("pressure", "stress", "none"), default="pressure",
+                        help="screenshot colour map: pressure (normal force per area, default), stress "
+                             "(sensor readings) or none")
     args = parser.parse_args(argv)
     try:
         if args.report or args.screenshot or args.info:

@@ -52,7 +52,7 @@ def status_text(solved: Solved, model: ViewerModel) -> str:
             f"contact {k + 1}: mu {c.shear_ratio:.2f}, theta "
             f"{math.degrees(c.shear_direction):+.0f}" for k, c in enumerate(r.contacts)) + ")"
     where = (f"seq {solved.frame}" if solved.frame >= 0 else "live") if model.live \
-        else f"frame {solved.frame + 1}/{len(model.recording)}"
+        else f"frame {solved.frame} (of 0-{len(model.recording) - 1})"
     return (f"{where}  t {solved.time:.3f} s  |  "
             f"solve {solved.solve_ms:.2f} ms  |  {shear}  |  efficiency {r.efficiency:.3f}  "
             f"residual {r.residual:.1e}  condition {r.condition:.3g}"
@@ -332,7 +332,8 @@ class PlaybackPanel(QtWidgets.QGroupBox):
 
     def _on_solved(self, solved):
         if self.source is not None:
-            self.time_label.setText(f"frame {solved.frame + 1} of {len(self.source)},  "
+            # numbered from 0, as in exports, sidecars, --frame and --report
+            self.time_label.setText(f"frame {solved.frame} (of 0-{len(self.source) - 1}),  "
                                     f"t = {solved.time:.3f} s")
 
     def _play_toggled(self, on):

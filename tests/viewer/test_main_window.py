@@ -27,7 +27,9 @@ def test_window_opens_on_each_sample(window, qtbot, name):
     assert window.model.last is not None and window.model.last.frame == 0
     assert window.scene.arrows.n_points > 0
     assert name in window.windowTitle()
-    assert "frame 1/" in window.status.text() and "efficiency" in window.status.text()
+    # frames are numbered from 0 everywhere: window, exports, sidecars, --frame, --report
+    assert "frame 0 (of 0-" in window.status.text() and "efficiency" in window.status.text()
+    assert window.playback.time_label.text().startswith("frame 0 (of 0-")
 
 
 def test_moving_either_slider_changes_the_arrows(opened, qtbot):
