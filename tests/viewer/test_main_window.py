@@ -490,3 +490,16 @@ def test_the_tare_of_a_live_recording_is_retaken_and_cleared_from_the_menu(windo
     with qtbot.waitSignal(window.ready, timeout=20000):
         assert window.open(SAMPLES / "hertz_static.npz")  # stresses only: nothing to re-tare
     assert not any(action.isEnabled() for action in window.tare_actions.values())
+
+
+def test_a_long_no_data_banner_wraps_instead_of_widening_the_window(opened, qtbot):
+    opened.resize(1280, 760)
+    qtbot.wait(50)
+    width = opened.width()
+    banner = opened.live_panel.banner
+    banner.setText("NO DATA: no frame for 12.3 s (reconnecting: [Errno 2] could not open port "
+                   "/dev/serial/by-id/usb-Arduino_LLC_Arduino_Leonardo_if00-port0: No such file or directory)")
+    banner.show()
+    qtbot.wait(100)
+    assert opened.width() == width and banner.width() <= width
+    assert banner.height() > banner.fontMetrics().height() * 1.5  # wrapped onto several lines
