@@ -77,7 +77,8 @@ class LivePanel(QtWidgets.QGroupBox):
         self.banner.setStyleSheet("background: #b00020; color: white; font-weight: bold; padding: 4px")
         # a long reason ("reconnecting: could not open port ...") wraps instead of widening the window
         self.banner.setWordWrap(True)
-        self.banner.setSizePolicy(QtWidgets.QSizePolicy.Policy.Ignored, QtWidgets.QSizePolicy.Policy.Preferred)
+        policy = QtWidgets.QSizePolicy.Policy
+        self.banner.setSizePolicy(policy.Ignored, policy.Preferred)
         self.banner.hide()
         self.actions: dict[str, QtGui.QAction] = {}
         self._timer = QtCore.QTimer(self, interval=250)

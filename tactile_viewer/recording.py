@@ -408,18 +408,53 @@ def _scale(units: str, path) -> float:
     return UNIT_SCALES[units]
 
 
-def _checked_frames(frames, grid, path):
-    if frames.ndim != 2 or frames.shape[1] != grid.size:
+def _checked_shape(shape, grid, path) -> int:
+    # from a header, before the frames are read: a table of the wrong shape is refused before it is made
+    if len(shape) != 2 or shape[1] != grid.size:
         layout = (f"{grid.shape[1]}x{grid.shape[0]} grid" if len(grid.shape) == 2
                   else f"{grid.size}-taxel layout")
         raise RecordingError(f"{path}: frames must be a (T, {grid.size}) table for a {layout}, "
-                             f"got shape {frames.shape}")
-    if frames.shape[0] == 0:
+                             f"got shape {tuple(shape)}")
+    if shape[0] == 0:
         raise RecordingError(f"{path}: no frames")
+    return shape[0]
+
+
+def _checked_frames(frames, grid, path):
+    _checked_shape(frames.shape, grid, path)
     bad = np.argwhere(~np.isfinite(frames))
     if bad.size:
         raise RecordingError(f"{path}: frame {bad[0][0]} taxel {bad[0][1]} is not a finite number")
     return frames
+
+
+# -- sizes a file declares ------------------------------------------------------------------------
+# A file says how big its arrays are before it holds them (an NPZ member's .npy header, the zip's
+# directory, a CSV's lines). What it says is checked against the file and these ceilings before
+# anything of that size is made: a damaged or hostile file costs a RecordingError, not the memory.
+
+# The most one recording may take once loaded, every array as float64 (what the viewer holds): a
+# 32x32 skin at 1 kHz for 8.7 minutes. Loading passes the frames through about three transient
+# copies (conversion, scaling, the Recording's own), so this already asks for some 12 GB; longer
+# recordings belong in MCAP, which opens lazily a chunk at a time.
+_MAX_RECORDING_BYTES = 4 * 2**30
+# How many times a compressed NPZ member may expand. Deflate cannot pass about 1032:1, which only
+# long runs of one byte reach. Measured with np.savez_compressed (zlib level 6): sensor noise 1.1:1,
+# ADC counts stored as floats 3.5:1, 8 of 256 taxels pressed 30 to 67:1, a constant frame 660:1,
+# all-zero 16x16 frames 982:1 (1000 frames) rising to 1028:1 (100000 frames). Past 1000:1 a member
+# is one repeated byte: a bomb, or an idle skin, which _EXPANSION_ALLOWANCE lets load while small.
+_MAX_EXPANSION = 1000
+# Bytes, all members together, that may expand more than _MAX_EXPANSION times: an all-zero
+# recording of up to 64 MiB (32768 frames of 16x16) loads, a bomb is refused before it is inflated.
+_EXPANSION_ALLOWANCE = 64 * 2**20
+# A field that is one number or one text (a megabyte is no description).
+_MAX_FIELD_BYTES = 2**20
+# np.load's own limit on a .npy header (its max_header_size), here checked before the header is read.
+_MAX_NPY_HEADER = 10_000
+# The NPZ fields that are arrays of numbers; every other field the loader reads is a single value.
+_NPZ_ARRAYS = ("frames", "t", "seq", "truth_forces", "positions")
+_NPZ_SINGLES = ("nx", "ny", "taxels", "pitch", "thickness", "poisson_ratio", "sensor_size", "units",
+                "description")
 
 
 def _load_npz(path) -> Recording:
@@ -430,12 +465,22 @@ def _load_npz(path) -> Recording:
     if not isinstance(data, np.lib.npyio.NpzFile):
         raise RecordingError(f"{path}: not an NPZ archive (a single array, as .npy writes)")
     with data:
-        arrays = _joined_chunks(data) if "frames" not in data else {k: data[k] for k in ("frames", "t", "seq")
-                                                                    if k in data}
-        if "frames" not in arrays:
+        # the members each field is read from: its own, or those of the chunks of a live recording
+        parts = ({key: [key] for key in ("frames", "t", "seq") if key in data} if "frames" in data
+                 else _joined_chunks(data))
+        if "frames" not in parts:
             raise RecordingError(f"{path}: missing 'frames'")
+        parts.update({key: [key] for key in (*_NPZ_SINGLES, "positions", "truth_forces") if key in data})
+        shapes = _npz_shapes(data, parts, path)  # from the headers alone: nothing is read before this
+        declared = shapes["frames"]
         grid = _grid(data, path, data["positions"] if "positions" in data else None,
-                     width=np.shape(arrays["frames"])[-1] if np.ndim(arrays["frames"]) == 2 else None)
+                     width=declared[1] if len(declared) == 2 else None)
+        count = _checked_shape(declared, grid, path)
+        for key, shape in (("t", (count,)), ("seq", (count,)), ("truth_forces", (count, grid.size, 3))):
+            if key in shapes and shapes[key] != shape:
+                raise RecordingError(f"{path}: {key} must have shape {shape}, got {shapes[key]}")
+        arrays = {key: data[names[0]] if len(names) == 1 else np.concatenate([data[name] for name in names])
+                  for key, names in parts.items() if key in ("frames", "t", "seq")}
         units = str(data["units"]) if "units" in data else "Pa"
         frames = _checked_frames(np.asarray(arrays["frames"], dtype=float), grid, path) * _scale(units, path)
         t = np.asarray(arrays["t"], dtype=float) if "t" in arrays else np.arange(len(frames), dtype=float)
@@ -448,19 +493,171 @@ def _load_npz(path) -> Recording:
         raise RecordingError(f"{path}: {exc}") from None
 
 
+def _npz_shapes(data, parts, path) -> dict:
+    """The shape of each field of ``parts`` (field: its members), from the members' .npy headers alone.
+
+    Every member is checked before any is read: an array, not pickled objects, of what its field
+    holds, whose declared size fits the ceilings above, the file and the zip's directory.
+
+    Raises
+    ------
+    RecordingError
+        Naming the member and the rule it breaks.
+    """
+    file_size = Path(path).stat().st_size
+    loaded = expanding = 0  # bytes the arrays will take; bytes of members expanding past _MAX_EXPANSION
+    shapes = {}
+    for field, names in parts.items():
+        found = []
+        for name in names:
+            info, shape, dtype, header = _npy_header(data, name, path)
+            values = math.prod(shape)
+            stored = values * dtype.itemsize
+            declares = f"{name!r} declares {_values_text(shape)} ({_bytes_text(stored)})"
+            if dtype.hasobject:
+                raise RecordingError(f"{path}: {name!r} holds Python objects (dtype {dtype}), which only "
+                                     "unpickling could read and no recording holds (allow_pickle=False)")
+            if field in _NPZ_ARRAYS:
+                if dtype.kind not in "biuf":
+                    raise RecordingError(f"{path}: {name!r} must hold numbers, got dtype {dtype}")
+                loaded += values * max(dtype.itemsize, 8)  # held as float64
+            elif values != 1:
+                kind = "text" if field in ("units", "description") else "number"
+                raise RecordingError(f"{path}: {name!r} must be a single {kind}, got shape {shape}")
+            elif stored > _MAX_FIELD_BYTES:
+                raise RecordingError(f"{path}: {declares}, more than the {_bytes_text(_MAX_FIELD_BYTES)} "
+                                     "one field may hold")
+            else:
+                loaded += stored
+            if field == "positions" and (len(shape) != 2 or shape[1] != 2 or shape[0] > MAX_TAXELS):
+                raise RecordingError(f"{path}: 'positions' must be x, y pairs of metres (shape (m, 2), m at "
+                                     f"most {MAX_TAXELS}), got shape {shape}")
+            if loaded > _MAX_RECORDING_BYTES:
+                raise RecordingError(f"{path}: {declares}: the recording would take {_bytes_text(loaded)}, "
+                                     f"more than the {_bytes_text(_MAX_RECORDING_BYTES)} this viewer loads "
+                                     "(long recordings belong in MCAP, which opens lazily)")
+            member = header + stored  # what the member inflates to, were the header true
+            if info.compress_type == zipfile.ZIP_STORED:
+                if member > file_size:
+                    raise RecordingError(f"{path}: {declares} but the file holds {_bytes_text(file_size)}: "
+                                         "not a recording")
+            elif info.compress_size > file_size:
+                raise RecordingError(f"{path}: damaged NPZ archive: its directory says {name!r} is "
+                                     f"{_bytes_text(info.compress_size)} compressed but the file holds "
+                                     f"{_bytes_text(file_size)}")
+            elif member > _MAX_EXPANSION * info.compress_size:
+                expanding += member
+                if expanding > _EXPANSION_ALLOWANCE:
+                    ratio = member / max(info.compress_size, 1)
+                    raise RecordingError(f"{path}: {declares} from {_bytes_text(info.compress_size)} "
+                                         f"compressed, {ratio:.0f}:1, more than the {_MAX_EXPANSION}:1 any "
+                                         "recording reaches: a decompression bomb, not a recording")
+            if info.file_size != member or (info.compress_type == zipfile.ZIP_STORED
+                                            and info.compress_size != member):
+                raise RecordingError(f"{path}: damaged NPZ archive: its directory says {name!r} holds "
+                                     f"{_bytes_text(info.file_size)} but its array header declares "
+                                     f"{_bytes_text(member)}")
+            found.append(shape)
+        shapes[field] = _joined_shape(names, found, path)
+    return shapes
+
+
+def _npy_header(data, name, path):
+    """``(zip info, shape, dtype, header bytes)`` of member ``name``, read without its values.
+
+    The header's own length is bounded before the header is read: a version 2.0 header may declare
+    4 GiB of itself, which np.load would read whole before its max_header_size refused it.
+    """
+    try:
+        info = data.zip.getinfo(name)
+    except KeyError:  # np.savez writes 'frames' as 'frames.npy'; NpzFile finds it by either name
+        info = data.zip.getinfo(f"{name}.npy")
+    if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
+        # zipfile inflates a bzip2 or LZMA member a whole compressed block at a time, unbounded (a few
+        # hundred bytes of bzip2 can be gigabytes of zeros): not even its header is read. numpy
+        # writes members stored or deflated only.
+        raise RecordingError(f"{path}: {name!r} is compressed by zip method {info.compress_type}, which "
+                             "numpy never writes (only stored or deflated): not a recording")
+    try:
+        member = data.zip.open(info)
+    except RuntimeError as exc:  # an encrypted member
+        raise RecordingError(f"{path}: {name!r} cannot be read ({exc})") from None
+    with member:
+        prefix = member.read(8)  # the magic string and the format version
+        try:
+            version = np.lib.format.read_magic(io.BytesIO(prefix))
+        except ValueError:
+            raise RecordingError(f"{path}: {name!r} is not a NumPy array (.npy): not a recording") from None
+        if version not in ((1, 0), (2, 0)):  # 3.0 is for field names only structured arrays have
+            raise RecordingError(f"{path}: {name!r} is a version {version[0]}.{version[1]} .npy array, "
+                                 "which no recording is")
+        length_field = member.read(2 if version == (1, 0) else 4)
+        length = int.from_bytes(length_field, "little")
+        if length > _MAX_NPY_HEADER:
+            raise RecordingError(f"{path}: {name!r} declares an array header of {length} bytes (at most "
+                                 f"{_MAX_NPY_HEADER}): not a recording")
+        text = member.read(length)
+    read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+    try:
+        shape, _, dtype = read(io.BytesIO(length_field + text))
+    except ValueError as exc:
+        raise RecordingError(f"{path}: {name!r} has a damaged array header ({exc})") from None
+    if any(size < 0 for size in shape):
+        raise RecordingError(f"{path}: {name!r} has a damaged array header (shape {shape})")
+    return info, shape, dtype, len(prefix) + len(length_field) + length
+
+
+def _joined_shape(names, shapes, path) -> tuple:
+    # the chunks of a field join along their first axis: the other axes must agree
+    if len(shapes) == 1:
+        return shapes[0]
+    for name, shape in zip(names, shapes, strict=True):
+        if not shape or shape[1:] != shapes[0][1:]:
+            raise RecordingError(f"{path}: {name!r} has shape {shape} but {names[0]!r} has {shapes[0]}: "
+                                 "the chunks do not join")
+    return (sum(shape[0] for shape in shapes), *shapes[0][1:])
+
+
+def _values_text(shape) -> str:
+    count = "x".join(map(str, shape)) if len(shape) > 1 else str(math.prod(shape))
+    return f"{count} value{'' if count == '1' else 's'}"
+
+
+def _bytes_text(count) -> str:
+    for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("KB", 1e3)):
+        if count >= scale:
+            return f"{count / scale:.1f} {unit}"
+    return f"{count} B"
+
+
 def _joined_chunks(data) -> dict:
-    # a live recording cut off before it was closed: its chunks in order
+    # a live recording cut off before it was closed: for each field every chunk holds, its members in order
     names = sorted({name.split("_", 1)[0] for name in data.files if name.startswith("chunk")})
     if not names:
         return {}
-    return {key: np.concatenate([data[f"{name}_{key}"] for name in names]) for key in ("frames", "t", "seq")
+    return {key: [f"{name}_{key}" for name in names] for key in ("frames", "t", "seq")
             if all(f"{name}_{key}" in data for name in names)}
 
 
+# The longest line a CSV recording needs, in characters: 'positions=' of MAX_TAXELS x,y pairs of
+# repr floats (at most 50 characters a pair). A line is read no further than this.
+_MAX_CSV_LINE = 64 * 2**20
+# Values parsed as Python floats (32 bytes each) before they are packed as float64 (8 bytes each).
+_CSV_BLOCK = 2**16
+
+
 def _load_csv(path) -> Recording:
-    meta, rows = {}, []
+    # What bounds the memory, whatever the file says: a line is read no further than _MAX_CSV_LINE
+    # characters (reading one peaks at twice that), a row's values are counted before they are parsed
+    # (at most MAX_TAXELS + 2), and rows are packed as float64, 8 bytes a value where the file spent at
+    # least 2 characters ('0,'): at most four times the file (twice that while the blocks are joined)
+    # and at most _MAX_RECORDING_BYTES. 'positions' holds at most MAX_TAXELS pairs.
+    meta, blocks, block, width, held = {}, [], [], None, 0
     with open(path, encoding="utf-8") as handle:
-        for number, line in enumerate(handle, start=1):
+        for number, line in enumerate(iter(lambda: handle.readline(_MAX_CSV_LINE + 1), ""), start=1):
+            if len(line) > _MAX_CSV_LINE and not line.endswith("\n"):
+                raise RecordingError(f"{path}: line {number} is longer than {_MAX_CSV_LINE} characters: "
+                                     "not a recording")
             text = line.strip()
             if not text:
                 continue
@@ -469,22 +666,41 @@ def _load_csv(path) -> Recording:
                 if sep:
                     meta[key.strip()] = value.strip()
                 continue
+            count = text.count(",") + text.count(";") + 1
+            if count > MAX_TAXELS + 2:
+                raise RecordingError(f"{path}: line {number} holds {count} values, more than a frame of the "
+                                     f"largest skin this viewer opens ({MAX_TAXELS} taxels) has")
             try:
-                rows.append([float(v) for v in text.replace(";", ",").split(",")])
+                row = [float(v) for v in text.replace(";", ",").split(",")]
             except ValueError:
                 raise RecordingError(f"{path}: line {number}: not a row of numbers: {text[:60]!r}") from None
-            if len(rows[-1]) != len(rows[0]):
-                raise RecordingError(f"{path}: line {number}: {len(rows[-1]) - 1} values, "
-                                     f"earlier rows have {len(rows[0]) - 1}")
-    if not rows:
+            if width is None:
+                width = len(row)
+            elif len(row) != width:
+                raise RecordingError(f"{path}: line {number}: {len(row) - 1} values, "
+                                     f"earlier rows have {width - 1}")
+            held += width
+            if held * 8 > _MAX_RECORDING_BYTES:
+                raise RecordingError(f"{path}: line {number}: the frames would take more than the "
+                                     f"{_bytes_text(_MAX_RECORDING_BYTES)} this viewer loads (long "
+                                     "recordings belong in MCAP, which opens lazily)")
+            block += row
+            if len(block) >= _CSV_BLOCK:
+                blocks.append(np.array(block, dtype=float))
+                block = []
+    if width is None:
         raise RecordingError(f"{path}: no frames")
-    table = np.asarray(rows, dtype=float)
+    table = np.concatenate([*blocks, np.array(block, dtype=float)]).reshape(-1, width)
     columns = meta.get("columns", "t")
     if columns not in ("t", "seq,t"):
         raise RecordingError(f"{path}: columns must be 't' or 'seq,t', got {columns!r}")
     first = 2 if columns == "seq,t" else 1
     positions = None
     if "positions" in meta:
+        pairs = meta["positions"].count(";") + 1
+        if pairs > MAX_TAXELS + 1:  # one more: a trailing ';'
+            raise RecordingError(f"{path}: 'positions' holds {pairs} x,y pairs, more than the {MAX_TAXELS} "
+                                 "taxels of the largest skin this viewer opens")
         try:
             positions = [[float(v) for v in pair.split(",")] for pair in meta["positions"].split(";")
                          if pair.strip()]  # a trailing ';' of a hand-edited file is no pair

@@ -373,3 +373,274 @@ def test_a_huge_declared_grid_is_refused_before_anything_is_allocated(tmp_path):
 def test_declared_geometries_are_checked(fields, message):
     with pytest.raises(ValueError, match=message):
         grid_from_fields(pitch=1e-3, thickness=1e-3, **fields)
+
+
+# -- declared sizes and decompression bombs ---------------------------------------------------------
+# Files that declare more than they hold: a .npy header, a zip directory, a deflate stream or a CSV
+# line. Each is refused with a RecordingError naming the field before anything of the declared size
+# is made; tracemalloc sees numpy's allocations too (even untouched ones), so a load that believed
+# the file would show its gigabytes here.
+
+# this section's own imports (E402: they belong at the top once the file's head is free to edit)
+import contextlib  # noqa: E402
+import io  # noqa: E402
+import struct  # noqa: E402
+import tracemalloc  # noqa: E402
+import zipfile  # noqa: E402
+
+import tactile_viewer.recording as recording_module  # noqa: E402
+
+SKIN = dict(nx=16, ny=16, pitch=1e-3, thickness=1e-3)  # frames of 256 values, 2 KiB each
+MIB = 2**20
+
+
+@contextlib.contextmanager
+def allocating_at_most(megabytes):
+    """Fail when the block's traced allocations ever reach ``megabytes`` at once, even when the
+    block failed otherwise (a load that allocated gigabytes is the news)."""
+    tracemalloc.start()
+    try:
+        yield
+    finally:
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        assert peak < megabytes * MIB, f"peak {peak / MIB:.0f} MiB"
+
+
+def npy_header(shape, descr="<f8", version=1):
+    """The .npy header of an array of ``shape``, written by hand: no array of that size is made."""
+    text = f"{{'descr': {descr!r}, 'fortran_order': False, 'shape': {tuple(shape)!r}, }}"
+    width = 2 if version == 1 else 4  # bytes of the header's length
+    text += " " * (-(8 + width + len(text) + 1) % 64) + "\n"  # numpy aligns the values to 64 bytes
+    return b"\x93NUMPY" + bytes([version, 0]) + len(text).to_bytes(width, "little") + text.encode("latin1")
+
+
+def npy(value):
+    buffer = io.BytesIO()
+    np.save(buffer, value)
+    return buffer.getvalue()
+
+
+def hostile_npz(path, members, compression=zipfile.ZIP_STORED):
+    """An NPZ of ``members`` (name: .npy bytes) beside an honest 16x16 skin, written by zipfile alone."""
+    with zipfile.ZipFile(path, "w", compression) as archive:
+        for name, content in {**{key: npy(value) for key, value in SKIN.items()}, **members}.items():
+            archive.writestr(f"{name}.npy", content)
+    return path
+
+
+def zero_frames(path, name="frames", mebibytes=256, compression=zipfile.ZIP_DEFLATED):
+    """Add ``mebibytes`` of all-zero frames of the 16x16 skin, compressed a block at a time (never
+    held whole): a decompression bomb, about 1028:1 deflated."""
+    with zipfile.ZipFile(path, "a", compression) as archive, \
+            archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+        member.write(npy_header((mebibytes * MIB // 2048, 256)))
+        block = bytes(MIB)
+        for _ in range(mebibytes):
+            member.write(block)
+    return path
+
+
+def forge_directory(path, name, compressed, uncompressed):
+    """Rewrite the sizes the zip's central directory gives member ``name`` (None: keep that one); the
+    data stay as they are."""
+    raw = bytearray(path.read_bytes())
+    at = raw.index(b"PK\x01\x02")  # the central directory's first entry
+    while raw[at + 46:at + 46 + len(name)] != name.encode():
+        at = raw.index(b"PK\x01\x02", at + 4)
+    kept = struct.unpack_from("<II", raw, at + 20)
+    struct.pack_into("<II", raw, at + 20, kept[0] if compressed is None else compressed,
+                     kept[1] if uncompressed is None else uncompressed)
+    path.write_bytes(bytes(raw))
+    return path
+
+
+def declared(shape):  # a member of values that are not there: its header alone
+    return npy_header(shape)
+
+
+def chunked_zero_frames(path, chunks=5, mebibytes=15):
+    """A live recording of ``chunks`` chunks of zero frames, each under the allowance alone."""
+    hostile_npz(path, {})
+    for index in range(chunks):
+        zero_frames(path, f"chunk{index:06d}_frames", mebibytes)
+    return path
+
+
+HUGE = (20000, 20000)  # 3.2 GB of float64 declared by a 128-byte header
+HOSTILE_NPZ = [
+    ("stored", lambda p: hostile_npz(p, {"frames": declared(HUGE)}),
+     r"'frames' declares 20000x20000 values \(3\.2 GB\) but the file holds 1\.\d KB: not a recording"),
+    ("deflated", lambda p: hostile_npz(p, {"frames": declared(HUGE)}, zipfile.ZIP_DEFLATED),
+     r"'frames' declares 20000x20000 values \(3\.2 GB\) from \d+ B compressed, \d+:1, more than the 1000:1 "
+     r"any recording reaches: a decompression bomb"),
+    # the directory agrees with the header, and both lie about what the file holds
+    ("forged-directory", lambda p: forge_directory(hostile_npz(p, {"frames": declared(HUGE)}), "frames.npy",
+                                                   3_200_000_128, 3_200_000_128),
+     r"'frames' declares 20000x20000 values \(3\.2 GB\) but the file holds 1\.\d KB: not a recording"),
+    ("forged-compressed-size",
+     lambda p: forge_directory(hostile_npz(p, {"frames": declared(HUGE)}, zipfile.ZIP_DEFLATED), "frames.npy",
+                               3_200_000_000, 3_200_000_128),
+     r"damaged NPZ archive: its directory says 'frames' is 3\.2 GB compressed but the file holds \d+ B"),
+    ("ceiling", lambda p: hostile_npz(p, {"frames": declared((40000, 20000))}),
+     r"'frames' declares 40000x20000 values \(6\.4 GB\): the recording would take 6\.4 GB, more than the "
+     r"4\.3 GB this viewer loads"),
+    # an honest header and a directory that disagrees with it: damage
+    ("lying-directory", lambda p: forge_directory(hostile_npz(p, {"frames": npy(np.zeros((2, 256)))}),
+                                                  "frames.npy", 10000, 10000),
+     r"damaged NPZ archive: its directory says 'frames' holds 10\.0 KB but its array header declares 4\.2 KB"),
+    ("lying-directory-deflated",
+     lambda p: forge_directory(hostile_npz(p, {"frames": npy(np.zeros((2, 256)))}, zipfile.ZIP_DEFLATED),
+                               "frames.npy", None, 10000),
+     r"damaged NPZ archive: its directory says 'frames' holds 10\.0 KB but its array header declares 4\.2 KB"),
+    # a directory too short for the header itself: zipfile's own check of the CRC ends the read
+    ("short-directory", lambda p: forge_directory(hostile_npz(p, {"frames": npy(np.zeros((2, 256)))}),
+                                                  "frames.npy", 100, 100),
+     r"damaged NPZ archive \(Bad CRC-32 for file 'frames\.npy'\)"),
+    ("object-frames", lambda p: hostile_npz(p, {"frames": npy_header((2, 256), "|O") + b"\x80\x04junk"}),
+     r"'frames' holds Python objects \(dtype object\), .*\(allow_pickle=False\)"),
+    ("object-nx", lambda p: hostile_npz(p, {"frames": npy(np.zeros((2, 256))), "nx": npy_header((), "|O")}),
+     r"'nx' holds Python objects"),
+    ("structured", lambda p: hostile_npz(p, {"frames": npy(np.zeros((2, 256), dtype=[("v", "<f8")]))}),
+     r"'frames' must hold numbers, got dtype \[\('v', '<f8'\)\]"),
+    ("huge-nx", lambda p: hostile_npz(p, {"frames": npy(np.zeros((2, 256))), "nx": declared(HUGE)}),
+     r"'nx' must be a single number, got shape \(20000, 20000\)"),
+    ("huge-description", lambda p: hostile_npz(p, {"frames": npy(np.zeros((2, 256))),
+                                                   "description": npy_header((), "<U100000000")}),
+     r"'description' declares 1 value \(400\.0 MB\), more than the 1\.0 MB one field may hold"),
+    ("huge-positions", lambda p: hostile_npz(p, {"frames": npy(np.zeros((2, 256))),
+                                                 "positions": declared((20000000, 2))}),
+     r"'positions' must be x, y pairs of metres \(shape \(m, 2\), m at most 1000000\), got shape \(20000000, 2\)"),
+    ("t-longer-than-frames", lambda p: hostile_npz(p, {"frames": npy(np.zeros((2, 256))),
+                                                       "t": npy(np.zeros(100000))}, zipfile.ZIP_DEFLATED),
+     r"t must have shape \(2,\), got \(100000,\)"),
+    ("not-npy", lambda p: hostile_npz(p, {"frames": b"PK not an array" * 100}),
+     r"'frames' is not a NumPy array \(\.npy\): not a recording"),
+    # a version 2.0 header may say it is 4 GiB long: np.load would read that much before refusing it
+    ("header-length", lambda p: hostile_npz(p, {"frames": npy_header((2, 256), version=2)[:8]
+                                                + (2**32 - 1).to_bytes(4, "little")}),
+     r"'frames' declares an array header of 4294967295 bytes \(at most 10000\)"),
+    ("deflate-bomb", lambda p: zero_frames(hostile_npz(p, {})),
+     r"'frames' declares 131072x256 values \(268\.4 MB\) from 2\d\d\.\d KB compressed, 10\d\d:1, more than the "
+     r"1000:1 any recording reaches: a decompression bomb"),
+    # zipfile would inflate a bzip2 member's block whole (here 128 MiB from some 200 bytes) to read 8 bytes
+    ("bzip2-bomb", lambda p: zero_frames(hostile_npz(p, {}), mebibytes=128, compression=zipfile.ZIP_BZIP2),
+     r"'frames' is compressed by zip method 12, which numpy never writes \(only stored or deflated\)"),
+    # five chunks, each under the allowance alone, together over it
+    ("chunked-bomb", chunked_zero_frames,
+     r"'chunk000004_frames' declares 7680x256 values \(15\.7 MB\) from \d+\.\d KB compressed, 10\d\d:1"),
+]
+
+
+@pytest.mark.parametrize("make, message", [case[1:] for case in HOSTILE_NPZ], ids=[case[0] for case in HOSTILE_NPZ])
+def test_declared_sizes_are_checked_before_anything_is_allocated(tmp_path, make, message):
+    path = make(tmp_path / "hostile.npz")
+    with allocating_at_most(200), pytest.raises(RecordingError, match=message) as info:
+        load(path)
+    assert str(info.value).startswith(f"{path}: ")
+
+
+def test_the_ceiling_counts_every_member_together(tmp_path, monkeypatch):
+    # gigabytes of real data are too slow for a test: the same rule under a ceiling of 14000 bytes,
+    # which frames (4096 bytes) and truth_forces (12288) each fit alone
+    monkeypatch.setattr(recording_module, "_MAX_RECORDING_BYTES", 14000)
+    path = hostile_npz(tmp_path / "both.npz", {"frames": npy(np.zeros((2, 256))),
+                                               "truth_forces": npy(np.zeros((2, 256, 3)))})
+    with pytest.raises(RecordingError, match=r"'truth_forces' declares 2x256x3 values \(12\.3 KB\): the "
+                                             r"recording would take 16\.4 KB, more than the 14\.0 KB"):
+        load(path)
+
+
+def test_a_field_that_does_not_fit_the_frames_is_refused_before_it_is_read(tmp_path):
+    # 60 MiB of times for 2 frames: within every ceiling (zeros inflate past 1000:1, but within the
+    # allowance), refused by its shape alone
+    path = hostile_npz(tmp_path / "times.npz", {"frames": npy(np.zeros((2, 256)))})
+    with zipfile.ZipFile(path, "a", zipfile.ZIP_DEFLATED) as archive, archive.open("t.npy", "w") as member:
+        member.write(npy_header((60 * MIB // 8,)))
+        for _ in range(60):
+            member.write(bytes(MIB))
+    with allocating_at_most(20), pytest.raises(RecordingError, match=r"t must have shape \(2,\), got \(7864320,\)"):
+        load(path)
+
+
+def test_the_tiny_file_of_the_report_is_tiny(tmp_path):
+    # the fault report's case: some 1.6 KB declaring a 20000x20000 grid (3.2 GB)
+    path = hostile_npz(tmp_path / "tiny.npz", {"frames": declared(HUGE)})
+    assert path.stat().st_size < 2000
+
+
+@pytest.mark.parametrize("count", [1000, 16384])
+def test_an_honest_all_zero_recording_still_loads(tmp_path, count):
+    # a skin that never felt anything is the legitimate worst case of compression: 16384 frames of
+    # 16x16 (32 MiB) inflate past 1000:1 and load through the allowance
+    grid = SensorGrid.regular(16, 16, 1e-3, 1e-3)
+    path = save(Recording(grid, np.zeros((count, 256)), np.arange(count) / 1000), tmp_path / "idle.npz")
+    with zipfile.ZipFile(path) as archive:
+        member = archive.getinfo("frames.npy")
+    assert (member.file_size > 1000 * member.compress_size) == (count == 16384)
+    back = load(path)
+    assert back.frames.shape == (count, 256) and not back.frames.any()
+
+
+def test_an_honest_chunked_recording_still_joins(tmp_path):
+    path = tmp_path / "chunks.npz"
+    np.savez(path, **SKIN, chunk000000_frames=np.ones((2, 256)), chunk000000_t=[0.0, 0.1],
+             chunk000001_frames=np.ones((1, 256)), chunk000001_t=[0.2])
+    back = load(path)
+    assert back.frames.shape == (3, 256) and back.t.tolist() == [0.0, 0.1, 0.2]
+    np.savez(path, **SKIN, chunk000000_frames=np.ones((2, 256)), chunk000001_frames=np.ones((1, 255)))
+    with pytest.raises(RecordingError, match=r"'chunk000001_frames' has shape \(1, 255\) but "
+                                             r"'chunk000000_frames' has \(2, 256\): the chunks do not join"):
+        load(path)
+
+
+CSV_SKIN = "# nx=16\n# ny=16\n# pitch=1e-3\n# thickness=1e-3\n"
+
+
+def write_lines(path, *pieces):
+    # pieces of text, each written as it is or (text, times) repeated: never joined in memory
+    with open(path, "w", encoding="utf-8") as handle:
+        for piece in pieces:
+            text, times = piece if isinstance(piece, tuple) else (piece, 1)
+            for _ in range(times):
+                handle.write(text)
+    return path
+
+
+HOSTILE_CSV = [
+    # one line of 68 MiB with no end: read no further than 64 MiB
+    ("long-line", lambda p: write_lines(p, CSV_SKIN, ("0," * (MIB // 2), 68)),
+     r"line 5 is longer than 67108864 characters: not a recording"),
+    # 2 million values within the line limit: counted before a Python float is made of any
+    ("wide-row", lambda p: write_lines(p, CSV_SKIN, ("0,", 2_000_000), "0\n"),
+     r"line 5 holds 2000001 values, more than a frame of the largest skin this viewer opens \(1000000 taxels\)"),
+    ("positions", lambda p: write_lines(p, "# taxels=4\n# pitch=1e-3\n# thickness=1e-3\n# positions=",
+                                        ("0,0;", 2_000_000), "\n0,1,2,3,4\n"),
+     r"'positions' holds 2000001 x,y pairs, more than the 1000000 taxels"),
+]
+
+
+@pytest.mark.parametrize("make, message", [case[1:] for case in HOSTILE_CSV], ids=[case[0] for case in HOSTILE_CSV])
+def test_a_csv_line_cannot_make_the_loader_allocate_what_the_file_does_not_hold(tmp_path, make, message):
+    path = make(tmp_path / "hostile.csv")
+    with allocating_at_most(200), pytest.raises(RecordingError, match=message) as info:
+        load(path)
+    assert str(info.value).startswith(f"{path}: ")
+
+
+def test_csv_rows_are_packed_as_they_are_read(tmp_path):
+    # 200000 values of 2 characters each: 1.6 MB as float64, some 13 MB as lists of Python floats;
+    # loading takes about 7 MiB at its peak (the frames' transient copies included), 19 MiB unpacked
+    path = write_lines(tmp_path / "long.csv", CSV_SKIN.replace("nx=16\n# ny=16", "nx=1\n# ny=1"),
+                       ("0,0\n", 100_000))
+    with allocating_at_most(12):
+        back = load(path)
+    assert back.frames.shape == (100_000, 1)
+
+
+def test_csv_frames_beyond_the_ceiling_are_refused(tmp_path, monkeypatch):
+    # 4 GiB of CSV is too slow for a test: the same rule, under a ceiling of 40 values
+    monkeypatch.setattr(recording_module, "_MAX_RECORDING_BYTES", 40 * 8)
+    path = write_lines(tmp_path / "many.csv", HEADER, ("0,1,2\n", 14))
+    with pytest.raises(RecordingError, match=r"line 18: the frames would take more than the 320 B this viewer"):
+        load(path)
