@@ -180,7 +180,7 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
     try:
         if not window.live_panel.connect_live(str(folder / "board"), folder / "layout.json", fmt=fmt):
             raise SystemExit("could not connect to the simulated board")
-        deadline = time.perf_counter() + 30
+        deadline = time.perf_counter() + 60  # the board computes its contact first
         while window.live_panel.reader is None or window.live_panel.reader.stats.received < 10:
             app.processEvents()
             if time.perf_counter() > deadline:

@@ -23,6 +23,7 @@ from collections import Counter, deque
 
 import numpy as np
 
+from .device import DeviceCheck, identify
 from .layout import SensorLayout
 from .protocol import make_decoder
 from .recording import StressCalibration, Tare
@@ -247,6 +248,25 @@ class LiveSource(Source):
     def _close(self, connection) -> None:
         connection.close()
 
+    @property
+    def same_device_known(self) -> bool:
+        """Whether a reconnection is known to reach the same device (a transport that can tell says so).
+
+        When it is not known, a reconnection ends any recording, so that two
+        devices' frames never share a file.
+        """
+        return False
+
+    def _end_recording_at_reconnection(self) -> None:
+        recorder = self.recorder
+        if recorder is None:
+            return
+        written = self.stop_recording()
+        self.message.emit("warning", "Recording ended at a reconnection",
+                          f"{self.url} reconnected and cannot be identified as the same device, so the "
+                          f"frames from now on are not added to {written or recorder.path}; start a new "
+                          "recording to keep them.")
+
     # -- control (any thread) ------------------------------------------------------------
 
     def start(self) -> None:
@@ -293,6 +313,8 @@ class LiveSource(Source):
                 self.reconnects += 1
                 self.error = ""
                 self._set_state("connected")
+                if not self.same_device_known:
+                    self._end_recording_at_reconnection()
             try:
                 data = self._read(connection)
             except self.lost as exc:
@@ -359,11 +381,21 @@ class SerialReader(LiveSource):
         super().__init__(url, layout, fmt=fmt, reconnect_interval=reconnect_interval)
         self.baudrate = baudrate
         self.lost = (serial.SerialException, OSError)
+        self.device = DeviceCheck(url)  # reconnect only to the device it started with
+
+    @property
+    def same_device_known(self) -> bool:
+        return self.device.known
 
     def _open(self):
         import serial
 
+        identity = identify(self.url)
+        if self.device.started:
+            self.device.require(identity)  # another device at the path: refused, retried later
         port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=0.05)
+        if not self.device.started:
+            self.device.first(identity)
         port.reset_input_buffer()  # stale bytes queued before we connected
         return port
 

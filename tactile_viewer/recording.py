@@ -457,7 +457,17 @@ _NPZ_SINGLES = ("nx", "ny", "taxels", "pitch", "thickness", "poisson_ratio", "se
                 "description")
 
 
+FORCE_EXPORT = ("a force export of this viewer (forces per node, not the sensor stresses a recording "
+                "holds): open the recording it was made from")
+
+
 def _load_npz(path) -> Recording:
+    with open(path, "rb") as handle:
+        start = handle.read(24)
+    # a zip (even a damaged one) or a bare .npy goes on to numpy, whose reasons say more
+    if not start.startswith((b"PK", b"\x93NUMPY")):
+        raise RecordingError(f"{path}: not an NPZ archive (an NPZ is a zip of .npy arrays; this file starts "
+                             f"with {start!r})")
     try:
         data = np.load(path, allow_pickle=False)
     except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
@@ -468,6 +478,8 @@ def _load_npz(path) -> Recording:
         # the members each field is read from: its own, or those of the chunks of a live recording
         parts = ({key: [key] for key in ("frames", "t", "seq") if key in data} if "frames" in data
                  else _joined_chunks(data))
+        if "forces" in data:  # a recording's known forces are 'truth_forces'
+            raise RecordingError(f"{path}: {FORCE_EXPORT}")
         if "frames" not in parts:
             raise RecordingError(f"{path}: missing 'frames'")
         parts.update({key: [key] for key in (*_NPZ_SINGLES, "positions", "truth_forces") if key in data})
@@ -673,6 +685,8 @@ def _load_csv(path) -> Recording:
             try:
                 row = [float(v) for v in text.replace(";", ",").split(",")]
             except ValueError:
+                if text.replace(" ", "").startswith("frame,t,node,"):
+                    raise RecordingError(f"{path}: {FORCE_EXPORT}") from None
                 raise RecordingError(f"{path}: line {number}: not a row of numbers: {text[:60]!r}") from None
             if width is None:
                 width = len(row)
@@ -689,6 +703,9 @@ def _load_csv(path) -> Recording:
                 blocks.append(np.array(block, dtype=float))
                 block = []
     if width is None:
+        if not meta:
+            raise RecordingError(f"{path}: empty: a CSV recording has '# key=value' header lines (nx, ny, "
+                                 "pitch, thickness) and then one frame per row (t, v0, v1, ...)")
         raise RecordingError(f"{path}: no frames")
     table = np.concatenate([*blocks, np.array(block, dtype=float)]).reshape(-1, width)
     columns = meta.get("columns", "t")

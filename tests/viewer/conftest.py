@@ -57,12 +57,27 @@ class Board:
         self.layout = folder / "layout.json"
         self.process = None
 
-    def start(self, *options):
+    def start(self, *options, wait=True):
+        """Start the board; with ``wait``, return once it streams (nothing else may be reading it)."""
         self.process = subprocess.Popen(
             [sys.executable, "-m", "tactile_viewer.simulator", "--link", str(self.link), "--layout",
              str(self.layout), *options], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         self.process.stdout.readline()  # the device path: the link and layout exist from here on
+        if wait:
+            self.wait_streaming()
         return self
+
+    def wait_streaming(self, timeout=60.0):
+        """Return once frames flow: the board computes its contact after it prints its path."""
+        import time
+
+        import serial
+
+        deadline = time.monotonic() + timeout
+        with serial.Serial(str(self.link), timeout=0.1) as port:
+            while not port.read(64):
+                assert time.monotonic() < deadline, "the simulated board sent nothing"
+                assert self.process.poll() is None, "the simulated board exited"
 
     def stop(self):
         if self.process is not None and self.process.poll() is None:

@@ -324,6 +324,8 @@ def test_a_new_transport_is_one_subclass(tmp_path):
     arrived = threading.Event()
     source = QueueSource(chunks, reconnect_interval=0.01)
     source.frame_arrived.connect(arrived.set)
+    messages = []
+    source.message.connect(lambda *m: messages.append(m))
     source.start_recording(tmp_path / "queue.mcap", flush_interval=0.0)
     source.start()
     try:
@@ -339,8 +341,48 @@ def test_a_new_transport_is_one_subclass(tmp_path):
     finally:
         source.stop()
     assert source.opened == 2 and source.stats.lost == 0
+    # a transport that cannot tell whether the same device came back ends the recording there:
+    # two devices' frames never share a file
     saved = recording.load(tmp_path / "queue.mcap")
-    assert len(saved) == 4 and list(saved.sequence()) == [0, 1, 2, 3]
+    assert len(saved) == 3 and list(saved.sequence()) == [0, 1, 2]
+    assert ("warning", "Recording ended at a reconnection") in [m[:2] for m in messages]
+
+
+@pytest.mark.parametrize("after", ["another board", "the same board"])
+def test_a_reconnection_reaches_only_the_device_it_started_with(pty, make_reader, tmp_path, monkeypatch, after):
+    from tactile_viewer import live_source
+    from tactile_viewer.device import DeviceIdentity
+
+    first = DeviceIdentity(serial_number="85735313", vid=0x2341, pid=0x0043, description="Arduino Uno")
+    other = DeviceIdentity(serial_number="11111111", vid=0x2341, pid=0x0043, description="Arduino Uno")
+    present = [first]
+    monkeypatch.setattr(live_source, "identify", lambda url: present[0])
+    reader = make_reader(reconnect_interval=0.02)
+    reader.start()
+    recorder = reader.start_recording(tmp_path / "one.mcap", flush_interval=0.0)
+    write_all(pty[0], b"".join(encode_binary(s, values(s)) for s in range(3)))
+    wait_for(lambda: reader.stats.received == 3, what="three frames")
+    assert reader.same_device_known and reader.device.notice == ""
+    present[0] = other if after == "another board" else first
+    reader._close, close = (lambda port: None), reader._close  # the next read fails as if unplugged
+    original_read = reader._read
+    dropped = []
+
+    def unplugged(port):
+        if not dropped:
+            dropped.append(True)
+            close(port)
+            raise serial.SerialException("device reports readiness to read but returned no data")
+        return original_read(port)
+    reader._read = unplugged
+    if after == "another board":
+        wait_for(lambda: "not reconnecting" in reader.error, what="the refusal")
+        assert "85735313" in reader.error and "11111111" in reader.error and reader.state == "reconnecting"
+        assert reader.recorder is recorder  # the recording waits for its own device
+    else:
+        wait_for(lambda: reader.reconnects == 1 and reader.state == "connected", what="reconnection")
+        assert reader.recorder is recorder  # the same board: the recording goes on
+
 
 
 def test_a_read_only_target_is_refused_and_the_reader_goes_on(pty, make_reader, tmp_path, monkeypatch):

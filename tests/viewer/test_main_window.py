@@ -503,3 +503,15 @@ def test_a_long_no_data_banner_wraps_instead_of_widening_the_window(opened, qtbo
     qtbot.wait(100)
     assert opened.width() == width and banner.width() <= width
     assert banner.height() > banner.fontMetrics().height() * 1.5  # wrapped onto several lines
+
+
+def test_the_arrow_scale_set_by_the_user_survives_a_kernel_change(opened, qtbot):
+    panel = opened.display_panel
+    panel.scale_spin.setValue(panel.scale_spin.value() * 2.5)
+    chosen = opened.model.display.arrow_scale
+    kernel = next(k for k in ("cell", "point", "layer") if k != opened.model.kernel)
+    with qtbot.waitSignal(opened.model.solved, timeout=30000):
+        opened.parameters.kernel_box.setCurrentText(kernel)
+    qtbot.waitUntil(lambda: opened.model.kernel == kernel, timeout=30000)
+    assert opened.model.display.arrow_scale == chosen
+    assert panel.scale_spin.value() == pytest.approx(chosen * 1e3)

@@ -1,11 +1,18 @@
 """Recordings in NPZ and CSV (tactile_viewer/recording.py): round trips, units, every malformed-file
-path, calibrations. The MCAP recorder and reader are in test_container.py."""
+path, declared sizes and decompression bombs. The MCAP recorder and reader are in test_container.py."""
 
+import contextlib
+import io
 import re
+import struct
+import tracemalloc
+import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+import tactile_viewer.recording as recording_module
 from solver import SensorGrid
 from tactile_viewer.recording import Recording, RecordingError, grid_from_fields, load, save
 from tests.viewer.skins import NU, TAXEL
@@ -157,8 +164,8 @@ def write_csv(body, header=HEADER):
 
 MALFORMED = [
     # NPZ
-    ("garbage.npz", lambda p: p.write_bytes(b"\x00garbage" * 10), "not a readable NPZ archive"),
-    ("empty.npz", lambda p: p.write_bytes(b""), "not a readable NPZ archive"),
+    ("garbage.npz", lambda p: p.write_bytes(b"\x00garbage" * 10), r"not an NPZ archive \(an NPZ is a zip of \.npy arrays; this file starts with b.\\x00garbage"),
+    ("empty.npz", lambda p: p.write_bytes(b""), r"not an NPZ archive \(an NPZ is a zip of \.npy arrays; this file starts with b..\)"),
     ("nokey.npz", lambda p: write_npz(p, frames=None), "missing 'frames'"),
     ("nopitch.npz", lambda p: write_npz(p, pitch=None), "missing 'pitch'"),
     ("nonx.npz", lambda p: write_npz(p, nx=None), "missing 'nx'"),
@@ -381,14 +388,6 @@ def test_declared_geometries_are_checked(fields, message):
 # is made; tracemalloc sees numpy's allocations too (even untouched ones), so a load that believed
 # the file would show its gigabytes here.
 
-# this section's own imports (E402: they belong at the top once the file's head is free to edit)
-import contextlib  # noqa: E402
-import io  # noqa: E402
-import struct  # noqa: E402
-import tracemalloc  # noqa: E402
-import zipfile  # noqa: E402
-
-import tactile_viewer.recording as recording_module  # noqa: E402
 
 SKIN = dict(nx=16, ny=16, pitch=1e-3, thickness=1e-3)  # frames of 256 values, 2 KiB each
 MIB = 2**20
@@ -644,3 +643,25 @@ def test_csv_frames_beyond_the_ceiling_are_refused(tmp_path, monkeypatch):
     path = write_lines(tmp_path / "many.csv", HEADER, ("0,1,2\n", 14))
     with pytest.raises(RecordingError, match=r"line 18: the frames would take more than the 320 B this viewer"):
         load(path)
+
+
+# -- what a file is, said plainly -------------------------------------------------------------------
+
+def test_files_that_are_not_recordings_say_what_they_are(tmp_path):
+    from tactile_viewer import export
+    from tactile_viewer.model import ViewerModel
+
+    (tmp_path / "empty.csv").write_text("")
+    (tmp_path / "notes.npz").write_text("hello world\n")
+    sample = load(Path(__file__).resolve().parents[2] / "sample_data" / "hertz_static.npz")
+    table = export.reconstruct_frames(sample, ViewerModel.build(sample.grid, "point"), [0])
+    for suffix in (".npz", ".csv"):
+        export.save_forces(table, tmp_path / f"forces{suffix}")
+    cases = {"empty.csv": r"empty: a CSV recording has '# key=value' header lines \(nx, ny, pitch, thickness\)",
+             "notes.npz": r"not an NPZ archive \(an NPZ is a zip of \.npy arrays; this file starts with b'hello",
+             "forces.npz": r"a force export of this viewer \(forces per node, not the sensor stresses",
+             "forces.csv": r"a force export of this viewer \(forces per node, not the sensor stresses"}
+    for name, message in cases.items():
+        with pytest.raises(RecordingError, match=message) as info:
+            load(tmp_path / name)
+        assert "allow_pickle" not in str(info.value) and name in str(info.value)
