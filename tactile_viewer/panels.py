@@ -121,6 +121,11 @@ class ParametersPanel(QtWidgets.QGroupBox):
         self.geometry_label.setToolTip("From the recording or the sensor layout file: taxels, pitch, "
                                        "elastomer thickness, Poisson ratio nu, taxel size")
         grid.addWidget(self.geometry_label, 5, 0, 1, 3)
+        # a preset that solves normal forces only cannot honour the shear controls: say so, disable them
+        self.shear_note = QtWidgets.QLabel("")
+        self.shear_note.setWordWrap(True)
+        self.shear_note.hide()
+        grid.addWidget(self.shear_note, 6, 0, 1, 3)
         model.parameters_changed.connect(self.follow)
         model.recording_changed.connect(self._on_recording)
         model.solved.connect(lambda solved: self.follow() if solved.auto else None)
@@ -139,6 +144,15 @@ class ParametersPanel(QtWidgets.QGroupBox):
     def _on_recording(self):
         self.geometry_label.setText(geometry_text(self.model.grid))
         self.show_kernel(self.model.kernel)
+        configuration = self.model.configuration
+        normal_only = configuration is not None and configuration.path == "normal"
+        for control in (self.auto_box, self.ratio_slider, self.ratio_spin, self.direction_slider,
+                        self.direction_spin):
+            control.setEnabled(not normal_only)
+        self.shear_note.setText(f"The '{configuration.name}' preset solves normal forces only: shear ratio "
+                                "and direction do not apply (choose another quality to use them)."
+                                if normal_only else "")
+        self.shear_note.setVisible(normal_only)
 
     def show_kernel(self, kernel: str):
         """Show ``kernel`` as chosen without asking for a rebuild."""

@@ -261,11 +261,16 @@ def test_quality_presets_are_measured_for_the_geometry_and_applied(opened, qtbot
     with qtbot.waitSignal(opened.ready, timeout=20000):
         opened.parameters.quality_box.setCurrentIndex(1)
     assert opened.model.configuration == fast
+    panel = opened.parameters
     if fast.path == "normal":  # measured: the normal-only path is the front's fastest point
         assert opened.model.last.result.normal_only
+        # it cannot honour the shear controls: they are disabled and the panel says why
+        assert not panel.ratio_slider.isEnabled() and not panel.auto_box.isEnabled()
+        assert panel.shear_note.isVisible() and "solves normal forces only" in panel.shear_note.text()
     with qtbot.waitSignal(opened.ready, timeout=20000):
         opened.parameters.quality_box.setCurrentIndex(0)
     assert opened.model.configuration is None
+    assert panel.ratio_slider.isEnabled() and panel.auto_box.isEnabled() and not panel.shear_note.isVisible()
 
 
 def test_separate_contacts_are_reported_each_with_its_parameters(window, qtbot):
@@ -515,3 +520,17 @@ def test_the_arrow_scale_set_by_the_user_survives_a_kernel_change(opened, qtbot)
     qtbot.waitUntil(lambda: opened.model.kernel == kernel, timeout=30000)
     assert opened.model.display.arrow_scale == chosen
     assert panel.scale_spin.value() == pytest.approx(chosen * 1e3)
+
+
+def test_a_normal_only_preset_disables_the_shear_controls_and_says_why(opened, qtbot):
+    from solver.quality import Configuration
+
+    panel = opened.parameters
+    with qtbot.waitSignal(opened.model.solved, timeout=30000):
+        opened._rebuild(opened.model.kernel, Configuration("normal only", path="normal"))
+    assert opened.model.last.result.normal_only
+    assert not any(c.isEnabled() for c in (panel.auto_box, panel.ratio_slider, panel.ratio_spin,
+                                           panel.direction_slider, panel.direction_spin))
+    assert panel.shear_note.isVisible()
+    assert panel.shear_note.text().startswith("The 'normal only' preset solves normal forces only")
+    assert "normal only" in opened.status.text()
