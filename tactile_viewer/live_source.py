@@ -23,7 +23,7 @@ from collections import Counter, deque
 
 import numpy as np
 
-from .device import DeviceCheck, identify
+from .device import DeviceCheck, DeviceMismatch, identify
 from .layout import SensorLayout
 from .protocol import make_decoder
 from .recording import StressCalibration, Tare
@@ -312,9 +312,9 @@ class LiveSource(Source):
                 self.stats.new_connection()
                 self.reconnects += 1
                 self.error = ""
-                self._set_state("connected")
-                if not self.same_device_known:
+                if not self.same_device_known:  # before "connected": a recording started then is kept
                     self._end_recording_at_reconnection()
+                self._set_state("connected")
             try:
                 data = self._read(connection)
             except self.lost as exc:
@@ -396,6 +396,12 @@ class SerialReader(LiveSource):
         port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=0.05)
         if not self.device.started:
             self.device.first(identity)
+        else:
+            try:  # and again: the device at the path may have changed while it was being opened
+                self.device.require(identify(self.url))
+            except DeviceMismatch:
+                port.close()
+                raise
         port.reset_input_buffer()  # stale bytes queued before we connected
         return port
 

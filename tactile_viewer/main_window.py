@@ -36,6 +36,15 @@ __all__ = ["MainWindow"]
 SETTLE_S = 0.03  # the longest a control waits for its solve (docs/architecture.md)
 
 
+TITLE_BAR_PX = 40  # room left for the window manager's title bar when the window is first sized
+
+
+def window_settings() -> QtCore.QSettings:
+    """Where the window remembers its size and place (an INI file in the user's config folder)."""
+    return QtCore.QSettings(QtCore.QSettings.Format.IniFormat, QtCore.QSettings.Scope.UserScope,
+                            "tactile-viewer", "window")
+
+
 class MainWindow(QtWidgets.QMainWindow):
     """The viewer window.
 
@@ -55,7 +64,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def __init__(self, parent=None):
         super().__init__(parent)
         self.setWindowTitle("tactile-viewer")
-        self.resize(1280, 820)
+        self._place()
         self._dispatcher = Dispatcher(self)
         # the model solves on its own worker thread; a solve done within SETTLE_S is drawn in the
         # same repaint as the slider or frame change that asked for it; live frames are taken
@@ -275,7 +284,16 @@ class MainWindow(QtWidgets.QMainWindow):
         log.warning("%s: %s", title, message)
         QtWidgets.QMessageBox.critical(self, title, message)
 
+    def _place(self):
+        # where the user left it; the first time, a size that fits the screen with its title bar
+        geometry = window_settings().value("geometry")
+        if geometry is not None and self.restoreGeometry(geometry):
+            return
+        screen = self.screen().availableGeometry()
+        self.resize(min(1280, screen.width()), min(760, screen.height() - TITLE_BAR_PX))
+
     def closeEvent(self, event):
+        window_settings().setValue("geometry", self.saveGeometry())
         self.playback.stop()
         self.tasks.close()  # first: a result arriving while the source stops is dropped
         self.model.close()

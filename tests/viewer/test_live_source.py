@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import serial
 
-from tactile_viewer import recording
+from tactile_viewer import live_source, recording
+from tactile_viewer.device import SAME_DEVICE_RULE, DeviceIdentity
 from tactile_viewer.layout import SensorLayout
 from tactile_viewer.live_source import Calibration, LiveStats, SerialReader
 from tactile_viewer.protocol import encode_binary
@@ -440,3 +441,143 @@ def test_a_tare_of_an_unloaded_skin_does_not_warn_and_a_pressed_one_does():
     pressed[:, 40] += 8.0  # 8 times the noise on one taxel
     assert "taxel 40 stood" in loaded_while_taring(pressed, np.zeros(256))
     assert loaded_while_taring(pressed, pressed.mean(axis=0)) is None  # the same load as the last tare
+
+
+# -- reconnecting only to the same device (tactile_viewer/device.py), on loop:// --------------------------
+
+UNO = DeviceIdentity("85735313233351F0E1D1", 0x2341, 0x0043, "Arduino Uno", "1-1.2:1.0")
+OTHER = DeviceIdentity("95530343834351D0D1A1", 0x2341, 0x0043, "Arduino Uno", "1-1.2:1.0")
+
+
+@pytest.fixture
+def board(monkeypatch):
+    """A SerialReader on loop:// with the device identity the test says is there now.
+
+    ``board.identities`` is what identify() answers, one per call (the last repeats; None: unknown, as for
+    loop:// itself); ``board.ports`` every connection the reader opened (refused ones too), to write a
+    board's bytes into and to close as an unplugged board would; ``board.messages`` what the reader said.
+    """
+    made = []
+
+    class Board:
+        def __init__(self):
+            self.identities, self.ports, self.messages, self.asked = [None], [], [], 0
+
+        def identify(self, url):
+            assert url == "loop://"
+            self.asked += 1
+            return self.identities.pop(0) if len(self.identities) > 1 else self.identities[0]
+
+        def reader(self):
+            reader = SerialReader("loop://", SensorLayout(grid32(), "kPa"), reconnect_interval=0.01)
+            reader.message.connect(lambda *m: self.messages.append(m))
+            made.append(reader)
+            return reader
+
+        def send(self, seqs):
+            self.ports[-1].write(b"".join(encode_binary(s, values(s)) for s in seqs))
+
+    fake = Board()
+    serial_for_url = serial.serial_for_url
+
+    def open_and_keep(*args, **kwargs):
+        port = serial_for_url(*args, **kwargs)
+        fake.ports.append(port)
+        return port
+
+    monkeypatch.setattr(live_source, "identify", fake.identify)
+    monkeypatch.setattr(serial, "serial_for_url", open_and_keep)
+    yield fake
+    for reader in made:
+        reader.stop()
+
+
+def unplug(board, reader):
+    """Close the port under the reader, as a board unplugged: the reader loses the connection."""
+    board.ports[-1].close()
+    wait_for(lambda: reader.state == "reconnecting" or reader.reconnects, what="the loss noticed")
+
+
+def test_another_device_is_refused_unopened_until_the_first_comes_back(board, tmp_path):
+    board.identities = [UNO]
+    reader = board.reader()
+    reader.start()
+    reader.start_recording(tmp_path / "rec.mcap", flush_interval=0.0)
+    board.send(range(2))
+    wait_for(lambda: reader.stats.received == 2, what="two frames")
+    board.identities = [OTHER]  # another board at the same path
+    unplug(board, reader)
+    asked = board.asked
+    wait_for(lambda: board.asked > asked + 3, what="the reader retrying")  # refused, and tried again later
+    assert reader.state == "reconnecting" and reader.reconnects == 0
+    assert len(board.ports) == 1  # the other board was never opened (opening resets many boards)
+    assert reader.error == ("not reconnecting loop://: this connection started with "
+                            "USB VID:PID 2341:0043 serial 85735313233351F0E1D1 (Arduino Uno), and the device "
+                            "there now is USB VID:PID 2341:0043 serial 95530343834351D0D1A1 (Arduino Uno); "
+                            + SAME_DEVICE_RULE)
+    board.identities = [UNO]
+    wait_for(lambda: reader.reconnects == 1 and reader.state == "connected", what="the first board back")
+    assert reader.error == "" and len(board.ports) == 2
+    board.send(range(2, 4))
+    wait_for(lambda: reader.stats.received == 4, what="frames from the first board again")
+    path = reader.stop_recording()
+    assert list(recording.load(path).sequence()) == [0, 1, 2, 3]  # one device, one file
+    assert board.messages == [("info", "recording saved", str(path))]
+
+
+def test_a_device_changed_while_opening_is_closed_again(board):
+    # checked before opening and again after: the port opened in between is closed, and retried later
+    board.identities = [UNO, UNO, OTHER, UNO]  # first open; reopen: before (same), after (another), then same
+    reader = board.reader()
+    reader.start()
+    unplug(board, reader)
+    wait_for(lambda: reader.reconnects == 1 and reader.state == "connected", what="reconnection")
+    assert len(board.ports) == 3 and not board.ports[1].is_open  # the refused one was closed
+    assert board.ports[2].is_open
+
+
+def test_a_known_device_is_not_replaced_by_one_without_identity(board):
+    board.identities = [UNO]
+    reader = board.reader()
+    reader.start()
+    board.identities = [None]  # gone, or something the OS gives no identity for
+    unplug(board, reader)
+    wait_for(lambda: reader.error.startswith("not reconnecting loop://"), what="the refusal")
+    assert "started with USB VID:PID 2341:0043 serial 85735313233351F0E1D1 (Arduino Uno)" in reader.error
+    assert "absent or gives no device identity" in reader.error
+    assert reader.state == "reconnecting" and reader.reconnects == 0 and len(board.ports) == 1
+
+
+def test_without_a_device_identity_a_reconnection_ends_the_recording(board, tmp_path):
+    reader = board.reader()  # loop:// as it is: no identity
+    reader.start()
+    assert not reader.same_device_known
+    assert reader.device.notice == ("device identity unknown for loop://: a reconnection may be another "
+                                    "device; recordings end at a reconnection")
+    reader.start_recording(tmp_path / "rec.mcap", flush_interval=0.0)
+    states = []  # on the reader thread, as the state changes: (state, recording still running)
+    reader.state_changed.connect(lambda: states.append((reader.state, reader.recorder is not None)))
+    board.send(range(3))
+    wait_for(lambda: reader.stats.received == 3, what="three frames")
+    unplug(board, reader)
+    wait_for(lambda: reader.reconnects == 1 and reader.state == "connected", what="reconnection")
+    # ended before the state said "connected" (a recording started from then on is the new device's)
+    assert states == [("reconnecting", True), ("connected", False)]
+    board.send(range(3, 5))
+    wait_for(lambda: reader.stats.received == 5, what="frames after reconnecting")
+    path = tmp_path / "rec.mcap"
+    assert list(recording.load(path).sequence()) == [0, 1, 2]  # only the first connection's frames
+    assert board.messages[0] == ("info", "recording saved", str(path))
+    assert board.messages[1][:2] == ("warning", "Recording ended at a reconnection")
+    assert board.messages[1][2].startswith("loop:// reconnected and cannot be identified as the same device")
+    assert len(board.messages) == 2
+
+
+def test_without_a_device_identity_a_reconnection_without_recording_says_nothing(board):
+    reader = board.reader()
+    reader.start()
+    unplug(board, reader)
+    wait_for(lambda: reader.reconnects == 1 and reader.state == "connected", what="reconnection")
+    board.send(range(2))
+    wait_for(lambda: reader.stats.received == 2, what="frames after reconnecting")
+    assert board.messages == [] and reader.error == ""

@@ -534,3 +534,21 @@ def test_a_normal_only_preset_disables_the_shear_controls_and_says_why(opened, q
     assert panel.shear_note.isVisible()
     assert panel.shear_note.text().startswith("The 'normal only' preset solves normal forces only")
     assert "normal only" in opened.status.text()
+
+
+def test_the_window_fits_a_1280x800_screen_and_remembers_its_size(window, qtbot):
+    from tactile_viewer.main_window import MainWindow
+
+    screen = window.screen().availableGeometry()
+    assert (screen.width(), screen.height()) == (1280, 800)  # pytest-xvfb's screen (pyproject.toml)
+    window.live_panel.show()  # the tallest the controls get
+    qtbot.wait(100)
+    bar = window.statusBar()
+    bottom = bar.mapToGlobal(bar.rect().bottomLeft()).y()
+    assert bar.isVisible() and bottom <= screen.bottom() and window.frameGeometry().height() <= 800
+    window.resize(1100, 720)
+    window.close()  # saves the size, as at the end of a session
+    again = MainWindow()
+    qtbot.addWidget(again)
+    assert (again.width(), again.height()) == (1100, 720)
+    again.close()
