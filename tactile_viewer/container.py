@@ -31,9 +31,9 @@ lose what it had not yet written back.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
-import math
 import struct
 import threading
 import zlib
@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.records import Metadata
 from mcap.writer import CompressionType, Writer
@@ -69,6 +70,7 @@ RAW_DTYPES = {"float32": "<f4", "float64": "<f8"}
 _MAGIC = b"\x89MCAP0\r\n"
 _RECORD = struct.Struct("<BQ")  # opcode, content length
 _CHUNK_HEAD = struct.Struct("<QQQII")  # start time, end time, uncompressed size, crc, compression length
+_CHUNK_BYTES = 2**31  # past any second of frames (a 1000x1000 skin at 1 kHz writes 4 GB/s: not a case)
 _MESSAGE_HEAD = 9 + 22  # record header, then channel u16, sequence u32, log time u64, publish time u64
 # no metadata record of ours comes near this; a larger one is damage, not data
 _MAX_METADATA = 64 * 2**20
@@ -122,11 +124,13 @@ class Recorder:
         self._origin = float(clock_origin)
         self._closed = False
         self._last_flush: float | None = None
+        self._first_t: float | None = None  # receive time of the first frame recorded
         self._lock = threading.Lock()
         calibration = calibration or StressCalibration.identity(grid.size)
         self._stream = open(path, "wb")  # noqa: SIM115 (closed by close or abandon)
         try:
-            writer = Writer(self._stream, compression=CompressionType.NONE)
+            # chunks close on time (flush_interval), not on mcap's default 1 MiB
+            writer = Writer(self._stream, compression=CompressionType.NONE, chunk_size=_CHUNK_BYTES)
             writer.start(profile="tactile-viewer", library="tactile-viewer")
             writer.add_metadata("tactile-viewer.recording", {
                 "version": VERSION, "description": self.description, "taxels": str(grid.size),
@@ -152,27 +156,43 @@ class Recorder:
             if values.shape != (self._m,):
                 raise ValueError(f"a frame must have {self._m} values, got shape {values.shape}")
             stamp = round((self._origin + t) * 1e9)
-            self._writer.add_message(self._channel, log_time=stamp, data=values.tobytes(),
-                                     publish_time=stamp, sequence=int(seq) % 2**32)
-            self.added += 1
-            if self._last_flush is None:
-                self._last_flush = t
-            if t - self._last_flush >= self.flush_interval:
-                self._flush(t)
+            with self._ending_on_failure():
+                self._writer.add_message(self._channel, log_time=stamp, data=values.tobytes(),
+                                         publish_time=stamp, sequence=int(seq) % 2**32)
+                self.added += 1
+                if self._last_flush is None:
+                    self._first_t = self._last_flush = t
+                if t - self._last_flush >= self.flush_interval:
+                    self._flush(t)
 
     def tick(self, now: float) -> None:
         """Close the open chunk if its frames have waited ``flush_interval`` (a quiet line)."""
         with self._lock:
             waiting = not self._closed and self.added > self.written
             if waiting and now - self._last_flush >= self.flush_interval:
-                self._flush(now)
+                with self._ending_on_failure():
+                    self._flush(now)
 
     def tare(self, tare: Tare) -> None:
         """Record a baseline taken while recording; it applies from the next frame written."""
         with self._lock:
             if not self._closed:
-                self._write_tare(Tare(self.added, tare.baseline, tare.t, tare.frames))
-                self._stream.flush()
+                # its time on the recording's clock: seconds since the first frame recorded
+                since = tare.t - self._first_t if self._first_t is not None else 0.0
+                with self._ending_on_failure():
+                    self._write_tare(Tare(self.added, tare.baseline, since, tare.frames))
+                    self._stream.flush()
+
+    @contextlib.contextmanager
+    def _ending_on_failure(self):
+        # a write that failed leaves the writer mid-chunk: writing on would repeat or tear records,
+        # so the recorder ends here and the file keeps its complete chunks
+        try:
+            yield
+        except BaseException:
+            self._closed = True
+            self._release()
+            raise
 
     def _write_tare(self, tare: Tare) -> None:
         self._writer.add_metadata("tactile-viewer.tare", _json_fields(tare.fields()))
@@ -299,6 +319,20 @@ class FrameTable:
     def __array__(self, dtype=None, copy=None):
         return np.asarray(self[:], dtype=dtype)
 
+    def sample(self, count: int = 64) -> np.ndarray:
+        """``(k, m)`` stresses: the first frame of up to ``count`` chunks spread over the recording.
+
+        Reads at most ``count`` chunks; damaged ones are left out (``k`` may be 0).
+        """
+        chunks = np.unique(np.linspace(0, len(self._starts) - 1, min(count, len(self._starts))).astype(int))
+        rows = []
+        for k in chunks:
+            try:
+                rows.append(self[int(self._starts[k])])
+            except RecordingError:
+                continue
+        return np.array(rows).reshape(len(rows), self._m)
+
     def sequence(self) -> np.ndarray:
         """``(T,)`` sequence numbers as written (modulo 2**32; reads every chunk)."""
         return np.concatenate([self._cache.sequence(k) for k in range(len(self._index.chunks))]
@@ -339,8 +373,9 @@ def _read_records(path: Path, chunk: _Chunk) -> bytes:
     if len(records) != chunk.length:
         raise RecordingError(f"{path}: the file became shorter while reading it")
     if chunk.crc and zlib.crc32(records) != chunk.crc:
-        raise RecordingError(f"{path}: frames {chunk.first} to {chunk.first + len(chunk.offsets) - 1} "
-                             "are damaged (chunk checksum mismatch)")
+        span = (f"frames {chunk.first} to {chunk.first + len(chunk.offsets) - 1}" if len(chunk.offsets)
+                else f"the chunk at byte {chunk.data_offset}")
+        raise RecordingError(f"{path}: {span} are damaged (chunk checksum mismatch)")
     return records
 
 
@@ -361,82 +396,108 @@ def _decode_chunk(path: Path, chunk: _Chunk, m: int, raw_dtype) -> tuple:
     return read_only(raw.view(raw_dtype).reshape(len(offsets), m)), read_only(sequence)
 
 
+class _Torn(Exception):
+    """Inside the scan: a record that cannot be whole; the file is read up to the chunk before it."""
+
+
 def _scan(path: Path) -> _Index:
-    # one pass over the record headers, seeking past each chunk's frames
+    # one pass over the record headers, seeking past each chunk's frames. A record cut short or
+    # damaged (a kill, a full disk, a torn page) ends the scan: the file is what came before it.
     size = path.stat().st_size
     chunks, log_times, metadata, tares = [], [], {}, []
     truncated = True  # until the end of the data section is met: a finished file has it
     pending = None  # a chunk whose message index has not been met yet
+    frames = 0  # in the chunks so far
     with open(path, "rb") as handle:
         if handle.read(len(_MAGIC)) != _MAGIC:
             raise RecordingError(f"{path}: not an MCAP recording (no MCAP magic at the start)")
         position = len(_MAGIC)
-        while position < size:
-            head = handle.read(_RECORD.size)
-            if len(head) < _RECORD.size:
-                break
-            opcode, length = _RECORD.unpack(head)
-            end = position + _RECORD.size + length
-            if end > size:
-                break  # a record cut short: the file ends at the one before
-            if opcode == Opcode.CHUNK:
-                if pending is not None:
-                    chunks.append(_indexed_by_records(path, pending, len(log_times), log_times))
-                pending = _chunk_header(handle, path, position, end)
-            elif opcode == Opcode.MESSAGE_INDEX:
-                content = handle.read(length)
-                channel, entries = struct.unpack_from("<HI", content)
-                if channel == 1 and pending is not None:
-                    if entries % 16 or 6 + entries > length:
-                        raise RecordingError(f"{path}: damaged message index at byte {position}")
-                    pairs = np.frombuffer(content, dtype="<u8", count=entries // 8, offset=6).reshape(-1, 2)
-                    order = np.argsort(pairs[:, 1], kind="stable")  # file order, as the frames were written
-                    first = sum(len(c.offsets) for c in chunks)
-                    chunks.append(_Chunk(*pending[:3], first, pairs[order, 1].astype(np.int64)))
-                    log_times.append(pairs[order, 0])
-                    pending = None
-            elif opcode == Opcode.METADATA:
-                if length > _MAX_METADATA:
-                    raise RecordingError(f"{path}: a metadata record declares {length} bytes "
-                                         f"(at most {_MAX_METADATA})")
-                record = Metadata.read(ReadDataStream(io.BytesIO(handle.read(length))))
-                metadata[record.name] = record.metadata
-                if record.name == "tactile-viewer.tare":
-                    tares.append(record.metadata)
-            elif opcode == Opcode.DATA_END:
-                truncated = False
-                break  # the summary that follows repeats what was read
-            position = end
-            handle.seek(position)
-        if pending is not None:
-            chunks.append(_indexed_by_records(path, pending, sum(len(c.offsets) for c in chunks), log_times))
+        try:
+            while position + _RECORD.size <= size:
+                opcode, length = _RECORD.unpack(handle.read(_RECORD.size))
+                end = position + _RECORD.size + length
+                if end > size:
+                    break  # a record cut short: the file ends at the one before
+                if opcode == Opcode.CHUNK:
+                    if pending is not None:
+                        chunks.append(_walked(path, pending, frames, log_times))
+                        frames += len(chunks[-1].offsets)
+                    pending = _chunk_header(handle, path, position, end)
+                elif opcode == Opcode.MESSAGE_INDEX:
+                    content = handle.read(length)
+                    if length < 6:
+                        raise _Torn
+                    channel, entries = struct.unpack_from("<HI", content)
+                    if channel == 1 and pending is not None:
+                        if entries % 16 or 6 + entries > length:
+                            raise _Torn
+                        pairs = np.frombuffer(content, "<u8", count=entries // 8, offset=6).reshape(-1, 2)
+                        order = np.argsort(pairs[:, 1], kind="stable")  # file order, as written
+                        times = pairs[order, 0]
+                        start, stop = pending[3:]
+                        if len(times) and (times.min() < start or times.max() > stop
+                                           or np.any(np.diff(times.astype(np.int64)) < 0)):
+                            # the index is not under the chunk's CRC: when it disagrees with the
+                            # chunk, the chunk's own records say where its frames are
+                            chunks.append(_walked(path, pending, frames, log_times))
+                        else:
+                            chunks.append(_Chunk(*pending[:3], frames, pairs[order, 1].astype(np.int64)))
+                            log_times.append(times)
+                        frames += len(chunks[-1].offsets)
+                        pending = None
+                elif opcode == Opcode.METADATA:
+                    if length > _MAX_METADATA:
+                        raise RecordingError(f"{path}: a metadata record declares {length} bytes "
+                                             f"(at most {_MAX_METADATA})")
+                    try:
+                        record = Metadata.read(ReadDataStream(io.BytesIO(handle.read(length))))
+                    except (McapError, struct.error, UnicodeDecodeError):
+                        raise _Torn from None
+                    metadata[record.name] = record.metadata
+                    if record.name == "tactile-viewer.tare":
+                        tares.append(record.metadata)
+                elif opcode == Opcode.DATA_END:
+                    truncated = False
+                    break  # the summary that follows repeats what was read
+                position = end
+                handle.seek(position)
+            if pending is not None:
+                chunks.append(_walked(path, pending, frames, log_times))
+        except _Torn:
+            truncated = True
     times = np.concatenate(log_times) if log_times else np.zeros(0, np.uint64)
     return _Index(path, tuple(chunks), times, metadata, tuple(tares), truncated)
 
 
 def _chunk_header(handle, path, position, end):
-    fixed = handle.read(_CHUNK_HEAD.size)
-    _start, _stop, uncompressed, crc, name_length = _CHUNK_HEAD.unpack(fixed)
+    if end - position < _RECORD.size + _CHUNK_HEAD.size + 8:
+        raise _Torn
+    _start, _stop, uncompressed, crc, name_length = _CHUNK_HEAD.unpack(handle.read(_CHUNK_HEAD.size))
+    data_offset = position + _RECORD.size + _CHUNK_HEAD.size + name_length + 8
+    if data_offset > end:
+        raise _Torn
     compression = handle.read(name_length)
     (length,) = struct.unpack("<Q", handle.read(8))
-    data_offset = position + _RECORD.size + _CHUNK_HEAD.size + name_length + 8
     if compression:
         raise RecordingError(f"{path}: compressed chunks ({compression.decode(errors='replace')!r}) are "
                              "not read; this viewer writes them uncompressed")
     if data_offset + length != end or uncompressed != length:
-        raise RecordingError(f"{path}: a chunk at byte {position} declares {length} bytes of frames "
-                             f"in a record of {end - data_offset}")
-    return data_offset, length, crc
+        raise _Torn
+    return data_offset, length, crc, _start, _stop
 
 
-def _indexed_by_records(path, pending, first, log_times) -> _Chunk:
-    # a chunk written just before a crash, without its message index: walk its records
-    data_offset, length, crc = pending
-    records = _read_records(path, _Chunk(data_offset, length, crc, first, np.zeros(0, np.int64)))
+def _walked(path, pending, first, log_times) -> _Chunk:
+    # a chunk without a (trustworthy) index, e.g. written just before a crash: walk its records,
+    # which its CRC vouches for; a chunk that fails its CRC ends the file there
+    data_offset, length, crc = pending[:3]
+    try:
+        records = _read_records(path, _Chunk(data_offset, length, crc, first, np.zeros(0, np.int64)))
+    except RecordingError:
+        raise _Torn from None
     offsets, times, position = [], [], 0
     while position + _RECORD.size <= len(records):
         opcode, size = _RECORD.unpack_from(records, position)
-        if opcode == Opcode.MESSAGE and size >= 22:
+        if opcode == Opcode.MESSAGE and size >= 22 and position + _RECORD.size + 14 <= len(records):
             channel, _sequence, log_time = struct.unpack_from("<HIQ", records, position + _RECORD.size)
             if channel == 1:
                 offsets.append(position)
@@ -449,7 +510,7 @@ def _indexed_by_records(path, pending, first, log_times) -> _Chunk:
 def _loads(fields: dict, name: str, path) -> dict:
     try:
         return {key: json.loads(value) for key, value in fields.items()}
-    except ValueError:
+    except (ValueError, RecursionError):
         raise RecordingError(f"{path}: metadata {name!r} is not JSON values") from None
 
 
@@ -504,12 +565,3 @@ def open_recording(path) -> Recording:
                          truncated=index.truncated)
     except ValueError as exc:
         raise RecordingError(f"{path}: {exc}") from None
-
-
-def receive_span(recording: Recording) -> tuple[float, float] | None:
-    """First and last receive time (UNIX seconds), None when the file keeps no receive clock."""
-    if recording.received is None or not math.isfinite(recording.received):
-        return None
-    return recording.received, recording.received + float(recording.t[-1])
-
-

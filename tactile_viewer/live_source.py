@@ -77,11 +77,14 @@ class Calibration:
             if self._taring is not None:
                 self._taring.append(pascals)
                 if len(self._taring) >= self._tare_count:
-                    samples = np.array(self._taring)
-                    self.warning = loaded_while_taring(samples, self.baseline)
-                    self.baseline = samples.mean(axis=0)
-                    self._completed = Tare(0, self.baseline, t, len(samples))
-                    self._taring = None
+                    samples, self._taring = np.array(self._taring), None  # ends the taring, whatever follows
+                    baseline = samples.mean(axis=0)
+                    if np.all(np.isfinite(baseline)):  # values near the float limit overflow the mean
+                        self.warning = loaded_while_taring(samples, self.baseline)
+                        self.baseline = baseline
+                        self._completed = Tare(0, baseline, t, len(samples))
+                    else:
+                        self.warning = "the tare was not taken: its frames overflow when averaged"
             return pascals - self.baseline
 
 
@@ -329,8 +332,9 @@ class LiveSource(Source):
                 except Exception as exc:  # a bug must not end the reading (or the recording)
                     self.failures += 1
                     self.error = f"internal error while decoding: {exc!r}"
-            else:
-                self._tick_recording(self.now())
+            # on every pass, not only when the line is quiet: bytes that bring no frame (garbage,
+            # rejected frames) must not hold back the frames waiting for their chunk
+            self._tick_recording(self.now())
         if connection is not None:
             self._close(connection)
 

@@ -554,9 +554,14 @@ def _display_scales(source: Source, reconstructor) -> dict:
     # on the recording's most loaded frame the largest node force spans about three pitches,
     # the total a third of the skin; the fixed colour range holds every frame
     recording = source.recording
-    # at most 2048 frames spread over the take: a long MCAP recording is read lazily, not whole
-    spread = np.linspace(0, len(recording) - 1, min(len(recording), 2048)).astype(int)
-    frames = recording.frames[np.unique(spread)]
+    if hasattr(recording.frames, "sample"):
+        # an MCAP recording is read lazily: a frame from each of a few chunks, damaged ones skipped
+        frames = recording.frames.sample()
+    else:
+        spread = np.linspace(0, len(recording) - 1, min(len(recording), 2048)).astype(int)
+        frames = recording.frames[np.unique(spread)]
+    if not len(frames):
+        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3)
     loaded = int(np.argmax(np.abs(frames).sum(axis=1)))
     first = reconstructor.solve_normal(frames[loaded]).forces[:, 2]
     peak = float(np.abs(first).max()) or 1.0

@@ -16,6 +16,7 @@ import signal
 import sys
 import threading
 import time
+from pathlib import Path
 
 from .layout import LayoutError, load_layout
 from .live_source import SerialReader
@@ -31,6 +32,7 @@ def main(argv=None) -> int:
     parser.add_argument("--layout", required=True, metavar="LAYOUT.json",
                         help="the sensor layout: geometry and the calibration of the raw values")
     parser.add_argument("--out", required=True, metavar="FILE.mcap", help="the recording to write")
+    parser.add_argument("--overwrite", action="store_true", help="replace FILE.mcap if it exists")
     parser.add_argument("--format", choices=FORMATS, default="binary", help="the board's frame format")
     parser.add_argument("--baudrate", type=int, default=115200)
     parser.add_argument("--duration", type=float, metavar="S",
@@ -42,6 +44,10 @@ def main(argv=None) -> int:
         layout = load_layout(args.layout)
     except (OSError, LayoutError) as exc:
         print(f"tactile-record: {exc}", file=sys.stderr)
+        return 2
+    if Path(args.out).exists() and not args.overwrite:
+        print(f"tactile-record: {args.out} exists: not replacing a recording (--overwrite replaces it)",
+              file=sys.stderr)
         return 2
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
@@ -74,7 +80,10 @@ def main(argv=None) -> int:
             print(f"{elapsed:7.1f} s  {stats.rate(reader.now()):7.1f} frames/s  recorded {recorder.added}  "
                   f"lost {stats.lost}  rejected {sum(reader.rejected().values())}  {reader.state}"
                   + (f" ({reader.error})" if reader.error else ""), flush=True)
-            if failed.is_set() or (args.duration is not None and elapsed >= args.duration):
+            if reader.recorder is None:  # ended by a write error or a reconnection (said on stderr)
+                failed.set()
+                break
+            if args.duration is not None and elapsed >= args.duration:
                 break
     finally:
         closing = time.perf_counter()

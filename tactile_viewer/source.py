@@ -24,7 +24,7 @@ from solver import SensorGrid
 
 from .container import Recorder
 from .playback import PlaybackClock
-from .recording import Recording, StressCalibration
+from .recording import Recording, RecordingError, StressCalibration
 
 __all__ = ["Signal", "SourceFrame", "Source", "RecordingSource"]
 
@@ -291,10 +291,17 @@ class RecordingSource(Source):
         index = int(index)
         if not 0 <= index < len(self):
             raise ValueError(f"frame must be in [0, {len(self) - 1}], got {index}")
+        try:
+            frame = self.frame(index)
+        except RecordingError as exc:
+            # a damaged chunk of a recording: say so once and stop there, never on every tick
+            self.pause()
+            self.message.emit("error", "Frame not readable", str(exc))
+            return
         self.position = index
         if now is not None:
             self._clock.restart(index, now)
-        self._publish([self.frame(index)])
+        self._publish([frame])
 
     def play(self, now: float) -> None:
         """Play on from the current frame (from the first when at the end) as of ``now`` seconds."""

@@ -173,7 +173,10 @@ def test_a_file_cut_at_any_byte_opens_with_every_complete_chunk(tmp_path):
 
 
 class FullDisk(io.FileIO):
-    """A file on a disk with ``room`` bytes left: the write that overflows writes what fits, then fails."""
+    """A file on a disk with ``room`` bytes left: the write that overflows writes what fits, then fails.
+
+    Each test using it sets ``room`` first.
+    """
 
     room = 0
 
@@ -343,3 +346,58 @@ def test_calibration_arguments_are_checked():
         StressCalibration("Pa", np.ones(3), np.zeros(3), (Tare(0, np.zeros(2)),))
     with pytest.raises(ValueError, match="from_frame must be a whole number >= 0, got -1"):
         Tare(-1, np.zeros(3))
+
+
+def test_a_chunk_without_its_index_in_the_middle_is_read_from_its_own_records(tmp_path):
+    stress = frames_for(30, seed=11)  # fixed seed
+    path = tmp_path / "noindex.mcap"
+    record(path, stress, dtype="float64")
+    index = load(path).frames._index
+    data = bytearray(path.read_bytes())
+    second = index.chunks[1]
+    # the record after chunk 1's records is its message index: an unknown opcode hides it
+    at = second.data_offset + second.length
+    assert data[at] == 0x07
+    data[at] = 0x7F
+    path.write_bytes(bytes(data))
+    loaded = load(path)
+    np.testing.assert_array_equal(loaded.frames[:], stress)
+    np.testing.assert_array_equal(loaded.sequence(), np.arange(30) + 1000)
+    assert [c.first for c in loaded.frames._index.chunks] == [c.first for c in index.chunks]
+
+
+@pytest.mark.parametrize("where", ["the last chunk's frames", "the last chunk's header"])
+def test_a_torn_last_chunk_leaves_the_chunks_before_it(tmp_path, where):
+    # a power cut or a torn page: the file has its length, but the last chunk holds zeros
+    stress = frames_for(30, seed=12)  # fixed seed
+    path = tmp_path / "torn.mcap"
+    record(path, stress, dtype="float64", close=False)
+    chunks = load(path).frames._index.chunks
+    last = chunks[-1]
+    data = bytearray(path.read_bytes())
+    start = last.data_offset if where == "the last chunk's frames" else last.data_offset - 40
+    data[start:] = bytes(len(data) - start)
+    path.write_bytes(bytes(data))
+    loaded = load(path)
+    assert loaded.truncated and len(loaded) == last.first
+    np.testing.assert_array_equal(loaded.frames[:], stress[:last.first])
+
+
+def test_a_recorder_whose_write_failed_writes_nothing_more(tmp_path, monkeypatch):
+    path = tmp_path / "full.mcap"
+    FullDisk.room = 3000
+    monkeypatch.setattr(container, "open", lambda name, mode: io.BufferedWriter(FullDisk(name, "w"))
+                        if mode == "wb" else io.open(name, mode), raising=False)
+    recorder = Recorder(path, grid32(), flush_interval=0.05, dtype="float64")
+    stress = frames_for(100, seed=13)  # fixed seed
+    with pytest.raises(OSError, match="No space left on device"):
+        for k in range(100):
+            recorder.add(k, k / 100, stress[k])
+    FullDisk.room = 10**9  # space freed: writing on would repeat the failed chunk's records
+    recorder.add(100, 1.0, stress[0])
+    recorder.tick(5.0)
+    size = path.stat().st_size
+    assert recorder.close() == path and path.stat().st_size == size
+    loaded = load(path)
+    np.testing.assert_array_equal(loaded.frames[:], stress[:len(loaded)])
+    np.testing.assert_array_equal(loaded.sequence(), np.arange(len(loaded)))

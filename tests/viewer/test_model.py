@@ -700,3 +700,29 @@ def test_retare_errors_are_named(model):
         model.retare("here")  # an NPZ holds stresses only
     with pytest.raises(ValueError, match="only a recording"):
         ViewerModel().retare("clear")
+
+
+def test_a_damaged_chunk_is_reported_once_and_the_rest_of_the_recording_shows(recording, reconstructor,
+                                                                             tmp_path):
+    from tactile_viewer.container import Recorder
+    from tactile_viewer.recording import load
+
+    path = tmp_path / "damaged.mcap"
+    recorder = Recorder(path, recording.grid, dtype="float64", flush_interval=0.1)
+    for k in range(40):
+        recorder.add(k, k / 20, np.asarray(recording.frames[k % 4]))
+    recorder.close()
+    chunk = load(path).frames._index.chunks[2]
+    data = bytearray(path.read_bytes())
+    data[chunk.data_offset + int(chunk.offsets[0]) + 40] ^= 0x10  # one bit of a value in chunk 2
+    path.write_bytes(bytes(data))
+    model = ViewerModel()
+    messages = []
+    model.message.connect(lambda *m: messages.append(m))
+    model.set_source(RecordingSource(load(path), path), reconstructor)  # opens: the scales skip the chunk
+    model.set_frame(chunk.first)
+    (level, title, text), = messages
+    assert (level, title) == ("error", "Frame not readable") and "damaged (chunk checksum mismatch)" in text
+    assert model.frame == 0  # it stays where it was
+    model.set_frame(chunk.first + len(chunk.offsets))  # the chunk after it reads
+    np.testing.assert_array_equal(model.solve().stress, recording.frames[(chunk.first + len(chunk.offsets)) % 4])

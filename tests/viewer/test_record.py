@@ -126,3 +126,17 @@ def test_errors_are_named_and_nothing_is_left_running(board, tmp_path, arguments
     assert done.returncode == code
     assert re.search(message, done.stderr), done.stderr
     assert not (tmp_path / "a.mcap").exists()
+
+
+def test_an_existing_recording_is_not_replaced_without_overwrite(board, tmp_path):
+    path = tmp_path / "take.mcap"
+    path.write_bytes(b"an earlier session")
+    arguments = [str(board.link), "--layout", str(board.layout), "--out", str(path)]
+    done = subprocess.run([sys.executable, "-m", "tactile_viewer.record", *arguments], capture_output=True,
+                          text=True, timeout=30)
+    assert done.returncode == 2 and "exists: not replacing a recording (--overwrite replaces it)" in done.stderr
+    assert path.read_bytes() == b"an earlier session"
+    done = subprocess.run([sys.executable, "-m", "tactile_viewer.record", *arguments, "--overwrite",
+                           "--duration", "1.2"], capture_output=True, text=True, timeout=30)
+    assert done.returncode == 0, done.stderr
+    assert len(load(path)) > 100
