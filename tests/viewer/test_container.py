@@ -387,7 +387,7 @@ def test_a_recorder_whose_write_failed_writes_nothing_more(tmp_path, monkeypatch
     path = tmp_path / "full.mcap"
     FullDisk.room = 3000
     monkeypatch.setattr(container, "open", lambda name, mode: io.BufferedWriter(FullDisk(name, "w"))
-                        if mode == "wb" else io.open(name, mode), raising=False)
+                        if mode == "wb" else open(name, mode), raising=False)
     recorder = Recorder(path, grid32(), flush_interval=0.05, dtype="float64")
     stress = frames_for(100, seed=13)  # fixed seed
     with pytest.raises(OSError, match="No space left on device"):
