@@ -59,6 +59,7 @@ from .recording import (
     Tare,
     geometry_fields,
     grid_from_fields,
+    json_ready,
 )
 
 __all__ = ["Recorder", "FrameTable", "open_recording", "SUFFIX", "RAW_DTYPES"]
@@ -238,8 +239,7 @@ class Recorder:
 
 
 def _json_fields(fields: dict) -> dict:
-    return {key: json.dumps(value.tolist() if isinstance(value, np.ndarray) else value)
-            for key, value in fields.items()}
+    return {key: json.dumps(value) for key, value in json_ready(fields).items()}
 
 
 # -- reading ----------------------------------------------------------------------------------

@@ -18,7 +18,15 @@ import numpy as np
 
 from solver import SensorGrid
 
-from .recording import RAW_UNITS, geometry_fields, grid_from_fields, per_taxel, raw_to_pascals
+from .recording import (
+    RAW_UNITS,
+    StressCalibration,
+    geometry_fields,
+    grid_from_fields,
+    json_ready,
+    per_taxel,
+    raw_to_pascals,
+)
 
 __all__ = ["LayoutError", "SensorLayout", "load_layout", "save_layout", "RAW_UNITS"]
 
@@ -51,15 +59,22 @@ class SensorLayout:
     offset: np.ndarray = field(default=0.0)
 
     def __post_init__(self):
-        if self.units not in RAW_UNITS:
-            raise ValueError(f"units must be one of {RAW_UNITS}, got {self.units!r}")
-        for name in ("gain", "offset"):
-            object.__setattr__(self, name, per_taxel(getattr(self, name), name, self.grid.size))
+        m = self.grid.size
+        # one set of rules for a calibration, the recordings' (units known, a finite value per taxel)
+        calibration = StressCalibration(self.units, per_taxel(self.gain, "gain", m),
+                                        per_taxel(self.offset, "offset", m))
+        object.__setattr__(self, "gain", calibration.gain)
+        object.__setattr__(self, "offset", calibration.offset)
 
     @property
     def count(self) -> int:
         """Values per frame."""
         return self.grid.size
+
+    @property
+    def calibration(self) -> StressCalibration:
+        """Its units, gain and offset, as a recording keeps them (no tare)."""
+        return StressCalibration(self.units, self.gain, self.offset)
 
     def to_pascals(self, raw) -> np.ndarray:
         """``(m,)`` or ``(T, m)`` raw values to pascals."""
@@ -119,9 +134,6 @@ def save_layout(layout: SensorLayout, path) -> Path:
         ``path``.
     """
     path = Path(path)
-    one = lambda a: float(a[0]) if np.all(a == a[0]) else a.tolist()  # noqa: E731
-    spec = {key: value.tolist() if isinstance(value, np.ndarray) else value
-            for key, value in geometry_fields(layout.grid).items()}
-    spec.update(units=layout.units, gain=one(layout.gain), offset=one(layout.offset))
+    spec = json_ready(geometry_fields(layout.grid)) | json_ready(layout.calibration.fields())
     path.write_text(json.dumps(spec, indent=2) + "\n", encoding="utf-8")
     return path

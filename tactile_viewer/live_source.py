@@ -61,8 +61,7 @@ class Calibration:
 
     def stress_calibration(self) -> StressCalibration:
         """What a recording keeps: the layout's conversion and the baseline in force (from frame 0)."""
-        tares = (Tare(0, self.baseline),) if np.any(self.baseline) else ()
-        return StressCalibration(self.layout.units, self.layout.gain, self.layout.offset, tares)
+        return self.layout.calibration.retared(Tare(0, self.baseline) if np.any(self.baseline) else None)
 
     def take_completed(self) -> Tare | None:
         """The tare completed by the last frame calibrated, once (None when none was)."""

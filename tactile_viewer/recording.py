@@ -45,7 +45,7 @@ from solver import SensorGrid
 from solver.arrays import read_only
 
 __all__ = ["Recording", "RecordingError", "StressCalibration", "Tare", "load", "save", "grid_from_fields",
-           "geometry_fields", "csv_geometry_header", "raw_to_pascals", "per_taxel",
+           "geometry_fields", "csv_geometry_header", "raw_to_pascals", "per_taxel", "json_ready",
            "MAX_TAXELS", "RAW_UNITS", "SUFFIXES", "facts"]
 
 UNIT_SCALES = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
@@ -131,6 +131,11 @@ def raw_to_pascals(raw, units: str, gain, offset) -> np.ndarray:
     ``"counts"`` (the gain then is pascals per count).
     """
     return np.asarray(gain) * (np.asarray(raw, dtype=float) - offset) * UNIT_SCALES.get(units, 1.0)
+
+
+def json_ready(fields: dict) -> dict:
+    """``fields`` with arrays as lists: what ``json.dumps`` takes."""
+    return {key: value.tolist() if isinstance(value, np.ndarray) else value for key, value in fields.items()}
 
 
 def per_taxel(value, name: str, m: int) -> np.ndarray:
