@@ -47,6 +47,7 @@ class Calibration:
         self._taring: list | None = None
         self._tare_count = 0
         self._completed: Tare | None = None
+        self._failed: str | None = None
 
     def tare(self, frames: int = 50) -> None:
         """Average the next ``frames`` frames and subtract that baseline from then on."""
@@ -63,6 +64,12 @@ class Calibration:
         """What a recording keeps: the layout's conversion and the baseline in force (from frame 0)."""
         return self.layout.calibration.retared(Tare(0, self.baseline) if np.any(self.baseline) else None)
 
+    def take_failed(self) -> str | None:
+        """Why the last tare was not taken, once (None when none failed)."""
+        with self._lock:
+            failed, self._failed = self._failed, None
+        return failed
+
     def take_completed(self) -> Tare | None:
         """The tare completed by the last frame calibrated, once (None when none was)."""
         with self._lock:
@@ -77,13 +84,14 @@ class Calibration:
                 self._taring.append(pascals)
                 if len(self._taring) >= self._tare_count:
                     samples, self._taring = np.array(self._taring), None  # ends the taring, whatever follows
-                    baseline = samples.mean(axis=0)
+                    with np.errstate(over="ignore"):  # checked just below
+                        baseline = samples.mean(axis=0)
                     if np.all(np.isfinite(baseline)):  # values near the float limit overflow the mean
                         self.warning = loaded_while_taring(samples, self.baseline)
                         self.baseline = baseline
                         self._completed = Tare(0, baseline, t, len(samples))
                     else:
-                        self.warning = "the tare was not taken: its frames overflow when averaged"
+                        self._failed = "the tare was not taken: its frames overflow when averaged"
             return pascals - self.baseline
 
 
@@ -342,6 +350,9 @@ class LiveSource(Source):
         batch = []
         for frame in self.decoder.feed(data):
             stress = self.calibration(frame.values, t)
+            failed = self.calibration.take_failed()
+            if failed is not None:
+                self.message.emit("warning", "Tare not taken", failed)
             tare = self.calibration.take_completed()
             if tare is not None:
                 # frames before it go out untared, so the recording says from which frame it applies

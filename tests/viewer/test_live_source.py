@@ -581,3 +581,15 @@ def test_without_a_device_identity_a_reconnection_without_recording_says_nothing
     board.send(range(2))
     wait_for(lambda: reader.stats.received == 2, what="frames after reconnecting")
     assert board.messages == [] and reader.error == ""
+
+
+def test_a_tare_whose_frames_overflow_is_not_taken_and_says_so():
+    calibration = Calibration(SensorLayout(grid32(), "kPa"))
+    calibration.tare(2)
+    huge = np.full(6, 1.5e305)  # kPa: 1.5e308 Pa each, finite; their sum is not
+    calibration(huge, 0.0)
+    calibration(huge, 0.0)
+    assert not calibration.taring and calibration.take_completed() is None
+    assert calibration.take_failed() == "the tare was not taken: its frames overflow when averaged"
+    assert calibration.take_failed() is None  # said once
+    np.testing.assert_array_equal(calibration.baseline, 0.0)  # the zero in force is kept
