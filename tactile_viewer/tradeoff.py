@@ -12,6 +12,8 @@ import dataclasses
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from measurement import tradeoff as measured
 from measurement.cases import default_cases
 from measurement.tradeoff import machine
@@ -66,6 +68,21 @@ def plot(measurements, path, *, title="", size=(1200, 800)) -> Path:
     """Median frame time (log axis) against error, one marker per configuration, the front as a line."""
     import pyvista as pv
 
+    chart = chart_of(measurements, title=title)
+    plotter = pv.Plotter(off_screen=True, window_size=list(size))
+    try:
+        plotter.set_background("white")
+        plotter.add_chart(chart)
+        plotter.screenshot(str(path))
+    finally:
+        plotter.close()
+    return Path(path)
+
+
+def chart_of(measurements, *, title=""):
+    """The pyvista chart :func:`plot` draws."""
+    import pyvista as pv
+
     chart = pv.Chart2D(
         x_label="median time per frame (ms, log scale)",
         y_label="median error: tangential + normal total (% of |F|)",
@@ -85,13 +102,15 @@ def plot(measurements, path, *, title="", size=(1200, 800)) -> Path:
     ]
     markers = ["o", "s", "d", "x", "+"]
     named = {m.name: label for label, m in measured.presets(measurements).items()}
+    # larger markers first, smaller on top: configurations that land on one spot all stay visible
+    sizes = np.linspace(22, 8, max(len(measurements), 2))
     for k, m in enumerate(measurements):
         label = m.name + (f" ({named[m.name]})" if m.name in named else "")
         chart.scatter(
             [m.frame_ms],
             [100 * measured.error_of(m)],
             color=colours[k % len(colours)],
-            size=14,
+            size=float(sizes[k]),
             style=markers[k % len(markers)],
             label=label,
         )
@@ -105,15 +124,13 @@ def plot(measurements, path, *, title="", size=(1200, 800)) -> Path:
         label="Pareto front",
     )
     chart.x_axis.log_scale = True
+    # room around the points: the slowest and the most accurate are not cut by the frame
+    times = [m.frame_ms for m in measurements]
+    errors = [100 * measured.error_of(m) for m in measurements]
+    chart.x_axis.range = [min(times) / 1.6, max(times) * 1.6]
+    chart.y_axis.range = [0.0, max(errors) * 1.12 or 1.0]
     chart.legend_visible = True
-    plotter = pv.Plotter(off_screen=True, window_size=list(size))
-    try:
-        plotter.set_background("white")
-        plotter.add_chart(chart)
-        plotter.screenshot(str(path))
-    finally:
-        plotter.close()
-    return Path(path)
+    return chart
 
 
 def main(argv=None) -> int:

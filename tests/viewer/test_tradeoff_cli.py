@@ -62,3 +62,22 @@ def test_configurations_move_to_the_kernel_asked(kernel):
 
 def test_the_configurations_own_kernel_leaves_them_alone():
     assert on_kernel(CONFIGURATIONS, Configuration("x").kernel) == list(CONFIGURATIONS)
+
+
+def test_the_plot_leaves_room_around_every_point():
+    # the slowest point was cut in half by the right edge; markers on one spot hid each other
+    import math
+
+    from measurement.tradeoff import Measurement, error_of
+    from tactile_viewer.tradeoff import chart_of
+
+    points = [(0.06, 0.2), (1.0, 0.06), (6.0, 0.023), (6.1, 0.023)]  # the last two almost coincide
+    measurements = [Measurement(f"c{k}", 0.01, ms, 3.0, 0.0, error, 5.0, 0.0, CONFIGURATIONS[k])
+                    for k, (ms, error) in enumerate(points)]
+    chart = chart_of(measurements)
+    low, high = chart.x_axis.range
+    assert math.log10(points[0][0] / low) >= 0.2 and math.log10(high / points[-1][0]) >= 0.2
+    bottom, top = chart.y_axis.range
+    assert bottom == 0 and top > 100 * max(error_of(m) for m in measurements) * 1.1
+    sizes = [plot.GetMarkerSize() for plot in chart.plots("scatter")]
+    assert sizes == sorted(sizes, reverse=True) and sizes[-1] < sizes[-2]  # the later, smaller, on top
