@@ -35,6 +35,8 @@ __all__ = ["Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO", "KERNEL_HELP",
 
 MAX_SHEAR_RATIO = 1.5  # the slider's end; the automatic search uses the same bound
 MAPS = ("pressure", "stress", "none")
+HIDE_BELOW = 0.02  # default "hide below": this fraction of the largest node force of a new source
+
 KERNEL_HELP = "layer: elastomer layer bonded to a rigid hull (default); cell/point: half-space"
 
 
@@ -550,7 +552,7 @@ def _display_scales(source: Source, reconstructor) -> dict:
     width = float(np.ptp(grid.positions[:, 0])) + grid.pitch
     if not isinstance(source, RecordingSource):
         # nothing seen yet: 50 mN per node spans three pitches, a 1 N total a third of the skin
-        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3)
+        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3, threshold=HIDE_BELOW * 0.05)
     # on the recording's most loaded frame the largest node force spans about three pitches,
     # the total a third of the skin; the fixed colour range holds every frame
     recording = source.recording
@@ -561,10 +563,12 @@ def _display_scales(source: Source, reconstructor) -> dict:
         spread = np.linspace(0, len(recording) - 1, min(len(recording), 2048)).astype(int)
         frames = recording.frames[np.unique(spread)]
     if not len(frames):
-        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3)
+        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3, threshold=HIDE_BELOW * 0.05)
     loaded = int(np.argmax(np.abs(frames).sum(axis=1)))
     first = reconstructor.solve_normal(frames[loaded]).forces[:, 2]
     peak = float(np.abs(first).max()) or 1.0
     total = abs(float(first.sum())) or peak
+    # arrows under 2% of the largest node force are noise more often than load: hidden by default
     return dict(arrow_scale=3 * grid.pitch / peak, resultant_scale=width / 3 / total,
-                range_max=max(float(np.abs(frames).max()), peak / grid.pitch**2, 1.0))
+                range_max=max(float(np.abs(frames).max()), peak / grid.pitch**2, 1.0),
+                threshold=HIDE_BELOW * peak)

@@ -726,3 +726,15 @@ def test_a_damaged_chunk_is_reported_once_and_the_rest_of_the_recording_shows(re
     assert model.frame == 0  # it stays where it was
     model.set_frame(chunk.first + len(chunk.offsets))  # the chunk after it reads
     np.testing.assert_array_equal(model.solve().stress, recording.frames[(chunk.first + len(chunk.offsets)) % 4])
+
+
+def test_a_new_recording_hides_arrows_under_two_percent_of_its_largest_node_force(recording, reconstructor):
+    from tactile_viewer.model import HIDE_BELOW
+
+    model = ViewerModel()
+    model.set_source(RecordingSource(recording, "takes/sliding.npz"), reconstructor)
+    loaded = int(np.argmax(np.abs(recording.frames).sum(axis=1)))
+    peak = np.abs(reconstructor.solve_normal(recording.frames[loaded]).forces[:, 2]).max()
+    assert HIDE_BELOW == 0.02 and model.display.threshold == pytest.approx(0.02 * peak)
+    forces = np.linalg.norm(model.solve().result.forces, axis=1)
+    assert 0 < np.sum(forces > model.display.threshold) < recording.grid.size  # the noise arrows go
