@@ -296,9 +296,23 @@ class FrameTable:
         """The same frames under ``calibration`` (sharing the file and its cache)."""
         return FrameTable(self._index, self._m, self.raw_dtype, calibration, self._cache)
 
+    def _rows(self, key):
+        # frame indices of ``key`` (an int, a slice, indices) without an index array of the whole take
+        count = len(self)
+        if isinstance(key, slice):
+            return np.arange(*key.indices(count))
+        rows = np.asarray(key)
+        if rows.dtype == bool:
+            return np.flatnonzero(rows)
+        if rows.dtype.kind not in "iu":
+            raise IndexError(f"frames are indexed by whole numbers, got {key!r}")
+        if np.any((rows < -count) | (rows >= count)):
+            raise IndexError(f"frame {key} is out of range for {count} frames")
+        return np.where(rows < 0, rows + count, rows) if rows.ndim else int(rows) % count
+
     def raw(self, key) -> np.ndarray:
         """The raw values of frames ``key`` as stored (an int gives ``(m,)``)."""
-        rows = np.arange(len(self))[key]
+        rows = self._rows(key)
         single = np.ndim(rows) == 0
         rows = np.atleast_1d(rows)
         out = np.empty((len(rows), self._m), dtype=self.raw_dtype)
@@ -312,7 +326,7 @@ class FrameTable:
         within = ()
         if isinstance(key, tuple):  # frames[rows, taxels]
             key, within = key[0], key[1:]
-        rows = np.arange(len(self))[key]
+        rows = self._rows(key)
         stress = self.calibration.apply(self.raw(rows), rows)
         return stress[(slice(None),) * np.ndim(rows) + within] if within else stress
 

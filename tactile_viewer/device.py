@@ -33,7 +33,8 @@ import os
 from dataclasses import dataclass
 from typing import NamedTuple
 
-__all__ = ["DeviceIdentity", "identify", "DeviceCheck", "DeviceMismatch", "Verdict", "SAME_DEVICE_RULE"]
+__all__ = ["DeviceIdentity", "identify", "DeviceCheck", "unknown_identity_notice",
+           "DeviceMismatch", "Verdict", "SAME_DEVICE_RULE"]
 
 SAME_DEVICE_RULE = ("the same device has the same USB VID:PID and serial number, or, when it has no serial "
                     "number, the same VID:PID, description and USB location")
@@ -194,6 +195,12 @@ def identify(url: str) -> DeviceIdentity | None:
     return None
 
 
+def unknown_identity_notice(url: str) -> str:
+    """What a port without device identity means for a live session, in one sentence."""
+    return (f"device identity unknown for {url}: a reconnection may be another device; "
+            "recordings end at a reconnection")
+
+
 class Verdict(NamedTuple):
     """:meth:`DeviceCheck.verify`'s answer: reconnect or not, and why (``""``: nothing to say)."""
 
@@ -267,8 +274,7 @@ class DeviceCheck:
         """For the live panel: a sentence when the identity is unknown (``""`` when known or not started)."""
         if not self._started or self.known:
             return ""
-        return (f"device identity unknown for {self.url}: a reconnection may be another device; "
-                f"recordings end at a reconnection")
+        return unknown_identity_notice(self.url)
 
     def verify(self, identity: DeviceIdentity | None) -> Verdict:
         """Whether to reconnect to the device found at the URL now.

@@ -227,9 +227,8 @@ class LivePanel(QtWidgets.QGroupBox):
                          + f"; skipped {reader.decoder.skipped_bytes} B")
         if reader.reconnects:
             parts.append(f"reconnected {reader.reconnects}x")
-        notice = reader.device.notice if hasattr(reader, "device") else ""
-        if notice:
-            parts.append(notice)
+        if reader.identity_notice:
+            parts.append(reader.identity_notice)
         if reader.failures:
             parts.append(f"{reader.failures} chunks failed: {reader.error}")
         if reader.calibration.taring:

@@ -23,7 +23,7 @@ from collections import Counter, deque
 
 import numpy as np
 
-from .device import DeviceCheck, DeviceMismatch, identify
+from .device import DeviceCheck, DeviceMismatch, identify, unknown_identity_notice
 from .layout import SensorLayout
 from .protocol import make_decoder
 from .recording import StressCalibration, Tare
@@ -267,6 +267,11 @@ class LiveSource(Source):
         """
         return False
 
+    @property
+    def identity_notice(self) -> str:
+        """For the live panel: what an unknown device identity means ("" when the device is known)."""
+        return "" if self.same_device_known else unknown_identity_notice(self.url)
+
     def _end_recording_at_reconnection(self) -> None:
         recorder = self.recorder
         if recorder is None:
@@ -363,12 +368,7 @@ class LiveSource(Source):
         self._publish(batch)
 
     def _tare_taken(self, tare: Tare) -> None:
-        recorder = self.recorder
-        if recorder is not None:
-            try:
-                recorder.tare(tare)
-            except (OSError, ValueError) as exc:
-                self._recording_failed(recorder, exc, "Recording stopped")
+        self._to_recorder(lambda recorder: recorder.tare(tare))
         warning = self.calibration.warning
         if warning is not None:
             self.message.emit("warning", "Tare taken under load?", warning)
@@ -400,6 +400,10 @@ class SerialReader(LiveSource):
     @property
     def same_device_known(self) -> bool:
         return self.device.known
+
+    @property
+    def identity_notice(self) -> str:
+        return self.device.notice
 
     def _open(self):
         import serial

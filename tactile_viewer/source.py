@@ -191,14 +191,18 @@ class Source:
                           f"{recorder.path}: {getattr(exc, 'strerror', None) or exc}. The frames written "
                           f"before the error ({recorder.written}) are in the file; the live view goes on.")
 
-    def _tick_recording(self, now: float) -> None:
-        # while no frame comes: flush what waits (a quiet line must not hold frames back)
+    def _to_recorder(self, write) -> None:
+        # ``write(recorder)`` while recording; a failed write ends the recording, never the source
         recorder = self.recorder
         if recorder is not None:
             try:
-                recorder.tick(now)
+                write(recorder)
             except (OSError, ValueError) as exc:
                 self._recording_failed(recorder, exc, "Recording stopped")
+
+    def _tick_recording(self, now: float) -> None:
+        # frames waiting for their chunk go to disk on time even when no new frame comes
+        self._to_recorder(lambda recorder: recorder.tick(now))
 
     def _publish(self, frames: list[SourceFrame]) -> None:
         # every frame to the recorder, the newest to whoever follows the source
@@ -206,13 +210,9 @@ class Source:
             return
         for frame in frames:
             self.published += 1
-            recorder = self.recorder
-            if recorder is not None:
-                try:
-                    recorder.add(frame.index if frame.index is not None else self.published - 1, frame.t,
-                                 frame.stress if frame.raw is None else frame.raw)
-                except (OSError, ValueError) as exc:
-                    self._recording_failed(recorder, exc, "Recording stopped")
+            seq = frame.index if frame.index is not None else self.published - 1
+            values = frame.stress if frame.raw is None else frame.raw
+            self._to_recorder(lambda recorder: recorder.add(seq, frame.t, values))  # noqa: B023 (called now)
         with self._lock:
             self._latest = frames[-1]
             notify = not self._notified
