@@ -249,8 +249,9 @@ class TextDecoder(Decoder):
         del buffer[:start]
         if lines:
             self._lines(lines, out)
-        if len(buffer) > self.max_line:
-            # no newline in sight: drop what we have and everything up to the next newline
+        if self._overlong or len(buffer) > self.max_line:
+            # no newline in sight: drop what we have and everything up to the next newline (inside a
+            # line already too long, at once: how the stream was split must not change the counts)
             if not self._overlong:
                 self.rejected["line too long"] += 1
             self._overlong = True

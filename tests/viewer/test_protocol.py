@@ -948,3 +948,15 @@ def test_frame_copies_the_array_it_is_given():
     frame = Frame(source, 5)
     source[0] = 99.0  # the caller's array stays writable and the frame does not see the change
     assert frame.values.tolist() == [1.0, 2.0] and frame.values.dtype == float
+
+
+def test_an_overlong_line_is_counted_the_same_however_it_arrives():
+    # found by the splitting test: fed byte by byte, the tail of a line already too long was held
+    # back as pending instead of skipped at once (skipped 39 and pending 4 against 43 and 0)
+    stream = b"0,0,0,0\n" * 3 + b"1.16511e+06, 1.75, 1.28631e-45, -0.5*C008\r\x0b"
+    whole, split = TextDecoder(4, max_line=12), TextDecoder(4, max_line=12)
+    whole.feed(stream)
+    for k in range(len(stream)):
+        split.feed(stream[k:k + 1])
+    assert (split.skipped_bytes, split.pending) == (whole.skipped_bytes, whole.pending) == (43, 0)
+    assert split.rejected == whole.rejected
