@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from tactile_viewer.recording import load
+from tactile_viewer.recording import RecordingError, load
 from tests.viewer.conftest import Board
 
 # tactile-record on a slow disk: every write of the file goes out in 4 KiB pieces 5 ms apart (a
@@ -78,7 +78,13 @@ def test_killed_at_any_instant_the_file_opens_with_every_frame_but_the_last_seco
         process.send_signal(signal.SIGKILL)
         process.wait()
         inside_a_write += slow and marker.exists()
-        recording = load(path)
+        try:
+            recording = load(path)
+        except RecordingError as error:
+            # a loaded machine can make the slow disk's first chunk the one the kill lands in: that
+            # file holds no frame and says so, which is right; nothing else may fail to open
+            assert slow and "no frames (the file was cut short before its first chunk)" in str(error)
+            continue
         assert recording.truncated  # never finished: it opens all the same
         steps = np.diff(recording.sequence())
         # every frame received up to its end; the slow disk stalls the reader beyond what the
