@@ -3,6 +3,9 @@
 - no option: open the window (on RECORDING if given);
 - ``--screenshot out.png``: render one frame off screen, save the PNG and its
   JSON sidecar ``out.png.view.json``, exit (batch figures);
+- ``--movie out.mp4``: render frames ``--start`` to ``--stop`` (exclusive) off screen with the
+  time, parameters and forces burnt in, write them as a video (.mp4, .mkv, .avi) or an animated
+  GIF, exit;
 - ``--report``: reconstruct headlessly and print a per-frame table;
 - ``--info``: print what the file holds, one fact per line, solving nothing.
 """
@@ -11,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 import time
 from pathlib import Path
@@ -20,7 +24,7 @@ import numpy as np
 from solver import make_solver, metrics
 from solver.kernels import KERNELS
 
-from .model import KERNEL_HELP, geometry_text
+from .model import KERNEL_HELP, MAX_SHEAR_RATIO, ViewerModel, geometry_text
 from .recording import RecordingError, facts, load
 
 
@@ -74,7 +78,6 @@ def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear
     import pyvista as pv
 
     from . import export
-    from .model import ViewerModel
     from .scene import Scene
     from .source import RecordingSource
 
@@ -104,6 +107,93 @@ def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear
     return solved
 
 
+def movie(path, out, *, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None, start=0, stop=None,
+          fps=30.0, size=(1200, 800), camera="iso", display_map="pressure", stream=None):
+    """Write a movie of a recording's frames ``start .. stop - 1`` (``stop`` exclusive) off screen.
+
+    The display is the window's default for the recording with the colour range fixed over the
+    movie; the parameters are found for each frame unless ``shear_ratio`` or
+    ``shear_direction_deg`` is given (the other is then 0, as for ``--screenshot``). Progress goes
+    to ``stream`` (default stdout) at most every 2 s.
+
+    Parameters
+    ----------
+    path : str or Path
+        The recording.
+    out : str or Path
+        The movie: .mp4, .mkv, .avi (H.264) or .gif.
+    kernel : str
+        The solver's kernel.
+    shear_ratio, shear_direction_deg : float or None
+        Fixed parameters (the direction in degrees); both None: found for each frame.
+    start, stop : int
+        Frames ``start .. stop - 1``, numbered from 0 (``stop`` None: to the end).
+    fps : float
+        Frames per second of the movie (> 0; at most 50 for a GIF).
+    size : (2,) tuple of int
+        Width and height, pixels (even for a video).
+    camera : {"iso", "top"}
+    display_map : {"pressure", "stress", "none"}
+    stream : file, optional
+        Where progress is printed.
+
+    Returns
+    -------
+    movie.MovieResult
+
+    Raises
+    ------
+    ValueError
+        A bad option, named as on the command line, before anything is written.
+    OSError
+        The movie could not be written; nothing is left under ``out``.
+    """
+    from . import movie as movies
+
+    stream = sys.stdout if stream is None else stream
+    kind = movies.movie_kind(out, name="--movie")
+    # the options are checked, with the command line's names, before the recording is solved
+    fps = movies.check_fps(fps, kind, name="--fps")
+    size = movies.check_size(size, kind, name="--size")
+    recording = load(path)
+    frames = movies.check_frames(len(recording), start, stop, names=("--start", "--stop"))
+    fixed = shear_ratio is not None or shear_direction_deg is not None
+    ratio = (shear_ratio or 0.0) if fixed else None
+    if ratio is not None and not (math.isfinite(ratio) and 0 <= ratio <= MAX_SHEAR_RATIO):
+        raise ValueError(f"--shear-ratio must be in [0, {MAX_SHEAR_RATIO}], got {shear_ratio!r}")
+    if fixed and not math.isfinite(shear_direction_deg or 0.0):
+        raise ValueError(f"--shear-direction must be finite degrees, got {shear_direction_deg!r}")
+    direction = math.radians(shear_direction_deg or 0.0) if fixed else None
+    solver = ViewerModel.build(recording.grid, kernel)
+    display = movies.default_display(recording, solver, display_map=display_map)
+    last = [time.monotonic()]
+
+    def progress(done, total):
+        now = time.monotonic()
+        if now - last[0] >= 2.0 and done < total:
+            last[0] = now
+            print(f"  {done} of {total} frames", file=stream, flush=True)
+        return True
+
+    return movies.write_movie(recording, out, solver=solver, progress=progress, start=frames.start,
+                              stop=frames.stop, fps=fps, size=size, display=display, shear_ratio=ratio,
+                              shear_direction=direction, camera=camera)
+
+
+def _size(text):
+    # argparse type of --size: "WxH", each side from 16 to 8192 pixels (a video's evenness is
+    # checked with the movie's type)
+    from .movie import check_size
+
+    match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    if not match:
+        raise argparse.ArgumentTypeError(f"must be WIDTHxHEIGHT in pixels, e.g. 1200x800, got {text!r}")
+    try:
+        return check_size((int(match[1]), int(match[2])), "image", name="")
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc).strip()) from None
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(
         prog="tactile-viewer", description="Contact forces on a robot skin from its normal-stress sensors: "
@@ -124,34 +214,70 @@ def main(argv=None):
                         help="fixed shear direction, degrees from +x (default: found automatically)")
     parser.add_argument("--screenshot", metavar="PNG",
                         help="render one frame to PNG (+ JSON sidecar PNG.view.json) and exit")
+    parser.add_argument("--movie", metavar="OUT",
+                        help="render frames --start to --stop (exclusive) to a movie with the frame, time, "
+                             "parameters and forces burnt in, and exit: .mp4, .mkv, .avi (H.264 video) or "
+                             ".gif (animated GIF, at most 50 fps)")
+    parser.add_argument("--fps", type=float, metavar="F",
+                        help="movie frames per second, > 0 (default 30); each recording frame is one movie "
+                             "frame, so 30 plays a 30 Hz recording in real time")
+    parser.add_argument("--start", type=int, metavar="N",
+                        help="first frame of the movie, numbered from 0 (default 0)")
+    parser.add_argument("--stop", type=int, metavar="N",
+                        help="the movie ends before frame N (exclusive, as a Python slice: --start 10 "
+                             "--stop 20 is frames 10 to 19); default: the end of the recording")
+    parser.add_argument("--size", type=_size, default=(1200, 800), metavar="WxH",
+                        help="image size in pixels for --screenshot (before --scale) and --movie (even "
+                             "numbers for a video), default 1200x800")
     parser.add_argument("--scale", type=int, choices=(1, 2, 4), default=1, help="screenshot size multiplier")
     parser.add_argument("--transparent", action="store_true", help="screenshot with transparent background")
     parser.add_argument("--camera", choices=("iso", "top"), default="iso",
-                        help="screenshot view: iso (oblique, default) or top (looking down on the skin)")
+                        help="screenshot and movie view: iso (oblique, default) or top (looking down on the "
+                             "skin)")
     parser.add_argument("--map", choices=("pressure", "stress", "none"), default="pressure",
-                        help="screenshot colour map: pressure (normal force per area, default), stress "
-                             "(sensor readings) or none")
+                        help="screenshot and movie colour map: pressure (normal force per area, default), "
+                             "stress (sensor readings) or none")
     args = parser.parse_args(argv)
+    movie_options = [f"--{name}" for name in ("fps", "start", "stop") if getattr(args, name) is not None]
+    if args.movie:
+        if args.info or args.report or args.screenshot:
+            parser.error("--movie cannot be combined with --info, --report or --screenshot")
+        if args.frame is not None:
+            parser.error("--frame chooses one frame; a movie's frames are chosen with --start and --stop")
+        if args.scale != 1 or args.transparent:
+            parser.error("--scale and --transparent are for --screenshot; a movie's size is --size")
+    elif movie_options:
+        parser.error(f"{', '.join(movie_options)} {'goes' if len(movie_options) == 1 else 'go'} with --movie")
     try:
-        if args.report or args.screenshot or args.info:
+        if args.report or args.screenshot or args.info or args.movie:
             if not args.recording:
-                parser.error("a RECORDING is needed with --info, --report or --screenshot")
+                parser.error("a RECORDING is needed with --info, --report, --screenshot or --movie")
             if args.info:
                 print("\n".join(facts(load(args.recording))))
             elif args.report:
                 report(args.recording, frame=args.frame, kernel=args.kernel, shear_ratio=args.shear_ratio,
                        shear_direction_deg=args.shear_direction)
+            elif args.movie:
+                written = movie(args.recording, args.movie, kernel=args.kernel, shear_ratio=args.shear_ratio,
+                                shear_direction_deg=args.shear_direction, start=args.start or 0,
+                                stop=args.stop, fps=30.0 if args.fps is None else args.fps, size=args.size,
+                                camera=args.camera, display_map=args.map)
+                print(written.summary())
             else:
                 solved = screenshot(args.recording, args.screenshot, frame=args.frame or 0,
                                     kernel=args.kernel,
                                     shear_ratio=args.shear_ratio, shear_direction_deg=args.shear_direction,
                                     scale=args.scale, transparent=args.transparent, camera=args.camera,
-                                    display_map=args.map)
+                                    size=args.size, display_map=args.map)
                 print(f"saved {args.screenshot} (frame {solved.frame}, mu {solved.result.shear_ratio:.2f}, "
                       f"theta {math.degrees(solved.result.shear_direction):+.0f} deg)")
             return 0
     except (RecordingError, ValueError) as exc:
         print(f"tactile-viewer: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # the movie could not be written (nothing is left under its name)
+        reason = f"{exc.filename}: {exc.strerror}" if exc.filename and exc.strerror else str(exc)
+        print(f"tactile-viewer: {reason}", file=sys.stderr)
         return 2
     return run_window(args.recording, kernel=args.kernel)
 

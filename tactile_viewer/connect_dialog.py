@@ -56,6 +56,14 @@ class ConnectDialog(QtWidgets.QDialog):
         form.addRow("format", self.format_box)
         self.layout_edit = QtWidgets.QLineEdit()
         form.addRow("sensor layout", _with_button(self.layout_edit, "Browse...", self._browse))
+        for widget, tip in (
+                (self.port_box, "A serial port of this machine, or a pyserial URL (socket://host:port, loop://)"),
+                (self.baud_box, "The board's baud rate (ignored by pseudo-terminals and sockets)"),
+                (self.format_box, "binary: framed float32 frames with sequence numbers and CRC; text: one "
+                                  "line of values per frame"),
+                (self.layout_edit, "The board's sensor layout file (JSON: grid or positions, pitch, "
+                                   "elastomer thickness, Poisson ratio, calibration)")):
+            widget.setToolTip(tip)
         self.message = QtWidgets.QLabel("")
         self.message.setStyleSheet("color: #b00020")
         form.addRow(self.message)

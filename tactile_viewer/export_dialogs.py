@@ -1,8 +1,11 @@
-"""Exports from the window: a screenshot with its sidecar, the forces of a frame or of a whole recording.
+"""Exports from the window: a screenshot with its sidecar, the forces of a frame or of a whole recording,
+a movie of the recording.
 
-The file formats are :mod:`tactile_viewer.export`'s; here are the dialogs and
-the checks that keep a bad folder from ending the app. Whole-recording
-exports run as a task behind a progress dialog.
+The file formats are :mod:`tactile_viewer.export`'s and :mod:`tactile_viewer.movie`'s; here are
+the dialogs and the checks that keep a bad folder from ending the app. Whole-recording
+exports run as a task behind a progress dialog. A movie's solver is built in a task, then its
+frames are rendered on the GUI thread (VTK draws on the thread that owns its windows), one
+per timer tick, so the window stays responsive behind the progress dialog.
 
 Only the file picked in the save dialog (which asks before replacing it) is
 replaced. The names the export derives from it -- the ``.png`` ending given to
@@ -14,17 +17,23 @@ kept) and the error names the file left alone.
 from __future__ import annotations
 
 import errno
+import logging
 import os
 from pathlib import Path
 
-from PyQt6 import QtWidgets
+from PyQt6 import QtCore, QtWidgets
 
-from . import export
+from . import export, movie
 from .model import ViewerModel
 from .scene import Scene
 from .tasks import TaskRunner
+from .worker import Cancelled
 
-__all__ = ["ExportActions"]
+log = logging.getLogger(__name__)
+
+__all__ = ["ExportActions", "MovieRunner"]
+
+MOVIE_FILTERS = "MP4 video (*.mp4);;Animated GIF (*.gif)"
 
 
 class ExportActions:
@@ -44,14 +53,20 @@ class ExportActions:
                  error, notify):
         self.parent, self.model, self.scene, self.tasks = parent, model, scene, tasks
         self._error, self._notify = error, notify
+        self.movies = MovieRunner(parent, model, scene, tasks, error=error, notify=notify)
 
     def add_actions(self, menu: QtWidgets.QMenu) -> list:
-        """The export entries of the File menu; returned so the window can enable them."""
+        """The export entries of the File menu; returned so the window can enable them.
+
+        In order: screenshot, forces of this frame, forces of the whole recording, movie (the
+        last two need a recording: a live source has no whole recording).
+        """
         return [
             menu.addAction("Export &screenshot...", self.screenshot_dialog),
             menu.addAction("Export forces of this &frame...", lambda: self.forces_dialog(whole=False)),
             menu.addAction("Export forces of the whole &recording...",
                            lambda: self.forces_dialog(whole=True)),
+            menu.addAction("Export &movie...", self.movie_dialog),
         ]
 
     def screenshot_dialog(self):
@@ -170,6 +185,277 @@ class ExportActions:
 
         self.tasks.run(work, lambda written: self._notify(f"saved {written}"), "Exporting forces...",
                        determinate=True)
+
+    # -- movies ------------------------------------------------------------------------------------------
+
+    def movie_dialog(self):
+        """Ask for the frames, rate and size, then for the file, and start the movie."""
+        recording = self.model.recording
+        if recording is None:
+            self._error("Nothing to export", "a live source has no whole recording: record it first")
+            return
+        if self.movies.running:
+            self._error("Movie export running", "one movie at a time: wait for it or cancel it")
+            return
+        count = len(recording)
+        dialog = QtWidgets.QDialog(self.parent)
+        dialog.setWindowTitle("Export movie")
+        form = QtWidgets.QFormLayout(dialog)
+        first = QtWidgets.QSpinBox()
+        first.setRange(0, count - 1)
+        stop = QtWidgets.QSpinBox()
+        stop.setRange(1, count)
+        stop.setValue(count)
+        stop.setToolTip("exclusive: the movie ends before this frame (the frame count: to the end)")
+        fps = QtWidgets.QDoubleSpinBox()
+        fps.setRange(0.1, 240.0)
+        fps.setDecimals(2)
+        fps.setValue(movie.DEFAULT_FPS)
+        fps.setToolTip(f"one movie frame per recording frame; a GIF plays at most {movie.GIF_MAX_FPS:g} fps")
+        width, height = QtWidgets.QSpinBox(), QtWidgets.QSpinBox()
+        for spin, value in zip((width, height), self.default_movie_size(), strict=True):
+            spin.setRange(16, 8192)
+            spin.setSingleStep(2)
+            spin.setValue(value)
+            spin.setSuffix(" px")
+        summary = QtWidgets.QLabel()
+
+        def show_summary():
+            frames = stop.value() - first.value()
+            if frames > 0:
+                summary.setText(f"frames {first.value()} to {stop.value() - 1}: {frames} frames, "
+                                f"{frames / fps.value():.1f} s")
+            else:
+                summary.setText("no frames: stop must come after the first frame")
+
+        for spin in (first, stop, fps):
+            spin.valueChanged.connect(show_summary)
+        show_summary()
+        form.addRow("first frame (from 0)", first)
+        form.addRow("stop before frame", stop)
+        form.addRow("frames per second", fps)
+        form.addRow("width", width)
+        form.addRow("height", height)
+        form.addRow(summary)
+        buttons = QtWidgets.QDialogButtonBox(QtWidgets.QDialogButtonBox.StandardButton.Ok
+                                             | QtWidgets.QDialogButtonBox.StandardButton.Cancel)
+        buttons.accepted.connect(dialog.accept)
+        buttons.rejected.connect(dialog.reject)
+        form.addRow(buttons)
+        if dialog.exec() != QtWidgets.QDialog.DialogCode.Accepted:
+            return
+        picked, chosen = QtWidgets.QFileDialog.getSaveFileName(self.parent, "Export movie", "movie.mp4",
+                                                               MOVIE_FILTERS)
+        if not picked:
+            return
+        try:
+            path = _movie_name(Path(picked), chosen)
+        except OSError as exc:
+            self._error("Cannot export movie", f"{picked}: {exc.strerror or exc}")
+            return
+        self.export_movie(path, start=first.value(), stop=stop.value(), fps=fps.value(),
+                          size=(width.value(), height.value()))
+
+    def default_movie_size(self) -> tuple:
+        """The scene's size on screen, rounded down to even numbers (a video's sides must be even)."""
+        try:
+            width, height = (int(v) for v in self.scene.plotter.window_size)
+        except Exception:  # a plotter without a window yet: the command line's size
+            return movie.DEFAULT_SIZE
+        if width < 16 or height < 16:
+            return movie.DEFAULT_SIZE
+        return min(width, 8192) // 2 * 2, min(height, 8192) // 2 * 2
+
+    def export_movie(self, path, *, start: int = 0, stop: int | None = None, fps: float = movie.DEFAULT_FPS,
+                     size=None) -> bool:
+        """Make a movie of the recording shown, as the window shows it (see :class:`MovieRunner`).
+
+        Returns
+        -------
+        bool
+            False when it was refused (the reason shown); True when it started:
+            ``movies.finished`` then brings its outcome.
+        """
+        return self.movies.start(path, start=start, stop=stop, fps=fps,
+                                 size=self.default_movie_size() if size is None else size)
+
+
+class MovieRunner(QtCore.QObject):
+    """Makes a movie of the recording shown without blocking the window.
+
+    The movie shows what the window shows: the recording (its current tare), the kernel and
+    quality, the display settings, Auto or the manual parameters, and the camera, as they
+    were when it started. Its solver is built afresh in a task (the model's own belongs to
+    the model's worker thread); then a single-shot timer renders one frame per tick on the
+    GUI thread behind a window-modal progress dialog with Cancel. A failure is shown with
+    ``error(title, text)`` and never raised; a cancelled or failed movie leaves no file. A
+    window closing cancels it.
+
+    Signals
+    -------
+    finished(object)
+        The movie ended: its :class:`movie.MovieResult`, or the exception that ended it
+        (:class:`Cancelled` when cancelled).
+    """
+
+    finished = QtCore.pyqtSignal(object)
+
+    def __init__(self, parent: QtWidgets.QWidget, model: ViewerModel, scene: Scene, tasks: TaskRunner, *,
+                 error, notify):
+        super().__init__(parent)
+        self.parent, self.model, self.scene, self.tasks = parent, model, scene, tasks
+        self._error, self._notify = error, notify
+        self.export: movie.MovieExport | None = None
+        self._path = None
+        self._preparing = False
+        self._cancelled = False
+        self._dialog: QtWidgets.QProgressDialog | None = None
+        # single-shot, restarted at the end of each tick: a tick never runs inside another
+        # (the progress dialog processes events while it updates)
+        self._timer = QtCore.QTimer(self)
+        self._timer.setSingleShot(True)
+        self._timer.setInterval(0)
+        self._timer.timeout.connect(self._tick)
+        parent.installEventFilter(self)
+
+    @property
+    def running(self) -> bool:
+        """A movie is being prepared or written."""
+        return self._preparing or self.export is not None
+
+    def start(self, path, *, start: int = 0, stop: int | None = None, fps: float = movie.DEFAULT_FPS,
+              size=movie.DEFAULT_SIZE) -> bool:
+        """Check everything, then build the solver in a task; the frames follow. False when refused."""
+        model = self.model
+        recording = model.recording
+        if recording is None:
+            self._error("Nothing to export", "a live source has no whole recording: record it first")
+            return False
+        if self.running:
+            self._error("Movie export running", "one movie at a time: wait for it or cancel it")
+            return False
+        try:
+            kind = movie.movie_kind(path)
+            frames = movie.check_frames(len(recording), start, stop)
+            settings = dict(start=frames.start, stop=frames.stop, fps=movie.check_fps(fps, kind),
+                            size=movie.check_size(size, kind), display=model.display,
+                            shear_ratio=None if model.auto else model.shear_ratio,
+                            shear_direction=None if model.auto else model.shear_direction,
+                            camera=self.scene.plotter.camera_position)
+        except ValueError as exc:
+            self._error("Cannot export movie", f"{path}: {exc}")
+            return False
+        grid, kernel, configuration = recording.grid, model.kernel, model.configuration
+
+        def build(progress):
+            solver = ViewerModel.build(grid, kernel, configuration)
+            if progress(1, 1) is False:
+                raise Cancelled("cancelled before the first frame")
+            return solver
+
+        self._preparing, self._path = True, Path(path)
+        task = self.tasks.run(build, lambda solver: self._begin(recording, solver, settings),
+                              "Preparing the movie...", determinate=False)
+        task.failed.connect(self._not_built)  # the task runner shows the error itself
+        return True
+
+    def cancel(self):
+        """Stop the movie at the next frame; its file is removed."""
+        self._cancelled = True
+
+    def _not_built(self, exc):
+        self._preparing = False
+        self.finished.emit(exc)
+
+    def _begin(self, recording, solver, settings):
+        self._preparing = False
+        try:
+            self.export = movie.MovieExport(recording, solver, self._path, **settings)
+        except Exception as exc:  # a folder gone since it was picked, a renderer that cannot start
+            self._end(exc)
+            return
+        self._cancelled = False
+        dialog = QtWidgets.QProgressDialog("Exporting movie...", "Cancel", 0, self.export.total, self.parent)
+        dialog.setWindowTitle("Export movie")
+        dialog.setWindowModality(QtCore.Qt.WindowModality.WindowModal)
+        dialog.setMinimumDuration(0)
+        dialog.setAutoClose(False)
+        dialog.setAutoReset(False)
+        dialog.canceled.connect(self.cancel)
+        self._dialog = dialog
+        dialog.setValue(0)
+        self._timer.start()
+
+    def _tick(self):
+        export = self.export
+        if export is None:
+            return
+        try:
+            if self._cancelled or self.tasks.closed:
+                raise Cancelled(f"cancelled after {export.done} of {export.total} frames")
+            export.step()
+            if self._dialog is not None:
+                self._dialog.setLabelText(f"Exporting movie: frame {export.done} of {export.total}")
+                self._dialog.setValue(export.done)  # processes events: Cancel, the window closing
+            if self.export is not export:
+                return  # ended while the dialog processed events
+            if self._cancelled or (self._dialog is not None and self._dialog.wasCanceled()):
+                # (wasCanceled: cancelled without the signal, by QProgressDialog.cancel())
+                raise Cancelled(f"cancelled after {export.done} of {export.total} frames")
+            if export.remaining:
+                self._timer.start()
+                return
+            outcome = export.finish()
+        except Exception as exc:  # reported, never raised: a slot's exception would end the app
+            outcome = exc
+        self._end(outcome)
+
+    def _end(self, outcome):
+        export, self.export = self.export, None
+        self._timer.stop()
+        if export is not None and not isinstance(outcome, movie.MovieResult):
+            export.cancel()  # removes the temporary file; idempotent
+        dialog, self._dialog = self._dialog, None
+        if dialog is not None:
+            dialog.canceled.disconnect(self.cancel)  # closing it would emit canceled
+            dialog.close()
+            dialog.deleteLater()
+        if isinstance(outcome, movie.MovieResult):
+            width, height = outcome.size
+            self._notify(f"saved {outcome.path}: {outcome.frames} frames, {width} x {height}, "
+                         f"{outcome.fps:g} fps")
+        elif not isinstance(outcome, Cancelled):
+            log.error("movie %s failed", self._path, exc_info=outcome)
+            self._error("Cannot export movie", f"{self._path}: {_reason(outcome)}")
+        self.finished.emit(outcome)
+
+    def eventFilter(self, watched, event):  # noqa: N802 (Qt's name)
+        # the window closing ends the movie now: the event loop may stop before another tick
+        if watched is self.parent and event.type() == QtCore.QEvent.Type.Close and self.export is not None:
+            self._end(Cancelled("the window closed"))
+        return False
+
+
+def _reason(exc: BaseException) -> str:
+    # an OSError's own words without its errno prefix; anything else as it reads
+    if isinstance(exc, OSError) and exc.strerror:
+        return exc.strerror
+    return str(exc) or type(exc).__name__
+
+
+def _movie_name(picked: Path, chosen_filter: str) -> Path:
+    """The name a movie is saved as: the name picked when it ends in a movie type; a name with no
+    ending gets the chosen filter's (it must then be free: the save dialog asked about the name
+    picked, not about this one); any other ending is refused by :func:`movie.movie_kind`."""
+    if picked.suffix:
+        return picked
+    suffix = movie.GIF_SUFFIX if "gif" in (chosen_filter or "").lower() else ".mp4"
+    path = picked.with_name(picked.name + suffix)
+    if os.path.lexists(path):
+        found = (f"not replaced: the movie would be {path.name} (the name picked, ending in {suffix!r}), "
+                 "which exists and is not the file picked")
+        raise FileExistsError(errno.EEXIST, found, str(path))
+    return path
 
 
 def _png_name(picked: Path) -> Path:

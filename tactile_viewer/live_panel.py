@@ -64,10 +64,16 @@ class LivePanel(QtWidgets.QGroupBox):
         self._drawn: deque = deque()  # when frames reached the screen (monotonic seconds)
         buttons = QtWidgets.QHBoxLayout()
         self.buttons = {}
+        tips = {"tare": f"Take the mean of the next {TARE_FRAMES} frames as the zero of every taxel "
+                        "(nothing may touch the skin meanwhile)",
+                "record": "Write every frame received, raw, with its calibration and tares, to an .mcap file",
+                "stop_recording": "Close the recording file (its frames are safe on disk already)",
+                "disconnect": "Close the port; the last frame stays shown"}
         for label, name, slot in (("Tare", "tare", self.tare), ("Record...", "record", self.record_dialog),
                                   ("Stop recording", "stop_recording", self.stop_recording),
                                   ("Disconnect", "disconnect", self.disconnect_live)):
             button = QtWidgets.QPushButton(label)
+            button.setToolTip(tips[name])
             button.clicked.connect(lambda _=False, slot=slot: slot())
             buttons.addWidget(button)
             self.buttons[name] = button

@@ -19,12 +19,22 @@ os.environ.setdefault("QT_API", "pyqt6")
 from PyQt6 import QtCore, QtGui, QtWidgets  # noqa: E402
 from pyvistaqt import QtInteractor  # noqa: E402
 
+from .contacts_panel import ContactsPanel  # noqa: E402
 from .export_dialogs import ExportActions  # noqa: E402
+from .hover import TaxelReadout  # noqa: E402
 from .live_panel import LivePanel  # noqa: E402
 from .model import ViewerModel  # noqa: E402
 from .panels import DisplayPanel, ParametersPanel, PlaybackPanel, status_text  # noqa: E402
+from .preferences import (  # noqa: E402
+    RecentFiles,
+    last_folder,
+    remember_folder,
+    save_view,
+    saved_view,
+    window_settings,
+)
 from .presets import PresetMeasurer  # noqa: E402
-from .recording import Recording, RecordingError, load  # noqa: E402
+from .recording import SUFFIXES, Recording, RecordingError, load  # noqa: E402
 from .scene import Scene  # noqa: E402
 from .source import RecordingSource, Source  # noqa: E402
 from .tasks import Dispatcher, TaskRunner  # noqa: E402
@@ -39,10 +49,54 @@ SETTLE_S = 0.03  # the longest a control waits for its solve (docs/architecture.
 TITLE_BAR_PX = 40  # room left for the window manager's title bar when the window is first sized
 
 
-def window_settings() -> QtCore.QSettings:
-    """Where the window remembers its size and place (an INI file in the user's config folder)."""
-    return QtCore.QSettings(QtCore.QSettings.Format.IniFormat, QtCore.QSettings.Scope.UserScope,
-                            "tactile-viewer", "window")
+HELP_HTML = """
+<h3>Reading the picture</h3>
+<p>Each arrow is the force on one node of the skin's surface, its tip on the surface, pointing where
+the force pushes; its colour is its size (left colour bar, mN). The red arrow is a contact's resultant
+at its centre. The map is the reconstructed normal pressure (or the measured sensor stress).
+Directions are angles from +x (0 deg = +x, 90 deg = +y).</p>
+<h3>The two parameters</h3>
+<p><b>Auto</b> picks, per contact, the shear ratio and direction whose compressive load explains the
+sensors best (the efficiency maximum). Moving a slider switches Auto off and solves with your values.</p>
+<h3>Mouse</h3>
+<p>Left drag: rotate. Shift + left drag or middle drag: pan. Wheel or right drag: zoom.
+Point at a taxel to read its values.</p>
+<h3>Keys</h3>
+<table>
+<tr><td>Space</td><td>play / pause</td></tr>
+<tr><td>Left, Right</td><td>one frame back, on</td></tr>
+<tr><td>Home, End</td><td>first, last frame</td></tr>
+<tr><td>A</td><td>Auto on / off</td></tr>
+<tr><td>Ctrl+O</td><td>open a recording (or drop one on the window)</td></tr>
+</table>
+<h3>Files</h3>
+<p>Recordings: .mcap (live recordings, raw values and calibration), .npz and .csv.
+Frames are numbered from 0 everywhere: window, exports, sidecars, --frame and --report.</p>
+"""
+
+
+def about_text() -> str:
+    """The About box: version, the libraries and where the log is written."""
+    import platform
+    from importlib import metadata
+
+    import numpy
+    import pyvista
+    import scipy
+
+    def version(name):
+        try:
+            return metadata.version(name)
+        except metadata.PackageNotFoundError:
+            return "?"
+
+    reporter = getattr(QtWidgets.QApplication.instance(), "reporter", None)
+    log_path = getattr(reporter, "log_path", None)
+    return (f"<b>tactile-viewer {version('tactile-viewer')}</b><br>"
+            "Contact forces on a robot skin from its normal-stress sensors.<br><br>"
+            f"Python {platform.python_version()}, numpy {numpy.__version__}, scipy {scipy.__version__}, "
+            f"pyvista {pyvista.__version__}, Qt {QtCore.qVersion()}, PyQt {QtCore.PYQT_VERSION_STR}<br>"
+            f"Log: {log_path if log_path else 'standard error only'}")
 
 
 class MainWindow(QtWidgets.QMainWindow):
@@ -85,6 +139,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.parameters.quality_chosen.connect(lambda chosen: self._rebuild(self.model.kernel, chosen))
         self.display_panel = DisplayPanel(self.model)
         self.display_panel.camera.connect(self._camera)
+        self.contacts_panel = ContactsPanel(self.model)
         self.playback = PlaybackPanel(self.model)
         self.live_panel = LivePanel(self.model, install=self.show_source, error=self._error,
                                     notify=self._notify)
@@ -99,30 +154,50 @@ class MainWindow(QtWidgets.QMainWindow):
         self.setCentralWidget(central)
         self._controls = QtWidgets.QWidget()
         column = QtWidgets.QVBoxLayout(self._controls)
-        for panel in (self.parameters, self.display_panel, self.playback, self.live_panel):
+        for panel in (self.parameters, self.display_panel, self.contacts_panel, self.playback,
+                      self.live_panel):
             column.addWidget(panel)
         column.addStretch(1)
+        # on a short screen the column scrolls rather than push the status bar off it
+        scroll = QtWidgets.QScrollArea()
+        scroll.setWidget(self._controls)
+        scroll.setWidgetResizable(True)
+        scroll.setFrameShape(QtWidgets.QFrame.Shape.NoFrame)
+        scroll.setHorizontalScrollBarPolicy(QtCore.Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+        self._controls.setMinimumWidth(self._controls.sizeHint().width())
         dock = QtWidgets.QDockWidget("Controls", self)
         dock.setFeatures(QtWidgets.QDockWidget.DockWidgetFeature.NoDockWidgetFeatures)
-        dock.setWidget(self._controls)
+        dock.setWidget(scroll)
         self.addDockWidget(QtCore.Qt.DockWidgetArea.RightDockWidgetArea, dock)
         self._build_menus()
         self.status = QtWidgets.QLabel("open a recording (File > Open) or connect a board (Live > Connect)")
         # a normal widget, not a permanent one: a passing message ("saved ...") replaces it for its
         # few seconds instead of being drawn underneath it
         self.statusBar().addWidget(self.status, 1)
+        # the taxel under the mouse (or pinned by a click), beside the frame's status
+        self.readout_label = QtWidgets.QLabel("")
+        self.readout_label.setToolTip("The taxel under the mouse; click a taxel to keep it, click it "
+                                      "again to let go")
+        self.statusBar().addPermanentWidget(self.readout_label)
+        self.readout = TaxelReadout(self.plotter.interactor, self.scene, self.model, parent=self)
+        self.readout.text_changed.connect(self.readout_label.setText)
 
         self.model.recording_changed.connect(self._on_source)
         self.model.display_changed.connect(self._redraw)
         self.model.solved.connect(self._on_solved)
         self.model.solve_failed.connect(lambda message: self.statusBar().showMessage(message, 10000))
         self.model.message.connect(self._on_message)
+        self.setAcceptDrops(True)  # a recording dropped anywhere on the window opens
+        self._restore_view()
         self._set_enabled(False)
 
     def _build_menus(self):
         menu = self.menuBar().addMenu("&File")
         action = menu.addAction("&Open recording...", self.open_dialog)
         action.setShortcut(QtGui.QKeySequence.StandardKey.Open)
+        self.recent_menu = menu.addMenu("Open &recent")
+        self.recent_menu.aboutToShow.connect(self._fill_recent)
+        self._fill_recent()
         self._exports = self.exports.add_actions(menu)
         menu.addSeparator()
         menu.addAction("&Quit", self.close).setShortcut(QtGui.QKeySequence.StandardKey.Quit)
@@ -134,16 +209,76 @@ class MainWindow(QtWidgets.QMainWindow):
             for how, label in (("here", "&Tare from this frame (50 frames)"), ("clear", "&Clear tare"),
                                ("recorded", "&Restore the tares taken while recording"))}
         view = self.menuBar().addMenu("&View")
-        view.addAction("&Top", lambda: self._camera("top"))
-        view.addAction("&Iso", lambda: self._camera("iso"))
+        # as the panel's buttons: Top also lays the arrows flat to show the shear, Iso stands them up
+        view.addAction("&Top", lambda: self.display_panel.view("top"))
+        view.addAction("&Iso", lambda: self.display_panel.view("iso"))
+        self._build_playback_menu()
+        self._build_help_menu()
+
+    def _build_playback_menu(self):
+        # window-wide keys: a text field keeps the keys it edits with (Qt gives it the shortcut
+        # override), a slider or button with the focus does not
+        menu = self.menuBar().addMenu("&Playback")
+        keys = QtCore.Qt.Key
+
+        def add(label, key, slot, tip):
+            action = menu.addAction(label, slot)
+            action.setShortcut(QtGui.QKeySequence(key))
+            action.setToolTip(tip)
+            return action
+
+        self.playback_actions = {
+            "play": add("&Play / pause", keys.Key_Space, self.playback.play_button.toggle,
+                        "Play the recording at the chosen speed, or pause it"),
+            "back": add("Step &back", keys.Key_Left, lambda: self.playback.step(-1), "One frame back"),
+            "forward": add("Step &forward", keys.Key_Right, lambda: self.playback.step(1), "One frame on"),
+            "first": add("&First frame", keys.Key_Home, lambda: self._go_to(0), "Frame 0"),
+            "last": add("&Last frame", keys.Key_End, lambda: self._go_to(-1), "The recording's last frame"),
+        }
+        menu.addSeparator()
+        self.auto_action = add("&Auto parameters", keys.Key_A, self._toggle_auto,
+                               "Toggle Auto: the shear ratio and direction found by the efficiency "
+                               "maximum, or the sliders' values")
+
+    def _build_help_menu(self):
+        menu = self.menuBar().addMenu("&Help")
+        menu.addAction("Quick &help", self.show_help).setShortcut(QtGui.QKeySequence.StandardKey.HelpContents)
+        menu.addAction("&About tactile-viewer", self.show_about)
+
+    def _go_to(self, index: int):
+        recording = self.model.recording
+        if recording is not None and not self.model.live:
+            self.model.set_frame(index % len(recording))
+
+    def _toggle_auto(self):
+        # the same switch as the checkbox (which a normal-only preset disables)
+        if self.parameters.auto_box.isEnabled() and self.model.is_open:
+            self.parameters.auto_box.toggle()
+
+    def _fill_recent(self):
+        self.recent_menu.clear()
+        paths = RecentFiles().paths()
+        for number, path in enumerate(paths, start=1):
+            action = self.recent_menu.addAction(f"&{number} {path.name}", lambda path=path: self.open(path))
+            action.setToolTip(str(path))
+            action.setStatusTip(str(path))
+        if paths:
+            self.recent_menu.addSeparator()
+            self.recent_menu.addAction("&Clear the list", RecentFiles().clear)
+        self.recent_menu.setEnabled(bool(paths))
+        self.recent_menu.setToolTipsVisible(True)
 
     def _set_enabled(self, on: bool):
         live = self.model.live
         self._controls.setEnabled(on)
         self.playback.setEnabled(on and not live)
+        for action in self.playback_actions.values():
+            action.setEnabled(on and not live)
+        self.auto_action.setEnabled(on)
         for action in self._exports:
             action.setEnabled(on)
-        self._exports[2].setEnabled(on and not live)  # a live source has no "whole recording"
+        for action in self._exports[2:4]:  # whole recording, movie: a live source has no "whole recording"
+            action.setEnabled(on and not live)
         source = self.model.source
         raw = on and not live and getattr(getattr(source, "recording", None), "calibration", None) is not None
         for action in self.tare_actions.values():
@@ -153,18 +288,55 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def open_dialog(self):
         path, _ = QtWidgets.QFileDialog.getOpenFileName(
-            self, "Open recording", str(Path.cwd()), "Recordings (*.mcap *.npz *.csv);;All files (*)")
+            self, "Open recording", str(last_folder()), "Recordings (*.mcap *.npz *.csv);;All files (*)")
         if path:
             self.open(path)
 
     def open(self, path) -> bool:
-        """Load a recording; on failure show the error and keep what was shown."""
+        """Load a recording; on failure show the error and keep what was shown.
+
+        A recording that opens goes first in File > Open recent and its folder
+        is where the next open dialog starts; one that is gone leaves the list.
+        """
         try:
             recording = load(path)
         except RecordingError as exc:
+            if not Path(path).exists():
+                RecentFiles().remove(path)
             self._error("Cannot open recording", str(exc))
             return False
+        RecentFiles().add(path)
+        remember_folder(path)
         return self.show_source(RecordingSource(recording, path))
+
+    # -- drag and drop -----------------------------------------------------------------
+
+    @staticmethod
+    def dropped_recording(mime: QtCore.QMimeData) -> Path | None:
+        """The one local recording file (by its suffix) in a drag's data, else None."""
+        urls = mime.urls() if mime.hasUrls() else []
+        paths = [Path(u.toLocalFile()) for u in urls if u.isLocalFile()]
+        if len(paths) == 1 and paths[0].suffix.lower() in SUFFIXES:
+            return paths[0]
+        return None
+
+    def dragEnterEvent(self, event):
+        if self.dropped_recording(event.mimeData()) is not None:
+            event.acceptProposedAction()
+        else:
+            event.ignore()
+
+    def dragMoveEvent(self, event):
+        self.dragEnterEvent(event)
+
+    def dropEvent(self, event):
+        path = self.dropped_recording(event.mimeData())
+        if path is None:
+            event.ignore()
+            return
+        event.acceptProposedAction()
+        # opened after the drop returns: the drag source is not kept waiting on the file's load
+        QtCore.QTimer.singleShot(0, lambda: self.open(path))
 
     def show_recording(self, recording: Recording, path=None) -> bool:
         """Show an in-memory recording (the tests use this)."""
@@ -284,6 +456,29 @@ class MainWindow(QtWidgets.QMainWindow):
         log.warning("%s: %s", title, message)
         QtWidgets.QMessageBox.critical(self, title, message)
 
+    # -- help -------------------------------------------------------------------------------------
+
+    def show_help(self):
+        """Help > Quick help: the controls, the keys and what the numbers mean (non-modal)."""
+        box = QtWidgets.QMessageBox(QtWidgets.QMessageBox.Icon.NoIcon, "tactile-viewer: quick help",
+                                    HELP_HTML, QtWidgets.QMessageBox.StandardButton.Close, self)
+        box.setTextFormat(QtCore.Qt.TextFormat.RichText)
+        box.setModal(False)
+        box.show()
+        self.help_box = box
+        return box
+
+    def show_about(self):
+        """Help > About: the version, the libraries it runs on and where the log is."""
+        QtWidgets.QMessageBox.about(self, "About tactile-viewer", about_text())
+
+    def _restore_view(self):
+        changes, playback = saved_view()
+        if changes:
+            self.model.set_display(**changes)
+            self.display_panel.follow()
+        self.playback.restore(**playback)
+
     def _place(self):
         # where the user left it; the first time, a size that fits the screen with its title bar
         geometry = window_settings().value("geometry")
@@ -294,6 +489,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def closeEvent(self, event):
         window_settings().setValue("geometry", self.saveGeometry())
+        save_view(self.model.display, speed=self.playback.speed, loop=self.playback.loop_box.isChecked())
         self.playback.stop()
         self.tasks.close()  # first: a result arriving while the source stops is dropped
         self.model.close()

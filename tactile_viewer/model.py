@@ -18,6 +18,7 @@ import threading
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -31,7 +32,8 @@ from .worker import LatestWorker
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO", "KERNEL_HELP", "geometry_text"]
+__all__ = ["Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO", "KERNEL_HELP", "geometry_text",
+           "load_centroid"]
 
 MAX_SHEAR_RATIO = 1.5  # the slider's end; the automatic search uses the same bound
 MAPS = ("pressure", "stress", "none")
@@ -63,18 +65,43 @@ class Display:
     map : {"pressure", "stress", "none"}
         Reconstructed normal pressure (``Fz / pitch^2``) or measured sensor stress.
     arrows, resultant : bool
-        Per-node force arrows; the resultant at the contact centroid.
+        Per-node force arrows; the resultants (one per contact, at its own
+        load centroid; one for the whole frame when the solve found no contacts).
     arrow_scale : float
         Arrow length per newton, metres per newton.
     resultant_scale : float
         Length of the resultant's arrow per newton, metres per newton.
     threshold : float
-        Arrows of nodes with ``|F|`` below this many newtons are hidden.
+        Arrows of nodes with ``|F|`` below this many newtons are hidden
+        (``|(Fx, Fy)|`` for in-plane arrows).
     auto_range : bool
         Colour range follows each frame; otherwise ``0 .. range_max``.
     range_max : float
         Upper end of the fixed colour range, pascals.
+    colormap : str
+        Colour map of the pressure or stress map, one of :attr:`COLORMAPS`
+        (perceptually uniform, and ``gray`` for print).
+    arrow_auto_range : bool
+        The arrows' colour range follows each frame (``0 ..`` its largest shown
+        force); otherwise ``0 .. arrow_range_max``, the same for every frame.
+    arrow_range_max : float
+        Upper end of the arrows' fixed colour range, newtons.
+    in_plane : bool
+        Arrows (and resultants) show only ``(Fx, Fy)``, flat on the surface:
+        the Top view's shear picture. The Top camera button switches it on,
+        the Iso button off.
+    in_plane_gain : float
+        In-plane arrows and resultants are drawn this many times longer than
+        3-D ones (shear is a fraction of the normal force); the scales the
+        scene states include it. Positive.
+    axes : bool
+        x and y ticks in millimetres beside the skin and the direction
+        convention (0 deg = +x, 90 deg = +y) at its corner.
+    taxel_ids : bool
+        Each taxel's node index (from 0, as everywhere) on its square.
     """
+
+    COLORMAPS: ClassVar[tuple] = ("viridis", "cividis", "plasma", "inferno", "magma", "gray")
 
     map: str = "pressure"
     arrows: bool = True
@@ -84,14 +111,34 @@ class Display:
     threshold: float = 0.0
     auto_range: bool = True
     range_max: float = 50e3
+    colormap: str = "viridis"
+    arrow_auto_range: bool = True
+    arrow_range_max: float = 0.05
+    in_plane: bool = False
+    in_plane_gain: float = 2.0
+    axes: bool = True
+    taxel_ids: bool = False
 
     def __post_init__(self):
         if self.map not in MAPS:
             raise ValueError(f"map must be one of {MAPS}, got {self.map!r}")
-        for name in ("arrow_scale", "resultant_scale", "threshold", "range_max"):
+        if self.colormap not in self.COLORMAPS:
+            raise ValueError(f"colormap must be one of {self.COLORMAPS}, got {self.colormap!r}")
+        for name in ("arrow_scale", "resultant_scale", "threshold", "range_max", "arrow_range_max"):
             value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0):
+            # bool is a number to Python, but never a scale a caller meant
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                    or not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+        if not (isinstance(self.in_plane_gain, (int, float, np.integer, np.floating))
+                and not isinstance(self.in_plane_gain, bool)
+                and math.isfinite(self.in_plane_gain) and self.in_plane_gain > 0):
+            raise ValueError(f"in_plane_gain must be finite and > 0, got {self.in_plane_gain!r}")
+        for name in ("arrows", "resultant", "auto_range", "arrow_auto_range", "in_plane", "axes",
+                     "taxel_ids"):
+            value = getattr(self, name)
+            if not isinstance(value, (bool, np.bool_)):
+                raise ValueError(f"{name} must be True or False, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -109,6 +156,9 @@ class Solved:
     centroid : (2,) ndarray or None
         Where the compressive normal load is centred, metres (None when
         nothing presses).
+    contact_centroids : tuple of ((2,) ndarray or None)
+        The same for each contact of ``result.contacts``, in their order
+        (over the contact's own nodes).
     """
 
     frame: int
@@ -119,16 +169,36 @@ class Solved:
     auto: bool
     pressure: np.ndarray
     centroid: np.ndarray | None
+    contact_centroids: tuple = ()
 
     @classmethod
     def of(cls, grid: SensorGrid, stress, result: Reconstruction, *, frame: int = 0, time: float = 0.0,
            solve_ms: float = 0.0, auto: bool = True) -> Solved:
-        """A solved frame of ``grid`` with its pressure map and load centroid."""
+        """A solved frame of ``grid`` with its pressure map and load centroids."""
         forces = result.forces
-        push = np.clip(forces[:, 2], 0.0, None)
-        centroid = grid.positions.T @ push / push.sum() if push.sum() > 0 else None
         return cls(frame, time, np.asarray(stress, dtype=float), result, solve_ms, auto,
-                   read_only(forces[:, 2] / grid.pitch**2), None if centroid is None else read_only(centroid))
+                   read_only(forces[:, 2] / grid.pitch**2), load_centroid(grid.positions, forces[:, 2]),
+                   tuple(load_centroid(grid.positions[c.nodes], forces[c.nodes, 2]) for c in result.contacts))
+
+
+def load_centroid(positions, fz) -> np.ndarray | None:
+    """Where a normal load presses, centred: the ``Fz``-weighted mean of ``positions`` over ``Fz > 0``.
+
+    Parameters
+    ----------
+    positions : (m, 2) ndarray
+        Node positions, metres.
+    fz : (m,) ndarray
+        Normal force per node, newtons (tension, ``Fz < 0``, is left out).
+
+    Returns
+    -------
+    (2,) ndarray or None
+        Read-only, metres; None when nothing presses.
+    """
+    push = np.clip(np.asarray(fz, dtype=float), 0.0, None)
+    total = push.sum()
+    return read_only(np.asarray(positions, dtype=float).T @ push / total) if total > 0 else None
 
 
 @dataclass(frozen=True)
@@ -551,10 +621,13 @@ def _display_scales(source: Source, reconstructor) -> dict:
     grid = source.grid
     width = float(np.ptp(grid.positions[:, 0])) + grid.pitch
     if not isinstance(source, RecordingSource):
-        # nothing seen yet: 50 mN per node spans three pitches, a 1 N total a third of the skin
-        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3, threshold=HIDE_BELOW * 0.05)
+        # nothing seen yet: 50 mN per node spans three pitches, a 1 N total half the skin,
+        # and 50 mN tops the arrows' fixed colour range
+        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 2, threshold=HIDE_BELOW * 0.05,
+                    arrow_range_max=0.05)
     # on the recording's most loaded frame the largest node force spans about three pitches,
-    # the total a third of the skin; the fixed colour range holds every frame
+    # the total half the skin (each contact has its own resultant: with two, each must still
+    # stand out of its contact's arrows); the fixed colour ranges hold every frame
     recording = source.recording
     if hasattr(recording.frames, "sample"):
         # an MCAP recording is read lazily: a frame from each of a few chunks, damaged ones skipped
@@ -563,12 +636,16 @@ def _display_scales(source: Source, reconstructor) -> dict:
         spread = np.linspace(0, len(recording) - 1, min(len(recording), 2048)).astype(int)
         frames = recording.frames[np.unique(spread)]
     if not len(frames):
-        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 3, threshold=HIDE_BELOW * 0.05)
+        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 2, threshold=HIDE_BELOW * 0.05,
+                    arrow_range_max=0.05)
     loaded = int(np.argmax(np.abs(frames).sum(axis=1)))
     first = reconstructor.solve_normal(frames[loaded]).forces[:, 2]
     peak = float(np.abs(first).max()) or 1.0
     total = abs(float(first.sum())) or peak
-    # arrows under 2% of the largest node force are noise more often than load: hidden by default
-    return dict(arrow_scale=3 * grid.pitch / peak, resultant_scale=width / 3 / total,
+    # arrows under 2% of the largest node force are noise more often than load: hidden by default.
+    # The arrows' fixed colour range: the full solve concentrates a contact's load on fewer nodes
+    # than this normal-only one (the four samples' largest node force over every frame is 1.24 to
+    # 1.73 times `peak`), so 1.5 times it; a stronger node shows in the top colour
+    return dict(arrow_scale=3 * grid.pitch / peak, resultant_scale=width / 2 / total,
                 range_max=max(float(np.abs(frames).max()), peak / grid.pitch**2, 1.0),
-                threshold=HIDE_BELOW * peak)
+                threshold=HIDE_BELOW * peak, arrow_range_max=1.5 * peak)

@@ -80,6 +80,8 @@ class ParametersPanel(QtWidgets.QGroupBox):
         grid = QtWidgets.QGridLayout(self)
         self.auto_box = QtWidgets.QCheckBox("Auto (efficiency maximum)")
         self.auto_box.setChecked(True)
+        self.auto_box.setToolTip("Per contact, the shear ratio and direction whose compressive load explains "
+                                 "the sensors best (key A). Moving a slider switches Auto off.")
         self.auto_box.toggled.connect(model.set_auto)
         grid.addWidget(self.auto_box, 0, 0, 1, 3)
         self.ratio_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
@@ -95,6 +97,12 @@ class ParametersPanel(QtWidgets.QGroupBox):
         grid.addWidget(QtWidgets.QLabel("direction"), 2, 0)
         grid.addWidget(self.direction_slider, 2, 1)
         grid.addWidget(self.direction_spin, 2, 2)
+        for widget in (self.ratio_slider, self.ratio_spin):
+            widget.setToolTip("Shear ratio mu: tangential over normal force of the contact's load "
+                              "(0: pressing only). Setting it switches Auto off.")
+        for widget in (self.direction_slider, self.direction_spin):
+            widget.setToolTip("Shear direction theta: degrees from +x (0 = +x, 90 = +y). Setting it switches "
+                              "Auto off.")
         self.ratio_slider.valueChanged.connect(lambda v: self._manual(shear_ratio=v / 100))
         self.ratio_spin.valueChanged.connect(lambda v: self._manual(shear_ratio=v))
         self.direction_slider.valueChanged.connect(lambda v: self._manual(shear_direction=math.radians(v)))
@@ -187,7 +195,12 @@ class ParametersPanel(QtWidgets.QGroupBox):
 
 
 class DisplayPanel(QtWidgets.QGroupBox):
-    """Map, arrows, resultant, scales, colour range, camera.
+    """Map and its colours, arrows and their colours, resultant, scales, axes, taxel numbers, camera.
+
+    The Top button looks straight down (orthographic) and switches the arrows
+    to in-plane ``(Fx, Fy)``; Iso looks from the front right and switches
+    them back to 3-D. The "in-plane arrows" box changes them in either view
+    (:meth:`view`; the View menu should go through it too).
 
     Signals
     -------
@@ -205,6 +218,9 @@ class DisplayPanel(QtWidgets.QGroupBox):
         for label, _ in MAP_CHOICES:
             self.map_box.addItem(label)
         self.map_box.currentIndexChanged.connect(lambda i: model.set_display(map=MAP_CHOICES[i][1]))
+        self.colormap_box = QtWidgets.QComboBox()
+        self.colormap_box.addItems(list(model.display.COLORMAPS))
+        self.colormap_box.currentTextChanged.connect(lambda name: model.set_display(colormap=name))
         self.arrows_box = QtWidgets.QCheckBox("force arrows")
         self.arrows_box.setChecked(True)
         self.arrows_box.toggled.connect(lambda on: model.set_display(arrows=on))
@@ -220,40 +236,116 @@ class DisplayPanel(QtWidgets.QGroupBox):
         self.range_box.toggled.connect(lambda on: model.set_display(auto_range=on))
         self.range_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=1.0, suffix=" kPa")
         self.range_spin.valueChanged.connect(lambda v: model.set_display(range_max=v * 1e3))
+        self.arrow_range_box = QtWidgets.QCheckBox("automatic arrow colour range")
+        self.arrow_range_box.setChecked(True)
+        self.arrow_range_box.toggled.connect(lambda on: model.set_display(arrow_auto_range=on))
+        self.arrow_range_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=5.0,
+                                                         suffix=" mN")
+        self.arrow_range_spin.valueChanged.connect(lambda v: model.set_display(arrow_range_max=v / 1e3))
+        self.in_plane_box = QtWidgets.QCheckBox("in-plane arrows")
+        self.in_plane_box.toggled.connect(lambda on: model.set_display(in_plane=on))
+        self.gain_spin = QtWidgets.QDoubleSpinBox(decimals=1, minimum=0.1, maximum=100.0, singleStep=0.5,
+                                                  prefix="x ")
+        self.gain_spin.setValue(model.display.in_plane_gain)
+        self.gain_spin.valueChanged.connect(lambda v: model.set_display(in_plane_gain=v))
+        self.axes_box = QtWidgets.QCheckBox("axes")
+        self.axes_box.setChecked(model.display.axes)
+        self.axes_box.toggled.connect(lambda on: model.set_display(axes=on))
+        self.ids_box = QtWidgets.QCheckBox("taxel numbers")
+        self.ids_box.toggled.connect(lambda on: model.set_display(taxel_ids=on))
         top = QtWidgets.QPushButton("Top")
-        top.clicked.connect(lambda: self.camera.emit("top"))
+        top.clicked.connect(lambda: self.view("top"))
         iso = QtWidgets.QPushButton("Iso")
-        iso.clicked.connect(lambda: self.camera.emit("iso"))
+        iso.clicked.connect(lambda: self.view("iso"))
+        for widget, tip in (
+                (self.map_box, "The map on the skin: the reconstructed normal pressure (Fz over the taxel's "
+                               "area) or the stress the sensors measured, kPa"),
+                (self.colormap_box, "Colours of the map: perceptually uniform maps (equal steps look equal), "
+                                    "cividis also for colour-blind readers, gray for print"),
+                (self.range_box, "The map's colours span 0 to this frame's largest value (on), or 0 to "
+                                 "'range max' on every frame (off)"),
+                (self.range_spin, "Top of the map's fixed colour range, kPa (set from the recording's "
+                                  "most loaded frame when it opens)"),
+                (self.arrows_box, "One arrow per taxel: the force on the skin there, its tip on the surface, "
+                                  "pointing where it pushes, coloured by its size"),
+                (self.resultant_box, "One red arrow per contact: the contact's total force, at the centre "
+                                     "of its pressing load (the frame's total when no contact was found)"),
+                (self.scale_spin, "Arrow length per newton, mm/N; the scene states it as '1 mm = ... mN'"),
+                (self.threshold_spin, "Taxels with a smaller force (in-plane: shear) draw no arrow, mN"),
+                (self.arrow_range_box, "The arrows' colours span 0 to this frame's largest shown force (on), "
+                                       "or 0 to 'arrow range max' on every frame, so colours compare across "
+                                       "frames (off)"),
+                (self.arrow_range_spin, "Top of the arrows' fixed colour range, mN (set from the recording's "
+                                        "loads when it opens); larger forces show in the top colour"),
+                (self.in_plane_box, "Arrows and resultants show only the in-plane force (Fx, Fy), flat on "
+                                    "the skin: the shear picture. Top switches it on, Iso off"),
+                (self.gain_spin, "In-plane arrows are drawn this many times longer than 3-D ones (shear is "
+                                 "a fraction of the pressing force); the stated scales include it"),
+                (self.axes_box, "x and y ticks in mm beside the skin, and the direction convention at its "
+                                "corner: 0 deg = +x, 90 deg = +y (the shear direction's angles)"),
+                (self.ids_box, "Each taxel's number (node index from 0, as in exports and the read-out) "
+                               "on its square; skins of up to 4096 taxels"),
+                (top, "Look straight down (orthographic, +x right, +y up) with in-plane arrows"),
+                (iso, "Look from the front right, in perspective, with 3-D arrows")):
+            widget.setToolTip(tip)
         grid.addWidget(QtWidgets.QLabel("map"), 0, 0)
         grid.addWidget(self.map_box, 0, 1, 1, 2)
-        grid.addWidget(self.arrows_box, 1, 0, 1, 2)
-        grid.addWidget(self.resultant_box, 1, 2)
-        grid.addWidget(QtWidgets.QLabel("arrow scale"), 2, 0)
-        grid.addWidget(self.scale_spin, 2, 1, 1, 2)
-        grid.addWidget(QtWidgets.QLabel("hide below"), 3, 0)
-        grid.addWidget(self.threshold_spin, 3, 1, 1, 2)
-        grid.addWidget(self.range_box, 4, 0, 1, 3)
-        grid.addWidget(QtWidgets.QLabel("range max"), 5, 0)
-        grid.addWidget(self.range_spin, 5, 1, 1, 2)
-        grid.addWidget(QtWidgets.QLabel("camera"), 6, 0)
-        grid.addWidget(top, 6, 1)
-        grid.addWidget(iso, 6, 2)
+        grid.addWidget(QtWidgets.QLabel("colours"), 1, 0)
+        grid.addWidget(self.colormap_box, 1, 1, 1, 2)
+        grid.addWidget(self.range_box, 2, 0, 1, 3)
+        grid.addWidget(QtWidgets.QLabel("range max"), 3, 0)
+        grid.addWidget(self.range_spin, 3, 1, 1, 2)
+        grid.addWidget(self.arrows_box, 4, 0, 1, 2)
+        grid.addWidget(self.resultant_box, 4, 2)
+        grid.addWidget(QtWidgets.QLabel("arrow scale"), 5, 0)
+        grid.addWidget(self.scale_spin, 5, 1, 1, 2)
+        grid.addWidget(QtWidgets.QLabel("hide below"), 6, 0)
+        grid.addWidget(self.threshold_spin, 6, 1, 1, 2)
+        grid.addWidget(self.arrow_range_box, 7, 0, 1, 3)
+        grid.addWidget(QtWidgets.QLabel("arrow range max"), 8, 0)
+        grid.addWidget(self.arrow_range_spin, 8, 1, 1, 2)
+        grid.addWidget(self.in_plane_box, 9, 0, 1, 2)
+        grid.addWidget(self.gain_spin, 9, 2)
+        grid.addWidget(self.axes_box, 10, 0)
+        grid.addWidget(self.ids_box, 10, 1, 1, 2)
+        grid.addWidget(QtWidgets.QLabel("camera"), 11, 0)
+        grid.addWidget(top, 11, 1)
+        grid.addWidget(iso, 11, 2)
         model.display_changed.connect(self.follow)
+
+    def view(self, preset: str):
+        """Look from ``preset`` ("top" or "iso"): in-plane arrows from the top, 3-D arrows otherwise."""
+        if preset not in ("top", "iso"):
+            raise ValueError(f"camera preset must be 'top' or 'iso', got {preset!r}")
+        if self.model.is_open:
+            self.model.set_display(in_plane=preset == "top")
+        self.camera.emit(preset)
 
     def follow(self):
         d = self.model.display
 
         def apply():
             self.map_box.setCurrentIndex([key for _, key in MAP_CHOICES].index(d.map))
+            self.colormap_box.setCurrentText(d.colormap)
             self.arrows_box.setChecked(d.arrows)
             self.resultant_box.setChecked(d.resultant)
             self.scale_spin.setValue(d.arrow_scale * 1e3)
             self.threshold_spin.setValue(d.threshold * 1e3)
             self.range_box.setChecked(d.auto_range)
             self.range_spin.setValue(d.range_max / 1e3)
-        _quietly([self.map_box, self.arrows_box, self.resultant_box, self.scale_spin, self.threshold_spin,
-                  self.range_box, self.range_spin], apply)
+            self.arrow_range_box.setChecked(d.arrow_auto_range)
+            self.arrow_range_spin.setValue(d.arrow_range_max * 1e3)
+            self.in_plane_box.setChecked(d.in_plane)
+            self.gain_spin.setValue(d.in_plane_gain)
+            self.axes_box.setChecked(d.axes)
+            self.ids_box.setChecked(d.taxel_ids)
+        _quietly([self.map_box, self.colormap_box, self.arrows_box, self.resultant_box, self.scale_spin,
+                  self.threshold_spin, self.range_box, self.range_spin, self.arrow_range_box,
+                  self.arrow_range_spin, self.in_plane_box, self.gain_spin, self.axes_box, self.ids_box],
+                 apply)
         self.range_spin.setEnabled(not d.auto_range)
+        self.arrow_range_spin.setEnabled(not d.arrow_auto_range)
+        self.gain_spin.setEnabled(d.in_plane)
 
 
 class PlaybackPanel(QtWidgets.QGroupBox):
@@ -284,6 +376,13 @@ class PlaybackPanel(QtWidgets.QGroupBox):
         self.loop_box = QtWidgets.QCheckBox("loop")
         self.loop_box.toggled.connect(lambda _: self._follow_controls())
         self.time_label = QtWidgets.QLabel("-")
+        for widget, tip in ((back, "One frame back (Left)"), (forward, "One frame on (Right)"),
+                            (self.play_button, "Play the recording in real time times the speed, or pause "
+                                               "(Space); slow drawing skips frames, never slows time"),
+                            (self.frame_slider, "The frame shown, numbered from 0 (Home, End: first, last)"),
+                            (self.speed_box, "Playback speed: recording seconds per wall-clock second"),
+                            (self.loop_box, "Start again from frame 0 at the end")):
+            widget.setToolTip(tip)
         grid.addWidget(back, 0, 0)
         grid.addWidget(self.play_button, 0, 1)
         grid.addWidget(forward, 0, 2)
@@ -301,6 +400,13 @@ class PlaybackPanel(QtWidgets.QGroupBox):
     @property
     def speed(self) -> float:
         return SPEEDS[self.speed_box.currentIndex()]
+
+    def restore(self, *, speed: float | None = None, loop: bool | None = None):
+        """Set the speed (one of :data:`SPEEDS`; another is ignored) and loop, e.g. as saved last run."""
+        if speed is not None and speed in SPEEDS:
+            self.speed_box.setCurrentIndex(SPEEDS.index(speed))
+        if loop is not None:
+            self.loop_box.setChecked(bool(loop))
 
     def set_playing(self, on: bool):
         self.play_button.setChecked(on)
