@@ -73,9 +73,16 @@ class ExportActions:
         dialog = QtWidgets.QDialog(self.parent)
         dialog.setWindowTitle("Export screenshot")
         form = QtWidgets.QFormLayout(dialog)
+        what = QtWidgets.QComboBox()
+        what.addItems(["the 3-D scene", "the whole window (time plots and controls too)"])
+        what.setToolTip("The scene alone (any size), or the window as it is on screen")
         scale = QtWidgets.QComboBox()
         scale.addItems(["1x", "2x", "4x"])
+        scale.setToolTip("The image's size in multiples of the scene's on screen")
         transparent = QtWidgets.QCheckBox("transparent background")
+        transparent.setToolTip("The scene's white background left transparent (for slides)")
+        what.currentIndexChanged.connect(lambda i: (scale.setEnabled(i == 0), transparent.setEnabled(i == 0)))
+        form.addRow("what", what)
         form.addRow("size", scale)
         form.addRow(transparent)
         buttons = QtWidgets.QDialogButtonBox(QtWidgets.QDialogButtonBox.StandardButton.Ok
@@ -89,15 +96,20 @@ class ExportActions:
                                                         "PNG (*.png)")
         if path:
             try:
-                self.export_screenshot(path, scale=int(scale.currentText()[0]),
-                                       transparent=transparent.isChecked())
+                if what.currentIndex() == 1:
+                    self.export_screenshot(path, window=True)
+                else:
+                    self.export_screenshot(path, scale=int(scale.currentText()[0]),
+                                           transparent=transparent.isChecked())
             except export.SidecarConflict as exc:  # the image is written: say so, and why the sidecar is not
                 self._error("Screenshot saved without its sidecar", f"{exc.image} was saved; {exc}")
             except (OSError, ValueError) as exc:
                 self._error("Cannot save screenshot", f"{path}: {getattr(exc, 'strerror', None) or exc}")
 
-    def export_screenshot(self, path, *, scale: int = 1, transparent: bool = False) -> Path:
-        """Save the scene as PNG plus its JSON sidecar naming the recording, frame and parameters.
+    def export_screenshot(self, path, *, scale: int = 1, transparent: bool = False,
+                          window: bool = False) -> Path:
+        """Save the scene (or the whole window) as PNG plus its JSON sidecar naming the recording,
+        frame and parameters.
 
         Parameters
         ----------
@@ -109,6 +121,10 @@ class ExportActions:
             The image's size in multiples of the window's.
         transparent : bool
             Whether the background is transparent.
+        window : bool
+            The whole window as it is on screen (time plots, controls and status
+            included) instead of the scene; ``scale`` and ``transparent`` must
+            then be left at 1 and False.
 
         Returns
         -------
@@ -141,8 +157,16 @@ class ExportActions:
             found = (f"not replaced: the image would be {path.name} (the name picked, ending in '.png'), "
                      "which exists and is not the file picked")
             raise FileExistsError(errno.EEXIST, found, str(path))
-        self.scene.screenshot(path, scale=scale, transparent=transparent)
-        export.write_sidecar(path, **self.model.describe(), scale=scale, transparent=transparent)
+        if window:
+            if (scale, transparent) != (1, False):
+                raise ValueError(f"a window image is taken as shown: scale must be 1 and transparent False, "
+                                 f"got scale={scale!r}, transparent={transparent!r}")
+            if not self.parent.grab().save(str(path), "PNG"):
+                raise OSError(errno.EIO, "the image could not be written", str(path))
+        else:
+            self.scene.screenshot(path, scale=scale, transparent=transparent)
+        export.write_sidecar(path, **self.model.describe(), scale=scale, transparent=transparent,
+                             content="window" if window else "scene")
         self._notify(f"saved {path}")
         return path
 

@@ -38,6 +38,7 @@ from .recording import SUFFIXES, Recording, RecordingError, load  # noqa: E402
 from .scene import Scene  # noqa: E402
 from .source import RecordingSource, Source  # noqa: E402
 from .tasks import Dispatcher, TaskRunner  # noqa: E402
+from .time_plots import TimePlotsDock  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +48,7 @@ SETTLE_S = 0.03  # the longest a control waits for its solve (docs/architecture.
 
 
 TITLE_BAR_PX = 40  # room left for the window manager's title bar when the window is first sized
+TIME_PLOTS_PX = 240  # the time plots' first height: the scene keeps most of a 760 px window
 
 
 HELP_HTML = """
@@ -148,6 +150,12 @@ class MainWindow(QtWidgets.QMainWindow):
                                       parent=self)
         self.exports = ExportActions(self, self.model, self.scene, self.tasks, error=self._error,
                                      notify=self._notify)
+        # the whole recording over time, under the scene (View > Time plots hides it)
+        self.time_plots = TimePlotsDock(self.model, self.tasks, self, error=self._error, notify=self._notify)
+        self.addDockWidget(QtCore.Qt.DockWidgetArea.BottomDockWidgetArea, self.time_plots)
+        # the controls keep the window's full height; the time plots sit under the scene only
+        self.setCorner(QtCore.Qt.Corner.BottomRightCorner, QtCore.Qt.DockWidgetArea.RightDockWidgetArea)
+        self.resizeDocks([self.time_plots], [TIME_PLOTS_PX], QtCore.Qt.Orientation.Vertical)
 
         layout.addWidget(self.live_panel.banner)
         layout.addWidget(self.plotter.interactor)
@@ -166,6 +174,7 @@ class MainWindow(QtWidgets.QMainWindow):
         scroll.setHorizontalScrollBarPolicy(QtCore.Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
         self._controls.setMinimumWidth(self._controls.sizeHint().width())
         dock = QtWidgets.QDockWidget("Controls", self)
+        dock.setObjectName("controls")  # saveState/restoreState find the dock by it
         dock.setFeatures(QtWidgets.QDockWidget.DockWidgetFeature.NoDockWidgetFeatures)
         dock.setWidget(scroll)
         self.addDockWidget(QtCore.Qt.DockWidgetArea.RightDockWidgetArea, dock)
@@ -173,6 +182,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.status = QtWidgets.QLabel("open a recording (File > Open) or connect a board (Live > Connect)")
         # a normal widget, not a permanent one: a passing message ("saved ...") replaces it for its
         # few seconds instead of being drawn underneath it
+        # a long line is cut at the window's edge rather than widening the window
+        policy = QtWidgets.QSizePolicy.Policy
+        self.status.setSizePolicy(policy.Ignored, policy.Preferred)
         self.statusBar().addWidget(self.status, 1)
         # the taxel under the mouse (or pinned by a click), beside the frame's status
         self.readout_label = QtWidgets.QLabel("")
@@ -188,6 +200,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model.solve_failed.connect(lambda message: self.statusBar().showMessage(message, 10000))
         self.model.message.connect(self._on_message)
         self.setAcceptDrops(True)  # a recording dropped anywhere on the window opens
+        docks = window_settings().value("docks")
+        if docks is not None:
+            self.restoreState(docks)  # the time plots shown or hidden, docked or floating, their size
         self._restore_view()
         self._set_enabled(False)
 
@@ -212,6 +227,8 @@ class MainWindow(QtWidgets.QMainWindow):
         # as the panel's buttons: Top also lays the arrows flat to show the shear, Iso stands them up
         view.addAction("&Top", lambda: self.display_panel.view("top"))
         view.addAction("&Iso", lambda: self.display_panel.view("iso"))
+        view.addSeparator()
+        view.addAction(self.time_plots.toggleViewAction())
         self._build_playback_menu()
         self._build_help_menu()
 
@@ -489,6 +506,7 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def closeEvent(self, event):
         window_settings().setValue("geometry", self.saveGeometry())
+        window_settings().setValue("docks", self.saveState())
         save_view(self.model.display, speed=self.playback.speed, loop=self.playback.loop_box.isChecked())
         self.playback.stop()
         self.tasks.close()  # first: a result arriving while the source stops is dropped

@@ -155,6 +155,28 @@ def test_screenshot_export_has_the_size_asked_and_is_not_blank(opened, tmp_path,
     assert sidecar["poisson_ratio"] == 0.5 and sidecar["sensor_size"] == 0.0  # the sample's material
 
 
+def test_a_window_image_shows_the_scene_the_time_plots_and_the_controls(opened, qtbot, tmp_path):
+    from PyQt6 import QtCore
+
+    plots = opened.time_plots
+    qtbot.waitUntil(lambda: plots.series is not None and len(plots.series.frame) == len(opened.model.recording),
+                    timeout=30000)
+    path = opened.exports.export_screenshot(tmp_path / "window.png", window=True)
+    pixels = read_png(path)
+    ratio = opened.devicePixelRatioF()
+    assert pixels.shape[:2] == (round(opened.height() * ratio), round(opened.width() * ratio))
+    # the scene's region is drawn (not a black or blank GL hole), and so is the plots' region
+    for widget in (opened.plotter.interactor, plots.graphics):
+        top_left = widget.mapTo(opened, QtCore.QPoint(0, 0))
+        region = pixels[top_left.y():top_left.y() + widget.height(), top_left.x():top_left.x() + widget.width(), :3]
+        assert region.std() > 10, type(widget).__name__
+    sidecar = json.loads(path.with_name(path.name + ".view.json").read_text())
+    assert sidecar["content"] == "window" and sidecar["frame"] == 0
+    with pytest.raises(ValueError, match="a window image is taken as shown: scale must be 1"):
+        opened.exports.export_screenshot(tmp_path / "big.png", window=True, scale=2)
+    assert not (tmp_path / "big.png").exists()
+
+
 def test_screenshot_honours_the_transparent_option(opened, tmp_path):
     solid = read_png(opened.exports.export_screenshot(tmp_path / "solid.png"))
     clear = read_png(opened.exports.export_screenshot(tmp_path / "clear.png", transparent=True))
@@ -552,3 +574,12 @@ def test_the_window_fits_a_1280x800_screen_and_remembers_its_size(window, qtbot)
     qtbot.addWidget(again)
     assert (again.width(), again.height()) == (1100, 720)
     again.close()
+
+
+def test_a_long_status_line_and_a_taxel_read_out_do_not_widen_the_window(opened, qtbot):
+    width = opened.width()
+    opened.readout_label.setText("taxel 255 (x 15.0 mm, y 15.0 mm): stress 12.34 kPa, Fx +1.23 Fy -4.56 Fz 78.90 mN")
+    opened.status.setText("frame 30 (of 0-44)  " + "contact 1: mu 0.20, theta +120; " * 20)
+    qtbot.wait(50)  # the layout settles
+    assert opened.width() == width and opened.frameGeometry().width() <= 1280
+    assert opened.readout_label.isVisible() and opened.readout_label.width() >= opened.readout_label.sizeHint().width()

@@ -550,6 +550,7 @@ def test_the_windows_2x_screenshot_keeps_the_colour_bar_titles_clear(window, qtb
     # where defect 7 was seen: the window's own 2x export
     with qtbot.waitSignal(window.ready, timeout=20000):
         assert window.open(SAMPLES / "two_contacts.npz")
+    qtbot.waitUntil(lambda: window.scene.arrows.n_points > 0, timeout=10000)  # the bar titles the arrows
     small = window.scene.screenshot(tmp_path / "small.png")
     large = window.scene.screenshot(tmp_path / "large.png", scale=2)
     assert large.shape[:2] == (2 * small.shape[0], 2 * small.shape[1])

@@ -1,0 +1,329 @@
+"""The time-plot dock in the real window under Xvfb: curves, the cursor, click to seek, truth, exports, live."""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
+SAMPLE = SAMPLES / "hertz_shear_turning.npz"
+FRAMES = 60  # of the sample
+
+
+@pytest.fixture
+def dock(window):
+    """The window's own dock; its errors reach the window's error dialog (recorded by the fixture)."""
+    from tactile_viewer.time_plots import TimePlotsDock
+
+    made = window.time_plots
+    assert isinstance(made, TimePlotsDock) and made.parent() is window
+    made.errors = window.errors
+    return made
+
+
+def show(window, dock, qtbot, recording=None):
+    """Open the sample (or show ``recording``) and wait until its whole series is drawn."""
+    with qtbot.waitSignals([window.ready, dock.computed], timeout=30000):
+        assert window.open(SAMPLE) if recording is None else window.show_recording(recording)
+
+
+@pytest.fixture
+def shown(window, dock, qtbot):
+    show(window, dock, qtbot)
+    return dock
+
+
+def legend_names(plot):
+    return [label.text for _, label in plot.legend.items]
+
+
+def click_at(qtbot, dock, key, x):
+    """A real left click on plot ``key`` at time ``x`` (half way up its view)."""
+    from PyQt6 import QtCore
+
+    box = dock.plots[key].getViewBox()
+    # the view follows new curves when it is next painted
+    qtbot.waitUntil(lambda: box.viewRange()[0][0] <= x <= box.viewRange()[0][1], timeout=5000)
+    (_, _), (low, high) = box.viewRange()
+    scene = box.mapViewToScene(QtCore.QPointF(x, (low + high) / 2))
+    point = dock.graphics.mapFromScene(scene)
+    assert dock.graphics.viewport().visibleRegion().contains(point), "the plot is scrolled out of view"
+    qtbot.mouseClick(dock.graphics.viewport(), QtCore.Qt.MouseButton.LeftButton, pos=point)
+
+
+def lines_at(dock, t):
+    return dock.lines_time == t and all(cursor.isVisible() and cursor.value() == pytest.approx(t, abs=1e-12)
+                                        for cursor in dock.cursors)
+
+
+def test_the_curves_fill_in_with_one_point_per_frame(window, shown):
+    recording = window.model.recording
+    series = shown.series
+    assert series.complete and len(series) == FRAMES and series.mode == "auto"
+    np.testing.assert_array_equal(shown.curves["fz"].xData, recording.t)
+    np.testing.assert_allclose(shown.curves["fz"].yData, series.estimate.fz * 1e3)
+    np.testing.assert_allclose(shown.curves["centroid_x"].yData, series.estimate.centroid_x * 1e3)
+    # the frame on screen is the series' frame: the same solver, the same parameters
+    last = window.model.last
+    assert series.estimate.fz[last.frame] == pytest.approx(last.result.forces[:, 2].sum(), rel=1e-12)
+    assert "60 frames" in shown.status.text() and "Auto" in shown.status.text()
+    assert shown.csv_button.isEnabled() and shown.png_button.isEnabled() and not shown.errors
+
+
+def test_partial_series_are_drawn_while_solving(window, dock, qtbot):
+    from tactile_viewer.model import ViewerModel
+    from tactile_viewer.recording import load
+    from tactile_viewer.source import RecordingSource
+
+    class Slow:
+        """The sample's solver, 20 ms a frame: the 60-frame series takes over a second."""
+
+        def __init__(self, inner):
+            self.inner, self.grid, self.kernel = inner, inner.grid, inner.kernel
+
+        def solve(self, stress, **kwargs):
+            import time
+
+            time.sleep(0.02)
+            return self.inner.solve(stress, **kwargs)
+
+        def solve_normal(self, stress):
+            return self.inner.solve_normal(stress)
+
+    recording = load(SAMPLE)
+    solver = Slow(ViewerModel.build(recording.grid, "layer"))
+    window.model.set_source(RecordingSource(recording), solver)
+    qtbot.waitUntil(lambda: dock.series is not None and 0 < len(dock.series) < FRAMES, timeout=10000)
+    assert not dock.series.complete and "solving" in dock.status.text()
+    assert len(dock.curves["fz"].xData) == len(dock.series)
+    # a partial series is not exported
+    assert not dock.csv_button.isEnabled() and dock.export_csv("unused.csv") is None
+    assert dock.errors[0][0] == "Series not complete" and "frames): export it when it is complete" in dock.errors[0][1]
+    with qtbot.waitSignal(dock.computed, timeout=30000):
+        pass
+    assert len(dock.curves["fz"].xData) == FRAMES
+
+
+def test_the_cursor_follows_steps_and_playback(window, shown, qtbot):
+    model = window.model
+    t = model.recording.t
+    assert shown.cursor_time == t[0] and lines_at(shown, t[0])
+    with qtbot.waitSignal(model.frame_changed, timeout=5000):
+        window.playback.step(3)
+    assert shown.cursor_time == t[3]
+    # the lines move with the frame's result, in the repaint that draws it
+    qtbot.waitUntil(lambda: lines_at(shown, t[3]), timeout=5000)
+    assert model.last.frame == 3
+    drawn = []
+    shown.drawn.connect(lambda: drawn.append(True))
+    window.playback.speed_box.setCurrentIndex(2)  # 1x
+    window.playback.set_playing(True)
+    for _ in range(5):
+        with qtbot.waitSignal(model.frame_changed, timeout=5000) as blocker:
+            pass
+        index = blocker.args[0]
+        assert model.frame == index and shown.cursor_time == t[index]
+        with qtbot.waitSignal(window.rendered, timeout=5000):
+            pass
+        assert lines_at(shown, model.last.time)  # at the frame on screen
+    window.playback.set_playing(False)
+    assert not drawn  # playback moves the cursor only: the curves are not drawn again
+
+
+def test_a_click_on_a_plot_seeks_to_the_nearest_frame(window, shown, qtbot):
+    model = window.model
+    t = model.recording.t
+    with qtbot.waitSignal(model.frame_changed, timeout=5000) as blocker:
+        click_at(qtbot, shown, "tangential", t[40] + 0.3 * (t[41] - t[40]))
+    assert blocker.args == [40] and model.frame == 40 and shown.cursor_time == t[40]
+    qtbot.waitUntil(lambda: lines_at(shown, t[40]), timeout=5000)
+    with qtbot.waitSignal(model.frame_changed, timeout=5000) as blocker:
+        click_at(qtbot, shown, "fz", t[12] - 0.4 * (t[12] - t[11]))
+    assert model.frame == 12
+    qtbot.waitUntil(lambda: model.last.frame == 12, timeout=5000)
+    # dragging a cursor shows the frame under it; the other cursors follow it
+    cursor = shown.cursors[2]
+    cursor.setValue(t[25] + 0.01)
+    with qtbot.waitSignal(model.frame_changed, timeout=5000):
+        cursor.sigDragged.emit(cursor)
+    assert model.frame == 25
+    assert all(other.value() == t[25] + 0.01 for other in shown.cursors)  # at once, under the mouse
+    qtbot.waitUntil(lambda: lines_at(shown, t[25]), timeout=5000)  # then at the frame drawn
+
+
+def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(window, shown, qtbot):
+    from dataclasses import replace
+
+    from tactile_viewer.time_plots import ERROR_ROWS, ROWS
+
+    layout = shown.graphics.ci
+    series = shown.series
+    assert series.truth is not None
+    for key, *_ in ROWS:
+        assert shown.truth_curves[key] in shown.plots[key].items
+    np.testing.assert_allclose(shown.truth_curves["fz"].yData, window.model.recording.truth_forces[:, :, 2].sum(1) * 1e3)
+    assert legend_names(shown.plots["fz"]) == ["estimate", "truth"]
+    for key, *_ in ERROR_ROWS:
+        assert shown.plots[key] in layout.items
+    np.testing.assert_allclose(shown.error_curves["error"][0].yData, series.errors.normal * 100)
+    np.testing.assert_allclose(shown.error_curves["direction_error"][0].yData, series.errors.direction_deg)
+
+    show(window, shown, qtbot, replace(window.model.recording, truth_forces=None))
+    assert shown.series.truth is None and len(shown.series) == FRAMES
+    for key, *_ in ROWS:
+        assert shown.truth_curves[key] not in shown.plots[key].items
+    for key, *_ in ERROR_ROWS:
+        assert shown.plots[key] not in layout.items
+    assert legend_names(shown.plots["fz"]) == ["estimate"]
+    # one time axis, under the lowest plot shown
+    assert shown.plots["centroid_y"].getAxis("bottom").isVisible()
+    assert not shown.plots["fz"].getAxis("bottom").isVisible()
+
+
+def test_new_parameters_solve_a_new_series_and_auto_again_is_kept(window, shown, qtbot):
+    model = window.model
+    with qtbot.waitSignal(shown.computed, timeout=30000):
+        window.parameters.ratio_slider.setValue(30)
+    series = shown.series
+    assert series.mode == "manual" and series.shear_ratio == pytest.approx(model.shear_ratio)
+    assert series.shear_direction == pytest.approx(model.shear_direction)
+    qtbot.waitUntil(lambda: not model.solving, timeout=5000)
+    last = model.last
+    assert series.estimate.fz[last.frame] == pytest.approx(last.result.forces[:, 2].sum(), rel=1e-12)
+    with qtbot.waitSignal(shown.computed, timeout=30000):
+        window.parameters.auto_box.setChecked(True)
+    assert shown.series.mode == "auto"
+
+
+def test_csv_and_png_exports(window, shown, qtbot, tmp_path):
+    from PyQt6 import QtGui
+
+    from tactile_viewer.series import CSV_MARKER, Series
+
+    written = shown.export_csv(tmp_path / "series.csv")
+    assert written == tmp_path / "series.csv"
+    text = written.read_text()
+    assert text.startswith(f"# {CSV_MARKER}\n") and f"# source={SAMPLE}\n" in text
+    back = Series.from_csv(written)
+    np.testing.assert_array_equal(back.t, shown.series.t)
+    np.testing.assert_allclose(back.estimate.fz, shown.series.estimate.fz, rtol=1e-14)
+    np.testing.assert_allclose(back.truth.tangential, shown.series.truth.tangential, rtol=1e-14)
+
+    png = shown.export_png(tmp_path / "plots.png")
+    image = QtGui.QImage(str(png))
+    assert not image.isNull()
+    assert (image.width(), image.height()) == (shown.graphics.width(), shown.graphics.height())
+    pixels = np.array([[image.pixelColor(x, y).getRgb()[:3] for x in range(0, image.width(), 2)]
+                       for y in range(0, image.height(), 2)])
+    colours = {tuple(p) for p in pixels.reshape(-1, 3)}
+    from tactile_viewer.time_plots import ESTIMATE_PEN, TRUTH_PEN
+
+    for pen in (ESTIMATE_PEN, TRUTH_PEN):  # the estimate's and the truth's curves are in the image
+        assert pen.color().getRgb()[:3] in colours
+
+    assert shown.export_png(tmp_path / "missing" / "plots.png") is None
+    assert shown.export_csv(tmp_path / "missing" / "series.csv") is None
+    assert [title for title, _ in shown.errors] == ["Cannot save the plots", "Cannot save the series"]
+    assert str(tmp_path / "missing" / "series.csv") in shown.errors[1][1]
+    assert window.isVisible()  # the window goes on
+
+
+def test_nothing_to_export_before_a_recording(dock):
+    assert dock.series is None and not dock.csv_button.isEnabled()
+    assert dock.export_csv("series.csv") is None
+    assert dock.errors == [("Nothing to export", "no series has been solved yet")]
+
+
+def test_a_live_source_draws_the_frames_solved_so_far(window, qtbot):
+    from PyQt6 import QtCore
+
+    from solver import SensorGrid, loads
+    from tactile_viewer.model import ViewerModel
+    from tactile_viewer.source import Source, SourceFrame
+    from tactile_viewer.time_plots import TimePlotsDock
+
+    class Stream(Source):
+        live = True
+
+    dock = TimePlotsDock(window.model, window.tasks, window, live_span=0.27)
+    window.addDockWidget(QtCore.Qt.DockWidgetArea.BottomDockWidgetArea, dock)
+    grid = SensorGrid.regular(8, 8, 2e-3, 2e-3)
+    stream = Stream("tcp://lab:9000", grid)
+    stream.start()
+    window.model.set_source(stream, ViewerModel.build(grid, "layer"))
+    times = np.arange(12) * 0.05
+    for k, t in enumerate(times):
+        frame = loads.simulate(grid, [loads.hertz((0.0, 0.0), 3e-3, 0.5 + 0.05 * k)])
+        with qtbot.waitSignal(window.model.solved, timeout=5000):
+            stream._publish([SourceFrame(frame.stress, float(t), k)])
+        assert dock.cursor_time == t and lines_at(dock, t)
+    # the rolling window: the frames of the last 0.27 s, drawn at the next refresh
+    qtbot.waitUntil(lambda: dock.series is not None and len(dock.series) and dock.series.frame[-1] == 11,
+                    timeout=5000)
+    np.testing.assert_array_equal(dock.series.frame, np.arange(6, 12))
+    np.testing.assert_array_equal(dock.curves["fz"].xData, times[6:])
+    assert dock.series.truth is None and dock.series.mode == "as shown" and "live" in dock.status.text()
+    # a click does not seek a live source
+    click_at(qtbot, dock, "fz", times[8])
+    assert window.model.last.frame == 11
+
+
+def test_a_failed_series_is_reported_and_the_window_goes_on(window, dock, qtbot):
+    from tactile_viewer.model import ViewerModel
+    from tactile_viewer.recording import load
+    from tactile_viewer.source import RecordingSource
+
+    class Failing:
+        """Solves the frames the window shows; fails on frame 5 in the series' thread."""
+
+        def __init__(self, inner, bad):
+            self.inner, self.grid, self.kernel, self.bad = inner, inner.grid, inner.kernel, bad
+
+        def solve(self, stress, **kwargs):
+            import threading
+
+            if threading.current_thread().name != "tactile-solver" and np.array_equal(stress, self.bad):
+                raise RuntimeError("the solver broke")
+            return self.inner.solve(stress, **kwargs)
+
+        def solve_normal(self, stress):
+            return self.inner.solve_normal(stress)
+
+    recording = load(SAMPLE)
+    solver = Failing(ViewerModel.build(recording.grid, "layer"), recording.frames[5])
+    with qtbot.waitSignal(window.ready, timeout=10000):
+        window.model.set_source(RecordingSource(recording), solver)
+    qtbot.waitUntil(lambda: bool(dock.errors), timeout=10000)
+    assert dock.errors == [("Time plots", "solving the series failed: the solver broke")]
+    assert "could not be solved" in dock.status.text()
+    assert window.isVisible() and not math.isnan(dock.cursor_time)
+
+
+def test_the_cursor_moves_when_the_frames_solve_fails(window, shown, qtbot):
+    from tactile_viewer.source import RecordingSource
+
+    class Broken:
+        """The window's solver, failing on frame 7 where the window solves it."""
+
+        def __init__(self, inner, bad):
+            self.inner, self.grid, self.kernel, self.bad = inner, inner.grid, inner.kernel, bad
+
+        def solve(self, stress, **kwargs):
+            import threading
+
+            if threading.current_thread().name == "tactile-solver" and np.array_equal(stress, self.bad):
+                raise RuntimeError("no result")
+            return self.inner.solve(stress, **kwargs)
+
+        def solve_normal(self, stress):
+            return self.inner.solve_normal(stress)
+
+    model = window.model
+    recording = model.recording
+    with qtbot.waitSignals([window.ready, shown.computed], timeout=30000):
+        model.set_source(RecordingSource(recording), Broken(model.reconstructor, recording.frames[7]))
+    with qtbot.waitSignal(model.solve_failed, timeout=5000):
+        model.set_frame(7)
+    assert model.last.frame == 0  # nothing drawn for frame 7: the lines still wait for it
+    qtbot.waitUntil(lambda: lines_at(shown, recording.t[7]), timeout=5000)
