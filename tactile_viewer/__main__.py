@@ -24,7 +24,7 @@ import numpy as np
 from solver import make_solver, metrics
 from solver.kernels import KERNELS
 
-from .model import KERNEL_HELP, MAX_SHEAR_RATIO, ViewerModel, geometry_text
+from .model import KERNEL_HELP, Display, ViewerModel, geometry_text
 from .recording import RecordingError, facts, load
 
 
@@ -66,21 +66,34 @@ def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direc
 
 
 def _frame_index(frame, recording):
-    if not 0 <= frame < len(recording):
-        raise ValueError(f"--frame must be in [0, {len(recording) - 1}] for this recording, got {frame}")
-    return frame
+    # the movie's frame check (one rule and one message for every frame the command line takes)
+    from .movie import check_frame
+
+    return check_frame(len(recording), frame, name="--frame", what="the frame to report or render")
 
 
 def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None,
                scale=1, transparent=False, camera="iso", size=(1200, 800), display_map="pressure"):
     """Render one frame off screen with the window's own scene; save the PNG and its sidecar
-    ``<PNG>.view.json`` (never over a file that is not an earlier sidecar)."""
+    ``<PNG>.view.json`` (never over a file that is not an earlier sidecar).
+
+    The display is the window's default for the recording seen from ``camera``
+    (:meth:`Display.seen_from`): from ``"top"`` the arrows lie flat (in-plane), as the
+    window's Top button shows them; from ``"iso"`` they stand in 3-D.
+
+    Raises
+    ------
+    ValueError
+        A bad argument (``camera`` not a preset, a frame out of range, an output name
+        without its type), before anything is rendered or written.
+    """
     import pyvista as pv
 
     from . import export
     from .scene import Scene
     from .source import RecordingSource
 
+    seen = Display().seen_from(camera)  # the camera checked before anything is loaded
     out = Path(out)
     if not out.suffix:  # pyvista would write <out>.png, a name the user did not give
         raise ValueError(f"{out}: --screenshot needs a file name with its type, e.g. {out.name}.png")
@@ -92,7 +105,7 @@ def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear
     if shear_ratio is not None or shear_direction_deg is not None:
         model.set_parameters(shear_ratio=shear_ratio if shear_ratio is not None else model.shear_ratio,
                              shear_direction=math.radians(shear_direction_deg or 0.0))
-    model.set_display(map=display_map)
+    model.set_display(map=display_map, in_plane=seen.in_plane)
     solved = model.solve()
     plotter = pv.Plotter(off_screen=True, window_size=list(size))
     try:
@@ -111,10 +124,11 @@ def movie(path, out, *, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg
           fps=30.0, size=(1200, 800), camera="iso", display_map="pressure", stream=None):
     """Write a movie of a recording's frames ``start .. stop - 1`` (``stop`` exclusive) off screen.
 
-    The display is the window's default for the recording with the colour range fixed over the
-    movie; the parameters are found for each frame unless ``shear_ratio`` or
-    ``shear_direction_deg`` is given (the other is then 0, as for ``--screenshot``). Progress goes
-    to ``stream`` (default stdout) at most every 2 s.
+    The display is the window's default for the recording with the colour ranges fixed over the
+    movie, seen from ``camera`` (:meth:`Display.seen_from`: in-plane arrows from the top, as the
+    window's Top button shows them); the parameters are found for each frame unless
+    ``shear_ratio`` or ``shear_direction_deg`` is given (the other is then 0, as for
+    ``--screenshot``). Progress goes to ``stream`` (default stdout) at most every 2 s.
 
     Parameters
     ----------
@@ -155,17 +169,16 @@ def movie(path, out, *, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg
     # the options are checked, with the command line's names, before the recording is solved
     fps = movies.check_fps(fps, kind, name="--fps")
     size = movies.check_size(size, kind, name="--size")
+    if shear_ratio is not None or shear_direction_deg is not None:  # one given: the other is 0
+        shear_ratio = 0.0 if shear_ratio is None else shear_ratio
+        shear_direction_deg = 0.0 if shear_direction_deg is None else shear_direction_deg
+    ratio, direction = movies.check_parameters(shear_ratio, shear_direction_deg, degrees=True,
+                                               names=("--shear-ratio", "--shear-direction"))
+    Display().seen_from(camera)  # a preset, checked before the recording is loaded
     recording = load(path)
     frames = movies.check_frames(len(recording), start, stop, names=("--start", "--stop"))
-    fixed = shear_ratio is not None or shear_direction_deg is not None
-    ratio = (shear_ratio or 0.0) if fixed else None
-    if ratio is not None and not (math.isfinite(ratio) and 0 <= ratio <= MAX_SHEAR_RATIO):
-        raise ValueError(f"--shear-ratio must be in [0, {MAX_SHEAR_RATIO}], got {shear_ratio!r}")
-    if fixed and not math.isfinite(shear_direction_deg or 0.0):
-        raise ValueError(f"--shear-direction must be finite degrees, got {shear_direction_deg!r}")
-    direction = math.radians(shear_direction_deg or 0.0) if fixed else None
     solver = ViewerModel.build(recording.grid, kernel)
-    display = movies.default_display(recording, solver, display_map=display_map)
+    display = movies.default_display(recording, solver, display_map=display_map, camera=camera)
     last = [time.monotonic()]
 
     def progress(done, total):

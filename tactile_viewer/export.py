@@ -24,6 +24,7 @@ pitch, thickness, poisson_ratio, sensor_size), then one row per frame and node:
 
 from __future__ import annotations
 
+import errno
 import io
 import json
 import math
@@ -41,7 +42,7 @@ from .worker import Cancelled
 
 __all__ = ["ForceTable", "reconstruct_frames", "force_table", "save_forces", "load_forces", "SIDECAR_SUFFIX",
            "SIDECAR_MARKER", "SIDECAR_VERSION", "SidecarConflict", "sidecar_path", "check_sidecar",
-           "write_sidecar"]
+           "write_sidecar", "derived_name"]
 
 CSV_COLUMNS = ("frame", "t", "node", "x", "y", "Fx", "Fy", "Fz", "shear_ratio", "shear_direction_deg")
 
@@ -49,6 +50,41 @@ SIDECAR_SUFFIX = ".view.json"  # appended to the image's full name
 SIDECAR_MARKER = "tactile_viewer_sidecar"  # the key that marks a sidecar as ours; its value is the version
 SIDECAR_VERSION = 1
 _SIDECAR_MAX_BYTES = 1 << 20  # a sidecar is about 1 kB: a larger file is not one of ours
+
+
+def derived_name(picked, suffix: str, *, what: str = "file") -> Path:
+    """The name an export is written under: the name picked, ending in ``suffix``.
+
+    A name already ending in ``suffix`` (in any case) keeps it, in lower case;
+    another gets ``suffix`` added (``shot`` -> ``shot.png``, ``a.b`` -> ``a.b.png``).
+    A name so made is not the one the save dialog asked about replacing, so
+    it must be free.
+
+    Parameters
+    ----------
+    picked : str or Path
+        The name picked in the save dialog.
+    suffix : str
+        The ending, with its dot, in lower case (``".png"``).
+    what : str
+        What is written, for the error ("image", "movie").
+
+    Raises
+    ------
+    FileExistsError
+        When the name made differs from ``picked`` and a file has it; nothing
+        is written.
+    """
+    picked = Path(picked)
+    if picked.suffix.lower() == suffix:
+        path = picked.with_suffix(suffix)
+    else:
+        path = picked.with_name(picked.name + suffix)
+    if path != picked and os.path.lexists(path):
+        found = (f"not replaced: the {what} would be {path.name} (the name picked, ending in {suffix!r}), "
+                 "which exists and is not the file picked")
+        raise FileExistsError(errno.EEXIST, found, str(path))
+    return path
 
 
 @dataclass(frozen=True)

@@ -3,9 +3,11 @@ a movie of the recording.
 
 The file formats are :mod:`tactile_viewer.export`'s and :mod:`tactile_viewer.movie`'s; here are
 the dialogs and the checks that keep a bad folder from ending the app. Whole-recording
-exports run as a task behind a progress dialog. A movie's solver is built in a task, then its
-frames are rendered on the GUI thread (VTK draws on the thread that owns its windows), one
-per timer tick, so the window stays responsive behind the progress dialog.
+exports run as a task behind a progress dialog. A movie solves with the model's own solver
+(the solvers keep no per-call state, so it may be shared: see :mod:`tactile_viewer.series`,
+whose rule the whole-recording force export and the time plots follow too) and renders its
+frames on the GUI thread (VTK draws on the thread that owns its windows), one per timer
+tick, so the window stays responsive behind the progress dialog.
 
 Only the file picked in the save dialog (which asks before replacing it) is
 replaced. The names the export derives from it -- the ``.png`` ending given to
@@ -33,7 +35,7 @@ log = logging.getLogger(__name__)
 
 __all__ = ["ExportActions", "MovieRunner"]
 
-MOVIE_FILTERS = "MP4 video (*.mp4);;Animated GIF (*.gif)"
+MOVIE_FILTERS = "MP4 video (*.mp4);;MKV video (*.mkv);;AVI video (*.avi);;Animated GIF (*.gif)"
 
 
 class ExportActions:
@@ -144,19 +146,15 @@ class ExportActions:
             the image has been written, the sidecar has not, that file is untouched.
         """
         picked = Path(path)
-        path = _png_name(picked)
         if self.model.last is None:
             # the sidecar names the frame and parameters shown: there must be one
             raise ValueError("no frame has been reconstructed yet")
         # VTK would only print a warning and write nothing
-        if not path.parent.is_dir():
-            raise FileNotFoundError(2, "the folder does not exist", str(path.parent))
-        if not os.access(path.parent, os.W_OK):
-            raise PermissionError(13, "the folder cannot be written", str(path.parent))
-        if path != picked and os.path.lexists(path):
-            found = (f"not replaced: the image would be {path.name} (the name picked, ending in '.png'), "
-                     "which exists and is not the file picked")
-            raise FileExistsError(errno.EEXIST, found, str(path))
+        if not picked.parent.is_dir():
+            raise FileNotFoundError(2, "the folder does not exist", str(picked.parent))
+        if not os.access(picked.parent, os.W_OK):
+            raise PermissionError(13, "the folder cannot be written", str(picked.parent))
+        path = export.derived_name(picked, ".png", what="image")  # lower case: pyvista's ending
         if window:
             if (scale, transparent) != (1, False):
                 raise ValueError(f"a window image is taken as shown: scale must be 1 and transparent False, "
@@ -308,12 +306,15 @@ class MovieRunner(QtCore.QObject):
     """Makes a movie of the recording shown without blocking the window.
 
     The movie shows what the window shows: the recording (its current tare), the kernel and
-    quality, the display settings, Auto or the manual parameters, and the camera, as they
-    were when it started. Its solver is built afresh in a task (the model's own belongs to
-    the model's worker thread); then a single-shot timer renders one frame per tick on the
-    GUI thread behind a window-modal progress dialog with Cancel. A failure is shown with
-    ``error(title, text)`` and never raised; a cancelled or failed movie leaves no file. A
-    window closing cancels it.
+    quality, the display settings, Auto or the manual parameters, and the camera (copied
+    whole: a zoomed, parallel Top view stays one), as they were when it started. It solves
+    with the model's own solver, ``model.reconstructor``: the solvers keep no per-call state
+    (``RegionSolver``'s cache is locked), so the movie on the GUI thread and the model's
+    worker thread may both solve with it, as the time plots and the whole-recording force
+    export do (see :mod:`tactile_viewer.series`); nothing is built again. A single-shot timer
+    renders one frame per tick on the GUI thread behind a window-modal progress dialog with
+    Cancel. A failure is shown with ``error(title, text)`` and never raised; a cancelled or
+    failed movie leaves no file. A window closing cancels it.
 
     Signals
     -------
@@ -331,7 +332,6 @@ class MovieRunner(QtCore.QObject):
         self._error, self._notify = error, notify
         self.export: movie.MovieExport | None = None
         self._path = None
-        self._preparing = False
         self._cancelled = False
         self._dialog: QtWidgets.QProgressDialog | None = None
         # single-shot, restarted at the end of each tick: a tick never runs inside another
@@ -344,12 +344,19 @@ class MovieRunner(QtCore.QObject):
 
     @property
     def running(self) -> bool:
-        """A movie is being prepared or written."""
-        return self._preparing or self.export is not None
+        """A movie is being written."""
+        return self.export is not None
 
     def start(self, path, *, start: int = 0, stop: int | None = None, fps: float = movie.DEFAULT_FPS,
               size=movie.DEFAULT_SIZE) -> bool:
-        """Check everything, then build the solver in a task; the frames follow. False when refused."""
+        """Check everything and start writing; the frames follow, one per timer tick.
+
+        Returns
+        -------
+        bool
+            False when refused (the reason shown with ``error``; nothing written and ``finished``
+            not emitted); True when started: ``finished`` brings its outcome.
+        """
         model = self.model
         recording = model.recording
         if recording is None:
@@ -359,47 +366,22 @@ class MovieRunner(QtCore.QObject):
             self._error("Movie export running", "one movie at a time: wait for it or cancel it")
             return False
         try:
-            kind = movie.movie_kind(path)
-            frames = movie.check_frames(len(recording), start, stop)
-            settings = dict(start=frames.start, stop=frames.stop, fps=movie.check_fps(fps, kind),
-                            size=movie.check_size(size, kind), display=model.display,
-                            shear_ratio=None if model.auto else model.shear_ratio,
-                            shear_direction=None if model.auto else model.shear_direction,
-                            camera=self.scene.plotter.camera_position)
+            # checks every argument (movie.check_frames and the others: one place for the window and
+            # the command line) before the temporary file is made; the camera is copied now
+            export = movie.MovieExport(
+                recording, model.reconstructor, path, start=start, stop=stop, fps=fps, size=size,
+                display=model.display, shear_ratio=None if model.auto else model.shear_ratio,
+                shear_direction=None if model.auto else model.shear_direction,
+                camera=self.scene.plotter.renderer.GetActiveCamera())
         except ValueError as exc:
             self._error("Cannot export movie", f"{path}: {exc}")
             return False
-        grid, kernel, configuration = recording.grid, model.kernel, model.configuration
-
-        def build(progress):
-            solver = ViewerModel.build(grid, kernel, configuration)
-            if progress(1, 1) is False:
-                raise Cancelled("cancelled before the first frame")
-            return solver
-
-        self._preparing, self._path = True, Path(path)
-        task = self.tasks.run(build, lambda solver: self._begin(recording, solver, settings),
-                              "Preparing the movie...", determinate=False)
-        task.failed.connect(self._not_built)  # the task runner shows the error itself
-        return True
-
-    def cancel(self):
-        """Stop the movie at the next frame; its file is removed."""
-        self._cancelled = True
-
-    def _not_built(self, exc):
-        self._preparing = False
-        self.finished.emit(exc)
-
-    def _begin(self, recording, solver, settings):
-        self._preparing = False
-        try:
-            self.export = movie.MovieExport(recording, solver, self._path, **settings)
         except Exception as exc:  # a folder gone since it was picked, a renderer that cannot start
-            self._end(exc)
-            return
-        self._cancelled = False
-        dialog = QtWidgets.QProgressDialog("Exporting movie...", "Cancel", 0, self.export.total, self.parent)
+            log.error("movie %s could not start", path, exc_info=exc)
+            self._error("Cannot export movie", f"{path}: {_reason(exc)}")
+            return False
+        self.export, self._path, self._cancelled = export, Path(path), False
+        dialog = QtWidgets.QProgressDialog("Exporting movie...", "Cancel", 0, export.total, self.parent)
         dialog.setWindowTitle("Export movie")
         dialog.setWindowModality(QtCore.Qt.WindowModality.WindowModal)
         dialog.setMinimumDuration(0)
@@ -409,6 +391,11 @@ class MovieRunner(QtCore.QObject):
         self._dialog = dialog
         dialog.setValue(0)
         self._timer.start()
+        return True
+
+    def cancel(self):
+        """Stop the movie at the next frame; its file is removed."""
+        self._cancelled = True
 
     def _tick(self):
         export = self.export
@@ -467,23 +454,18 @@ def _reason(exc: BaseException) -> str:
     return str(exc) or type(exc).__name__
 
 
+def _filter_suffix(chosen_filter: str) -> str:
+    """The ending a save dialog's filter names: ``"MKV video (*.mkv)"`` -> ``".mkv"``; ``""`` for none."""
+    text = chosen_filter or ""
+    start = text.find("(*.")
+    end = text.find(")", start)
+    return text[start + 2:end].lower() if start >= 0 and end > start else ""
+
+
 def _movie_name(picked: Path, chosen_filter: str) -> Path:
     """The name a movie is saved as: the name picked when it ends in a movie type; a name with no
     ending gets the chosen filter's (it must then be free: the save dialog asked about the name
     picked, not about this one); any other ending is refused by :func:`movie.movie_kind`."""
     if picked.suffix:
         return picked
-    suffix = movie.GIF_SUFFIX if "gif" in (chosen_filter or "").lower() else ".mp4"
-    path = picked.with_name(picked.name + suffix)
-    if os.path.lexists(path):
-        found = (f"not replaced: the movie would be {path.name} (the name picked, ending in {suffix!r}), "
-                 "which exists and is not the file picked")
-        raise FileExistsError(errno.EEXIST, found, str(path))
-    return path
-
-
-def _png_name(picked: Path) -> Path:
-    """The name a screenshot is saved as: the name picked, ending in ``.png`` (lower case: pyvista's)."""
-    if picked.suffix.lower() == ".png":
-        return picked.with_suffix(".png")
-    return picked.with_name(picked.name + ".png")
+    return export.derived_name(picked, _filter_suffix(chosen_filter) or ".mp4", what="movie")

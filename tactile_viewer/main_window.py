@@ -29,9 +29,10 @@ from .preferences import (  # noqa: E402
     RecentFiles,
     last_folder,
     remember_folder,
+    save_layout,
     save_view,
+    saved_layout,
     saved_view,
-    window_settings,
 )
 from .presets import PresetMeasurer  # noqa: E402
 from .recording import SUFFIXES, Recording, RecordingError, load  # noqa: E402
@@ -200,9 +201,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model.solve_failed.connect(lambda message: self.statusBar().showMessage(message, 10000))
         self.model.message.connect(self._on_message)
         self.setAcceptDrops(True)  # a recording dropped anywhere on the window opens
-        docks = window_settings().value("docks")
-        if docks is not None:
-            self.restoreState(docks)  # the time plots shown or hidden, docked or floating, their size
+        docks = saved_layout("docks")
+        if docks is not None and not self.restoreState(docks):  # time plots shown or hidden, their size
+            log.warning("settings: the saved dock layout could not be restored; using the default")
         self._restore_view()
         self._set_enabled(False)
 
@@ -498,15 +499,15 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _place(self):
         # where the user left it; the first time, a size that fits the screen with its title bar
-        geometry = window_settings().value("geometry")
+        geometry = saved_layout("geometry")
         if geometry is not None and self.restoreGeometry(geometry):
             return
         screen = self.screen().availableGeometry()
         self.resize(min(1280, screen.width()), min(760, screen.height() - TITLE_BAR_PX))
 
     def closeEvent(self, event):
-        window_settings().setValue("geometry", self.saveGeometry())
-        window_settings().setValue("docks", self.saveState())
+        save_layout("geometry", self.saveGeometry())
+        save_layout("docks", self.saveState())
         save_view(self.model.display, speed=self.playback.speed, loop=self.playback.loop_box.isChecked())
         self.playback.stop()
         self.tasks.close()  # first: a result arriving while the source stops is dropped

@@ -119,6 +119,19 @@ class Display:
     axes: bool = True
     taxel_ids: bool = False
 
+    CAMERAS: ClassVar[tuple] = ("top", "iso")
+
+    def seen_from(self, camera: str) -> Display:
+        """This display as a camera preset shows it: from ``"top"`` the arrows lie flat
+        (``in_plane``: the shear alone), from ``"iso"`` they stand in 3-D.
+
+        The one place of this rule: the window's camera buttons and menu, the
+        headless screenshot and the movie all follow it.
+        """
+        if camera not in self.CAMERAS:
+            raise ValueError(f"camera must be one of {self.CAMERAS}, got {camera!r}")
+        return replace(self, in_plane=camera == "top")
+
     def __post_init__(self):
         if self.map not in MAPS:
             raise ValueError(f"map must be one of {MAPS}, got {self.map!r}")

@@ -14,6 +14,13 @@ that owns its windows.
 - Burnt into every frame: the frame number and time, the shear ratio and
   direction solved with (and whether they were found automatically or given),
   and the total normal and tangential force.
+- The camera is a preset (``"iso"``, ``"top"``) or a whole VTK camera copied
+  (projection, parallel scale, view angle, clipping: the window's view as it is);
+  from a preset, the default display follows :meth:`Display.seen_from` (Top lays
+  the arrows flat, Iso stands them up), as the window's camera buttons do.
+- The solver may be shared, the window's own included: the solvers keep no
+  per-call state (see :mod:`tactile_viewer.series`), so the movie solves with
+  the model's while the model's worker thread solves the frame on screen.
 - Every frame costs the same: the scene's actors and the caption are made once
   and updated in place, the solver is built once, and the writer streams (a
   video goes to an ffmpeg process frame by frame; a GIF keeps each frame
@@ -35,7 +42,7 @@ import secrets
 import shutil
 import subprocess
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -50,7 +57,8 @@ from .worker import Cancelled
 log = logging.getLogger(__name__)
 
 __all__ = ["MovieExport", "MovieResult", "FrameRenderer", "write_movie", "default_display", "caption",
-           "movie_kind", "check_frames", "check_fps", "check_size", "VIDEO_SUFFIXES", "GIF_SUFFIX",
+           "movie_kind", "check_frame", "check_frames", "check_fps", "check_size", "check_parameters",
+           "check_camera", "VIDEO_SUFFIXES", "GIF_SUFFIX",
            "DEFAULT_FPS", "DEFAULT_SIZE", "GIF_MAX_FPS", "GIF_MAX_BYTES"]
 
 VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi")
@@ -126,6 +134,38 @@ def movie_kind(path, *, name: str = "path") -> str:
     raise ValueError(f"{name} must end in {accepted} (the movie's type), got {str(path)!r}")
 
 
+def check_frame(count: int, frame, *, name: str = "frame", what: str = "the frame") -> int:
+    """One frame of a ``count``-frame recording, numbered from 0, checked.
+
+    Parameters
+    ----------
+    count : int
+        Frames in the recording.
+    frame : int
+        The frame, from 0 to ``count - 1``.
+    name : str
+        What it is called in the message (the command line's ``--frame``).
+    what : str
+        What the frame is for, in the message ("the first frame").
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``, its bounds for this recording and the value received.
+    """
+    if count < 1:
+        raise ValueError(f"the recording has no frames: {name} cannot be chosen")
+    try:
+        return whole_number(name, frame, low=0, high=count - 1)
+    except ValueError:
+        raise ValueError(f"{name} must be a whole number from 0 to {count - 1} ({what}, numbered from 0; the "
+                         f"recording has {count} frames), got {shown(frame)}") from None
+
+
 def check_frames(count: int, start=0, stop=None, *, names=("start", "stop")) -> range:
     """The frames a movie of a ``count``-frame recording shows: ``range(start, stop)``.
 
@@ -148,11 +188,7 @@ def check_frames(count: int, start=0, stop=None, *, names=("start", "stop")) -> 
     if count < 1:
         raise ValueError("the recording has no frames: there is nothing to make a movie of")
     first, after = names
-    try:
-        start = whole_number(first, start, low=0, high=count - 1)
-    except ValueError:
-        raise ValueError(f"{first} must be a whole number from 0 to {count - 1} (the first frame, numbered "
-                         f"from 0; the recording has {count} frames), got {shown(start)}") from None
+    start = check_frame(count, start, name=first, what="the first frame")
     if stop is None:
         return range(start, count)
     try:
@@ -221,18 +257,61 @@ def check_size(size, kind: str = "video", *, name: str = "size") -> tuple:
     return width, height
 
 
-def _parameters(shear_ratio, shear_direction) -> tuple:
-    # both None: found automatically; both given: fixed (radians)
+def check_parameters(shear_ratio, shear_direction, *, names=("shear_ratio", "shear_direction"),
+                     degrees: bool = False) -> tuple:
+    """The parameters a movie is solved with: both None (found for each frame) or both given (fixed).
+
+    Parameters
+    ----------
+    shear_ratio : float or None
+        In ``[0, MAX_SHEAR_RATIO]``.
+    shear_direction : float or None
+        Finite; radians, or degrees with ``degrees``.
+    names : (2,) tuple of str
+        What the two are called in messages (the command line's ``--shear-ratio``, ``--shear-direction``).
+    degrees : bool
+        ``shear_direction`` is in degrees (the command line's).
+
+    Returns
+    -------
+    (ratio, direction) : tuple of float or None
+        The direction in radians, in ``[-pi, pi]``; ``(None, None)`` for automatic.
+
+    Raises
+    ------
+    ValueError
+        Naming the argument, the rule and the value received.
+    """
+    ratio_name, direction_name = names
     if shear_ratio is None and shear_direction is None:
         return None, None
     if shear_ratio is None or shear_direction is None:
-        raise ValueError("shear_ratio and shear_direction must be given together (fixed parameters) or both "
-                         f"be None (automatic), got {shown(shear_ratio)} and {shown(shear_direction)}")
-    ratio = real_number("shear_ratio", shear_ratio, rule=f"in [0, {MAX_SHEAR_RATIO}]",
+        raise ValueError(f"{ratio_name} and {direction_name} must be given together (fixed parameters) or "
+                         f"both be None (automatic), got {shown(shear_ratio)} and {shown(shear_direction)}")
+    ratio = real_number(ratio_name, shear_ratio, rule=f"in [0, {MAX_SHEAR_RATIO}]",
                         valid=lambda v: 0 <= v <= MAX_SHEAR_RATIO)
-    direction = real_number("shear_direction", shear_direction, rule="finite radians",
-                            valid=math.isfinite)
+    direction = real_number(direction_name, shear_direction,
+                            rule=f"finite {'degrees' if degrees else 'radians'}", valid=math.isfinite)
+    if degrees:
+        direction = math.radians(direction)
     return ratio, math.remainder(direction, 2 * math.pi)
+
+
+def check_camera(camera, *, name: str = "camera"):
+    """A movie's camera, checked: a preset of :attr:`Display.CAMERAS` or a VTK camera (copied whole).
+
+    Raises
+    ------
+    ValueError
+        Naming ``name``, what is accepted and the value received.
+    """
+    if isinstance(camera, str):
+        if camera in Display.CAMERAS:
+            return camera
+    elif callable(getattr(camera, "DeepCopy", None)) and callable(getattr(camera, "GetParallelScale", None)):
+        return camera
+    raise ValueError(f"{name} must be one of {Display.CAMERAS} or a vtkCamera (the window's, copied whole), "
+                     f"got {shown(camera)}")
 
 
 # -- what a frame shows ----------------------------------------------------------------------------
@@ -257,15 +336,24 @@ def caption(solved: Solved) -> str:
             f"shear ratio {result.shear_ratio:.2f}   direction {direction:+.0f} deg   ({how})")
 
 
-def default_display(recording: Recording, solver, *, display_map: str = "pressure") -> Display:
-    """The window's display settings for a recording (arrow lengths, hidden arrows, colour range), with
-    the colour ranges fixed for the whole movie (``auto_range`` off) so colours compare across frames."""
+def default_display(recording: Recording, solver, *, display_map: str = "pressure",
+                    camera: str = "iso") -> Display:
+    """The window's display settings for a recording seen from a camera preset.
+
+    The arrow lengths, hidden arrows and colour ranges a window would pick for the recording,
+    with both colour ranges (the map's and the arrows') fixed for the whole movie so colours
+    compare across frames, as seen from ``camera`` (:meth:`Display.seen_from`: in-plane arrows
+    from the top, 3-D ones from ``"iso"``).
+
+    Raises
+    ------
+    ValueError
+        ``camera`` is not a preset, or ``display_map`` not a map (named, with the value received).
+    """
+    seen = Display().seen_from(camera)  # checked before anything is solved
     model = ViewerModel()  # no dispatch: nothing is solved or scheduled
     model.set_source(RecordingSource(recording), solver)
-    fixed = dict(map=display_map, auto_range=False)
-    if "arrow_auto_range" in {field.name for field in fields(Display)}:  # the arrows' own range, where kept
-        fixed["arrow_auto_range"] = False
-    model.set_display(**fixed)
+    model.set_display(map=display_map, auto_range=False, arrow_auto_range=False, in_plane=seen.in_plane)
     return model.display
 
 
@@ -279,8 +367,11 @@ class FrameRenderer:
     grid : SensorGrid
     size : (2,) tuple of int
         Width and height of the images, pixels.
-    camera : {"iso", "top"} or camera position
-        A preset, or a pyvista camera position (the window's view).
+    camera : {"iso", "top"} or vtkCamera
+        A preset, or a camera copied whole (``DeepCopy``: position, focal point, up, projection,
+        parallel scale, view angle, clipping range), as :meth:`Scene.screenshot` copies it: the
+        window's view, a zoomed parallel Top view included. Copied now; later changes to it
+        do not reach the movie.
     smooth : bool
         Multisample anti-aliasing, as the command line's screenshots.
     """
@@ -291,6 +382,7 @@ class FrameRenderer:
         from .scene import Scene
 
         width, height = check_size(size, "image")
+        camera = check_camera(camera)
         self.size = (width, height)
         self.plotter = pv.Plotter(off_screen=True, window_size=[width, height])
         try:
@@ -299,7 +391,10 @@ class FrameRenderer:
             if isinstance(camera, str):
                 self.scene.camera(camera)
             else:
-                self.plotter.camera_position = camera
+                own = self.plotter.renderer.camera  # pyvista's, already marked set by set_grid's preset
+                own.DeepCopy(camera)
+                # pyvista keeps its own note of the projection: through it, both agree
+                own.parallel_projection = bool(camera.GetParallelProjection())
             # one text actor, its text replaced each frame (adding one per frame would grow the cost),
             # centred at the top between the colour bars: its size follows the image so that the
             # longest caption line (about 60 characters) stays inside the middle 70% (the bars are outside)
@@ -366,7 +461,10 @@ class _MovieFile:
                 import imageio.v3 as iio
 
                 self._writer = iio.imopen(self.temporary, "w", plugin="pillow", extension=GIF_SUFFIX)
-                self._durations = _gif_delays(fps, frames)
+                delays = _gif_delays(fps, frames)
+                # Pillow takes a list of delays for an animation, a number for a single frame (a list
+                # for one frame fails when the file is closed)
+                self._durations = delays if len(delays) > 1 else delays[0]
         except BaseException:
             self.temporary.unlink(missing_ok=True)
             raise
@@ -466,8 +564,9 @@ class MovieExport:
     ----------
     recording : Recording
     solver : Reconstructor or RegionSolver
-        Built for ``recording.grid`` (:meth:`ViewerModel.build`) and used by nothing else while the
-        movie is made: it is called from this thread.
+        Built for ``recording.grid`` (:meth:`ViewerModel.build`); it may be shared, the window's
+        model's own included (solving on the model's worker thread meanwhile): the solvers keep
+        no per-call state (see :mod:`tactile_viewer.series`).
     path : str or Path
         The movie: ``.mp4``, ``.mkv``, ``.avi`` or ``.gif``. An existing file of that name is replaced
         once the movie is complete.
@@ -478,10 +577,12 @@ class MovieExport:
     size : (2,) tuple of int
         Width and height, pixels (even for a video).
     display : Display, optional
-        What the scene shows; default :func:`default_display` (a fixed colour range).
+        What the scene shows, as given; default :func:`default_display` (fixed colour ranges) seen
+        from ``camera`` when it is a preset, from ``"iso"`` otherwise.
     shear_ratio, shear_direction : float or None
         Fixed parameters (ratio, radians), both given; both None (default): found for each frame.
-    camera : {"iso", "top"} or camera position
+    camera : {"iso", "top"} or vtkCamera
+        A preset, or a camera copied whole (see :class:`FrameRenderer`).
     smooth : bool
         Anti-aliasing (about three times the render time under software rendering).
 
@@ -510,9 +611,12 @@ class MovieExport:
                              "make a video (.mp4) or a shorter or smaller GIF")
         if display is not None and not isinstance(display, Display):
             raise ValueError(f"display must be a Display, got {shown(display)}")
-        self.shear_ratio, self.shear_direction = _parameters(shear_ratio, shear_direction)
+        self.shear_ratio, self.shear_direction = check_parameters(shear_ratio, shear_direction)
+        camera = check_camera(camera)
         self.recording, self.solver, self.path = recording, solver, path
-        self.display = display if display is not None else default_display(recording, solver)
+        if display is None:
+            display = default_display(recording, solver, camera=camera if isinstance(camera, str) else "iso")
+        self.display = display
         self.done = 0
         self._seconds = []
         self._file = _MovieFile(path, kind=kind, fps=self.fps, frames=len(self.frames))

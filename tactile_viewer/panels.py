@@ -315,10 +315,9 @@ class DisplayPanel(QtWidgets.QGroupBox):
 
     def view(self, preset: str):
         """Look from ``preset`` ("top" or "iso"): in-plane arrows from the top, 3-D arrows otherwise."""
-        if preset not in ("top", "iso"):
-            raise ValueError(f"camera preset must be 'top' or 'iso', got {preset!r}")
+        display = self.model.display.seen_from(preset)
         if self.model.is_open:
-            self.model.set_display(in_plane=preset == "top")
+            self.model.set_display(in_plane=display.in_plane)
         self.camera.emit(preset)
 
     def follow(self):

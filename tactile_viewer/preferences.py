@@ -24,7 +24,8 @@ from .model import Display
 
 log = logging.getLogger(__name__)
 
-__all__ = ["window_settings", "RecentFiles", "last_folder", "remember_folder", "saved_view", "save_view",
+__all__ = ["window_settings", "saved_layout", "save_layout", "RecentFiles", "last_folder", "remember_folder",
+           "saved_view", "save_view",
            "PER_SOURCE", "RECENT_MAX"]
 
 RECENT_MAX = 8  # entries of File > Open recent
@@ -38,6 +39,23 @@ def window_settings() -> QtCore.QSettings:
     """The window's settings file (an INI file in the user's config folder)."""
     return QtCore.QSettings(QtCore.QSettings.Format.IniFormat, QtCore.QSettings.Scope.UserScope,
                             "tactile-viewer", "window")
+
+
+def saved_layout(name: str) -> QtCore.QByteArray | None:
+    """The window's saved ``"geometry"`` (size and place) or ``"docks"`` (the docks' state); None when
+    there is none or it is not what Qt saved (an edited file: logged, and the default is used)."""
+    value = window_settings().value(name)
+    if value is None:
+        return None
+    if isinstance(value, (QtCore.QByteArray, bytes)):
+        return QtCore.QByteArray(value)
+    log.warning("settings: ignoring %s = %r (not a saved window layout)", name, value)
+    return None
+
+
+def save_layout(name: str, state: QtCore.QByteArray):
+    """Keep the window's ``"geometry"`` or ``"docks"`` for the next run."""
+    window_settings().setValue(name, state)
 
 
 def _strings(value) -> list[str]:

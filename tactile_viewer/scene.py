@@ -468,10 +468,15 @@ class Scene:
         pyvista's own ``scale`` renders tiles, and under tiling the colour
         bars lay their text out for a different size than they draw it at, so
         titles ran into labels. Only what this scene draws is in it.
+
+        A window's scene is drawn again off screen at 1x too: read back from
+        the screen, the parts of a window that another window covers (a
+        dialog, a menu) are undefined in OpenGL and were seen to come out
+        blank.
         """
         if scale not in (1, 2, 3, 4):
             raise ValueError(f"scale must be 1, 2, 3 or 4, got {scale!r}")
-        if scale == 1 or self.grid is None:
+        if self.grid is None or (scale == 1 and getattr(self.plotter, "off_screen", False)):
             return self.plotter.screenshot(str(path), transparent_background=transparent, return_img=True)
         width, height = self.plotter.ren_win.GetSize()
         larger = pv.Plotter(off_screen=True, window_size=[width * scale, height * scale])

@@ -374,7 +374,8 @@ class SeriesBuilder:
         return len(self._rows)
 
     def add(self, solved: Solved, truth=None) -> None:
-        """Add a solved frame (``solved.frame``, ``solved.time``, its forces and load centroid).
+        """Add a solved frame (``solved.frame``, ``solved.time``, its forces and load centroid);
+        the same frame (number and time) as the last one added replaces it.
 
         Parameters
         ----------
@@ -396,7 +397,12 @@ class SeriesBuilder:
             row += _row(truth, load_centroid(self.grid.positions, truth[:, 2]))
             row += (normal_total_error(forces, truth), tangential_total_error(forces, truth),
                     direction_error(forces, truth))
-        self._rows.append(row)
+        if self._rows and self._rows[-1][:2] == row[:2]:
+            # the same frame solved again (new parameters on a quiet board): its row is replaced,
+            # so the series never holds one time twice
+            self._rows[-1] = row
+        else:
+            self._rows.append(row)
         if self.span is not None:
             # a live source's rolling window: its clock only moves on, so the oldest rows go first
             while self._rows and self._rows[0][1] < solved.time - self.span:

@@ -30,6 +30,7 @@ from PyQt6 import QtCore, QtWidgets
 
 from solver.checks import real_number
 
+from .export import derived_name
 from .model import ViewerModel
 from .series import MAX_FRAMES, Series, SeriesBuilder, compute_series, nearest_frame, spread_frames
 from .tasks import TaskRunner
@@ -593,13 +594,19 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Save the time series", "series.csv",
                                                         "CSV (*.csv)")
         if path:
-            self.export_csv(path if Path(path).suffix else f"{path}.csv")
+            try:
+                self.export_csv(derived_name(path, ".csv", what="table"))
+            except FileExistsError as exc:
+                self._error("Cannot save the time series", str(exc.strerror))
 
     def _png_dialog(self):
         path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Save the time plots", "time_plots.png",
                                                         "PNG image (*.png)")
         if path:
-            self.export_png(path if Path(path).suffix else f"{path}.png")
+            try:
+                self.export_png(derived_name(path, ".png", what="image"))
+            except FileExistsError as exc:
+                self._error("Cannot save the plots", str(exc.strerror))
 
     def _message_box(self, title, text):
         QtWidgets.QMessageBox.critical(self, title, text)

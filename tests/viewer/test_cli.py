@@ -126,3 +126,14 @@ def test_info_needs_a_recording(capsys):
     with pytest.raises(SystemExit):
         main(["--info"])
     assert "a RECORDING is needed with --info" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("options", [["--report"], ["--screenshot", "never.png"]])
+@pytest.mark.parametrize("frame", ["30", "-1"])
+def test_a_frame_out_of_range_is_named_as_for_a_movie(tmp_path, capsys, monkeypatch, options, frame):
+    # one frame check for the command line's --frame and a movie's --start (movie.check_frame)
+    monkeypatch.chdir(tmp_path)
+    assert main([str(SAMPLES / "hertz_static.npz"), "--frame", frame, *options]) == 2
+    assert capsys.readouterr().err == (f"tactile-viewer: --frame must be a whole number from 0 to 29 (the frame to "
+                                       f"report or render, numbered from 0; the recording has 30 frames), got {frame}\n")
+    assert list(tmp_path.iterdir()) == []

@@ -116,6 +116,8 @@ def test_a_damaged_settings_file_is_ignored_value_by_value(window, qtbot, caplog
     store.setValue("view/arrows", "maybe")       # not a bool
     store.setValue("view/resultant", "false")    # fine
     store.setValue("view/playback_speed", "fast")
+    store.setValue("geometry", "garbage")        # not what Qt saved: the default size
+    store.setValue("docks", "garbage")
     store.sync()
     again = MainWindow()
     qtbot.addWidget(again)
@@ -124,6 +126,8 @@ def test_a_damaged_settings_file_is_ignored_value_by_value(window, qtbot, caplog
         assert (d.map, d.arrows, d.resultant) == ("pressure", True, False)
         assert again.playback.speed == 1.0
         assert "view.map" in caplog.text and "view.arrows" in caplog.text
+        assert "ignoring geometry" in caplog.text and "ignoring docks" in caplog.text
+        assert again.time_plots.isVisibleTo(again)  # the default layout
     finally:
         again.close()
 

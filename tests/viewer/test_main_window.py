@@ -577,9 +577,12 @@ def test_the_window_fits_a_1280x800_screen_and_remembers_its_size(window, qtbot)
 
 
 def test_a_long_status_line_and_a_taxel_read_out_do_not_widen_the_window(opened, qtbot):
+    from PyQt6 import QtWidgets
+
     width = opened.width()
     opened.readout_label.setText("taxel 255 (x 15.0 mm, y 15.0 mm): stress 12.34 kPa, Fx +1.23 Fy -4.56 Fz 78.90 mN")
     opened.status.setText("frame 30 (of 0-44)  " + "contact 1: mu 0.20, theta +120; " * 20)
-    qtbot.wait(50)  # the layout settles
+    opened.statusBar().layout().activate()  # the layout as the next paint would have it
+    QtWidgets.QApplication.processEvents()
     assert opened.width() == width and opened.frameGeometry().width() <= 1280
     assert opened.readout_label.isVisible() and opened.readout_label.width() >= opened.readout_label.sizeHint().width()

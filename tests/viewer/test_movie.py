@@ -262,15 +262,31 @@ def test_the_movie_action_is_the_last_export_action(opened):
     assert actions[2].text() == "Export forces of the whole &recording..."
 
 
-def test_a_window_movie_is_solved_as_the_window_shows_it(opened, qtbot, tmp_path):
+def test_a_window_movie_is_solved_as_the_window_shows_it(opened, qtbot, tmp_path, monkeypatch):
     import math
 
     opened.model.set_parameters(shear_ratio=0.2, shear_direction=math.radians(90))
+    opened.model.set_display(colormap="magma", threshold=0.001, arrow_auto_range=False, taxel_ids=True)
+    shown = opened.model.display
+    used = spy_on_frames(monkeypatch)
+    built = []
+    monkeypatch.setattr(ViewerModel, "build", staticmethod(lambda *a, **k: built.append(a)))
     with qtbot.waitSignal(opened.exports.movies.finished, timeout=120000) as finished:
         assert opened.exports.export_movie(tmp_path / "manual.mp4", start=3, stop=7, size=SMALL)
+        # the model's own solver, shared (the solvers keep no per-call state): nothing built again
+        assert opened.exports.movies.export.solver is opened.model.reconstructor
     result = finished.args[0]
     assert isinstance(result, movie.MovieResult), result
+    assert built == []
     assert len(video_frames(result.path)) == 4
+    # each frame solved with the window's manual parameters and drawn with its display
+    assert [frame["solved"].frame for frame in used] == [3, 4, 5, 6]
+    for frame in used:
+        assert not frame["solved"].auto
+        assert frame["solved"].result.shear_ratio == pytest.approx(0.2)
+        assert frame["solved"].result.shear_direction == pytest.approx(math.radians(90))
+        assert frame["display"] == shown
+        assert not frame["parallel"]  # the window's Iso view, in perspective
     # the model's own solves go on meanwhile (its solver was not borrowed)
     with qtbot.waitSignal(opened.rendered, timeout=10000):
         opened.model.set_frame(9)
@@ -343,3 +359,133 @@ def test_the_movie_benchmark_measures_a_sample():
     measured = results["hertz_static.npz", ".mp4"]
     assert measured["frames"] == 30 and measured["size"] == (1200, 800)
     assert re.search(r"^hertz_static\.npz\s+mp4\s+30\s+\d+\.\d", out.getvalue(), re.MULTILINE), out.getvalue()
+
+
+def spy_on_frames(monkeypatch) -> list:
+    """What each movie frame was drawn with: the solved frame, the display, the renderer's camera and the
+    image, recorded as FrameRenderer.render returns it (before the writer sees it)."""
+    used = []
+    render = movie.FrameRenderer.render
+
+    def spy(self, solved, display):
+        image = render(self, solved, display)
+        camera = self.plotter.renderer.GetActiveCamera()
+        used.append(dict(solved=solved, display=display, parallel=bool(camera.GetParallelProjection()),
+                         parallel_scale=camera.GetParallelScale(), view_angle=camera.GetViewAngle(),
+                         position=camera.GetPosition(), image=image.copy()))
+        return image
+
+    monkeypatch.setattr(movie.FrameRenderer, "render", spy)
+    return used
+
+
+def test_a_window_movie_of_the_zoomed_top_view_is_drawn_as_the_window_draws_it(opened, qtbot, tmp_path, monkeypatch):
+    scene = opened.scene
+    with qtbot.waitSignal(opened.rendered, timeout=10000):
+        opened.display_panel.view("top")  # in-plane arrows, and the parallel camera looking down
+    camera = scene.plotter.renderer.GetActiveCamera()
+    assert camera.GetParallelProjection()
+    camera.SetParallelScale(0.6 * camera.GetParallelScale())  # zoomed in, as the mouse wheel does in Top
+    with qtbot.waitSignal(opened.rendered, timeout=10000):
+        opened.model.set_frame(12)
+    assert opened.model.last.frame == 12
+    # the window's own scene, drawn now at its size: what the movie's frame must look like
+    expected = np.asarray(scene.plotter.screenshot(None, return_img=True))[..., :3]
+    height, width = expected.shape[:2]
+    used = spy_on_frames(monkeypatch)
+    with qtbot.waitSignal(opened.exports.movies.finished, timeout=120000) as finished:
+        assert opened.exports.export_movie(tmp_path / "top.gif", start=12, stop=13, size=(width, height))
+    assert isinstance(finished.args[0], movie.MovieResult), finished.args[0]
+    (frame,) = used
+    assert frame["parallel"] and frame["parallel_scale"] == pytest.approx(camera.GetParallelScale())
+    assert frame["position"] == pytest.approx(camera.GetPosition())
+    assert frame["display"] == opened.model.display and frame["display"].in_plane
+    # the same picture, but for the caption burnt in at the top and the movie's anti-aliasing at edges
+    image = frame["image"]
+    assert image.shape == expected.shape
+    below = slice(height // 8, height)
+    differs = np.abs(image[below].astype(int) - expected[below].astype(int)).max(axis=2) > 60
+    assert differs.mean() < 0.02, differs.mean()
+
+
+def test_a_one_frame_gif_is_written(tmp_path):
+    recording = load(SAMPLES / "hertz_static.npz")
+    result = movie.write_movie(recording, tmp_path / "one.gif", start=4, stop=5, size=SMALL, fps=10)
+    assert result.frames == 1
+    assert iio3.imread(result.path, index=None).shape[:3] == (1, SMALL[1], SMALL[0])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["one.gif"]
+
+
+@pytest.mark.parametrize("camera, in_plane, parallel", [("top", True, True), ("iso", False, False)])
+def test_the_command_line_movie_draws_its_camera_as_the_window_does(tmp_path, monkeypatch, capsys, camera,
+                                                                    in_plane, parallel):
+    # Display.seen_from: from the top the arrows lie flat (in-plane), as the window's Top button shows them
+    used = spy_on_frames(monkeypatch)
+    assert main([str(SAMPLES / "flat_punch_shear.npz"), "--movie", str(tmp_path / "m.gif"), "--stop", "2",
+                 "--size", "64x48", "--camera", camera]) == 0, capsys.readouterr().err
+    assert len(used) == 2
+    assert all(frame["display"].in_plane is in_plane for frame in used)
+    assert all(frame["parallel"] is parallel for frame in used)
+    # and the colour ranges are fixed over the movie: the map's and the arrows' own
+    assert not used[0]["display"].auto_range and not used[0]["display"].arrow_auto_range
+
+
+def test_the_default_display_follows_the_camera_and_checks_it():
+    recording = load(SAMPLES / "hertz_static.npz")
+    solver = ViewerModel.build(recording.grid, "layer")
+    assert movie.default_display(recording, solver, camera="top").in_plane
+    assert not movie.default_display(recording, solver).in_plane
+    with pytest.raises(ValueError, match=r"camera must be one of \('top', 'iso'\), got 'side'"):
+        movie.default_display(recording, solver, camera="side")
+
+
+def test_a_movie_camera_is_a_preset_or_a_vtk_camera(tmp_path):
+    recording = load(SAMPLES / "hertz_static.npz")
+    solver = ViewerModel.build(recording.grid, "layer")
+    with pytest.raises(ValueError, match=r"camera must be one of \('top', 'iso'\) or a vtkCamera .*, got "
+                                         r"\[\(1, 2, 3\), \(0, 0, 0\), \(0, 0, 1\)\]"):
+        movie.MovieExport(recording, solver, tmp_path / "m.mp4", size=SMALL,
+                          camera=[(1, 2, 3), (0, 0, 0), (0, 0, 1)])
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("options, message", [
+    (["--shear-ratio", "nan"], r"--shear-ratio must be in \[0, 1\.5\], got nan"),
+    (["--shear-direction", "inf"], r"--shear-direction must be finite degrees, got inf"),
+    (["--shear-ratio", "-0.1", "--shear-direction", "10"], r"--shear-ratio must be in \[0, 1\.5\], got -0\.1"),
+])
+def test_bad_movie_parameters_are_checked_by_the_movies_own_check(tmp_path, capsys, monkeypatch, options, message):
+    checked = []
+    check = movie.check_parameters
+    monkeypatch.setattr(movie, "check_parameters", lambda *a, **k: (checked.append(k["names"]), check(*a, **k))[1])
+    assert main([str(SAMPLES / "hertz_static.npz"), "--movie", str(tmp_path / "m.mp4"), *options]) == 2
+    err = capsys.readouterr().err
+    assert re.fullmatch(f"tactile-viewer: {message}\n", err), err
+    assert checked == [("--shear-ratio", "--shear-direction")]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_the_movie_dialog_offers_every_movie_type(opened, tmp_path, monkeypatch):
+    from PyQt6 import QtWidgets
+
+    from tactile_viewer import export_dialogs
+
+    filters = export_dialogs.MOVIE_FILTERS.split(";;")
+    assert [export_dialogs._filter_suffix(f) for f in filters] == [".mp4", ".mkv", ".avi", ".gif"]
+    assert sorted(export_dialogs._filter_suffix(f) for f in filters) == sorted((*movie.VIDEO_SUFFIXES, movie.GIF_SUFFIX))
+    monkeypatch.setattr(QtWidgets.QDialog, "exec", lambda dialog: QtWidgets.QDialog.DialogCode.Accepted)
+    asked = []
+    monkeypatch.setattr(opened.exports, "export_movie", lambda path, **options: asked.append(path))
+    for name, chosen in (("clip", "MKV video (*.mkv)"), ("take", "AVI video (*.avi)"),
+                         ("typed.mkv", "MP4 video (*.mp4)"), ("plain", "MP4 video (*.mp4)")):
+        monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName",
+                            staticmethod(lambda *a, n=name, c=chosen, **k: (str(tmp_path / n), c)))
+        opened.exports.movie_dialog()
+    assert asked == [tmp_path / "clip.mkv", tmp_path / "take.avi", tmp_path / "typed.mkv", tmp_path / "plain.mp4"]
+    # a bare name whose ending-given name is taken is refused, as for MP4 and GIF
+    (tmp_path / "clip.mkv").write_bytes(b"an earlier movie")
+    monkeypatch.setattr(QtWidgets.QFileDialog, "getSaveFileName",
+                        staticmethod(lambda *a, **k: (str(tmp_path / "clip"), "MKV video (*.mkv)")))
+    opened.exports.movie_dialog()
+    assert len(asked) == 4
+    assert opened.errors[-1][0] == "Cannot export movie" and "clip.mkv" in opened.errors[-1][1]

@@ -713,13 +713,19 @@ def test_axes_tick_the_skin_in_millimetres_beside_it(scene, frame):
     assert not actor.GetVisibility()
 
 
-def test_switching_the_axes_never_moves_the_view(scene, plotter, regular_frame):
+def test_the_axes_never_change_how_a_camera_preset_frames_the_skin(scene, plotter, regular_frame):
     grid, stress, result = show(scene, regular_frame, Display(axes=False))
+    solved = Solved.of(grid, stress, result)
     for preset in ("top", "iso"):
-        scene.camera(preset)
-        before = plotter.camera_position
-        scene.update(Solved.of(grid, stress, result), Display(axes=True), render=True)
-        assert plotter.camera_position == before
+        views = []
+        for axes in (False, True, False):
+            scene.update(solved, Display(axes=axes), render=True)
+            scene.camera(preset)
+            camera = plotter.camera
+            views.append((plotter.camera_position, camera.parallel_projection, camera.parallel_scale))
+            scene.update(solved, Display(axes=not axes), render=True)  # switching never moves it either
+            assert plotter.camera_position == views[-1][0]
+        assert views[0] == views[1] == views[2], preset
 
 
 def test_taxel_numbers_one_on_each_taxel(scene, frame):
@@ -892,5 +898,5 @@ def test_top_looks_down_with_in_plane_arrows_and_iso_brings_3d_arrows_back(opene
     assert not opened.model.display.in_plane and not camera.GetParallelProjection()
     points, _ = split_arrows(opened.scene)
     assert np.ptp(points[..., 2]) > 0
-    with pytest.raises(ValueError, match=r"camera preset must be 'top' or 'iso', got 'side'"):
+    with pytest.raises(ValueError, match=r"camera must be one of \('top', 'iso'\), got 'side'"):
         opened.display_panel.view("side")

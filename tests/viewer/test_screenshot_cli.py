@@ -57,3 +57,20 @@ def test_a_screenshot_refuses_to_overwrite_an_unrelated_file_of_the_sidecar_name
                      r".*'tactile_viewer_sidecar'.* is JSON without that key$", done.stderr, re.MULTILINE), done.stderr
     assert "Traceback" not in done.stderr
     assert foreign.read_bytes() == before
+
+
+def test_a_top_screenshot_lays_the_arrows_flat_as_the_windows_top_view(tmp_path, monkeypatch):
+    # Display.seen_from: --camera top draws in-plane arrows, as the window's Top button does; iso 3-D ones
+    from tactile_viewer import model
+    from tactile_viewer.__main__ import main
+
+    cameras = []
+    seen_from = model.Display.seen_from
+    monkeypatch.setattr(model.Display, "seen_from", lambda self, camera: (cameras.append(camera),
+                                                                          seen_from(self, camera))[1])
+    for camera, in_plane in (("top", True), ("iso", False)):
+        out = tmp_path / f"{camera}.png"
+        assert main([str(SAMPLES / "flat_punch_shear.npz"), "--frame", "20", "--size", "320x240",
+                     "--camera", camera, "--screenshot", str(out)]) == 0
+        assert json.loads(sidecar_path(out).read_text())["display"]["in_plane"] is in_plane
+    assert cameras == ["top", "iso"]  # the rule's one place decided it

@@ -221,6 +221,18 @@ def test_a_rolling_builder_keeps_the_last_span_seconds(skin):
     assert series.complete and series.truth is None
 
 
+def test_a_frame_solved_again_replaces_its_row(skin):
+    recording, solver = skin
+    builder = SeriesBuilder(recording.grid, mode="as shown", span=60.0)
+    stress = recording.frames[2]
+    for ratio in (0.0, 0.5):  # a quiet live board: its last frame again with new parameters
+        builder.add(Solved.of(recording.grid, stress, solver.solve(stress, shear_ratio=ratio, shear_direction=0.0),
+                              frame=2, time=float(recording.t[2])))
+    series = builder.series()
+    assert len(series) == 1 and series.frame.tolist() == [2]
+    assert series.estimate.shear_ratio[0] == pytest.approx(0.5, abs=0.05)  # the newer solve's
+
+
 def test_nearest_frame():
     t = [0.0, 0.1, 0.2, 0.2, 0.5]
     assert [nearest_frame(t, x) for x in (-1.0, 0.04, 0.06, 0.15, 0.2, 0.36, 9.0)] == [0, 0, 1, 1, 2, 4, 4]
