@@ -24,14 +24,13 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from benchmarks.viewer_speed import _application, _wait
+from benchmarks.viewer_speed import _open_window, _wait
 from measurement.tradeoff import machine
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "hertz_shear_turning.npz"
@@ -148,21 +147,9 @@ def row(label, figures, out):
 
 def run(path=SAMPLE, *, count=40, seconds=5.0, rounds=3, size=(1280, 820), out=None):
     out = sys.stdout if out is None else out
-    os.environ.setdefault("QT_API", "pyqt6")
-
-
-    from tactile_viewer.main_window import MainWindow
+    app, window = _open_window(path, size, "benchmarks.time_plots_cost")
     from tactile_viewer.time_plots import TimePlotsDock
 
-    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise SystemExit("benchmarks.time_plots_cost needs a display: run it as `xvfb-run -a python -m "
-                         "benchmarks.time_plots_cost` on a headless machine")
-    app = _application()
-    window = MainWindow()
-    window.resize(*size)
-    window.show()
-    window.open(path)
-    _wait(app, window.ready, timeout=60)
     recording = window.model.recording
     print(f"machine: {machine()}", file=out)
     shape = f"{recording.grid.shape[1]}x{recording.grid.shape[0]}"

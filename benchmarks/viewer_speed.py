@@ -42,6 +42,26 @@ def _application():
     return _APP[0]
 
 
+def _open_window(path, size, program):
+    """``(app, window)``: the viewer's window at ``size`` showing ``path``'s first frame.
+
+    ``program`` names the benchmark in the error when there is no display.
+    """
+    os.environ.setdefault("QT_API", "pyqt6")
+    from tactile_viewer.main_window import MainWindow
+
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise SystemExit(f"{program} needs a display: run it as `xvfb-run -a python -m {program}` on a "
+                         "headless machine")
+    app = _application()
+    window = MainWindow()
+    window.resize(*size)
+    window.show()
+    window.open(path)
+    _wait(app, window.ready, timeout=60)
+    return app, window
+
+
 def _wait(app, signal, timeout=10.0):
     """Process events until ``signal`` fires once; returns the time it fired."""
     fired = []
@@ -88,20 +108,9 @@ def playback_rate(window, app, speed_index, seconds):
 
 def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     out = sys.stdout if out is None else out
-    os.environ.setdefault("QT_API", "pyqt6")
-
-    from tactile_viewer.main_window import MainWindow
+    app, window = _open_window(path, size, "benchmarks.viewer_speed")
     from tactile_viewer.panels import SPEEDS
 
-    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise SystemExit("benchmarks.viewer_speed needs a display: run it as `xvfb-run -a python -m "
-                         "benchmarks.viewer_speed` on a headless machine")
-    app = _application()
-    window = MainWindow()
-    window.resize(*size)
-    window.show()
-    window.open(path)
-    _wait(app, window.ready, timeout=60)
     for _ in range(20):  # let the layout settle before timing
         app.processEvents()
     renderer = next((line.split(":", 1)[1].strip() for line in window.plotter.ren_win.ReportCapabilities()

@@ -87,12 +87,7 @@ class ExportActions:
         form.addRow("what", what)
         form.addRow("size", scale)
         form.addRow(transparent)
-        buttons = QtWidgets.QDialogButtonBox(QtWidgets.QDialogButtonBox.StandardButton.Ok
-                                             | QtWidgets.QDialogButtonBox.StandardButton.Cancel)
-        buttons.accepted.connect(dialog.accept)
-        buttons.rejected.connect(dialog.reject)
-        form.addRow(buttons)
-        if dialog.exec() != QtWidgets.QDialog.DialogCode.Accepted:
+        if not _confirmed(dialog, form):
             return
         path, _ = QtWidgets.QFileDialog.getSaveFileName(self.parent, "Save screenshot", "screenshot.png",
                                                         "PNG (*.png)")
@@ -259,12 +254,7 @@ class ExportActions:
         form.addRow("width", width)
         form.addRow("height", height)
         form.addRow(summary)
-        buttons = QtWidgets.QDialogButtonBox(QtWidgets.QDialogButtonBox.StandardButton.Ok
-                                             | QtWidgets.QDialogButtonBox.StandardButton.Cancel)
-        buttons.accepted.connect(dialog.accept)
-        buttons.rejected.connect(dialog.reject)
-        form.addRow(buttons)
-        if dialog.exec() != QtWidgets.QDialog.DialogCode.Accepted:
+        if not _confirmed(dialog, form):
             return
         picked, chosen = QtWidgets.QFileDialog.getSaveFileName(self.parent, "Export movie", "movie.mp4",
                                                                MOVIE_FILTERS)
@@ -452,6 +442,16 @@ def _reason(exc: BaseException) -> str:
     if isinstance(exc, OSError) and exc.strerror:
         return exc.strerror
     return str(exc) or type(exc).__name__
+
+
+def _confirmed(dialog: QtWidgets.QDialog, form: QtWidgets.QFormLayout) -> bool:
+    """Add OK and Cancel under ``form``, run ``dialog``: whether the user pressed OK."""
+    buttons = QtWidgets.QDialogButtonBox(QtWidgets.QDialogButtonBox.StandardButton.Ok
+                                         | QtWidgets.QDialogButtonBox.StandardButton.Cancel)
+    buttons.accepted.connect(dialog.accept)
+    buttons.rejected.connect(dialog.reject)
+    form.addRow(buttons)
+    return dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted
 
 
 def _filter_suffix(chosen_filter: str) -> str:

@@ -173,10 +173,13 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         self.status = QtWidgets.QLabel("no recording")
         self.csv_button = QtWidgets.QPushButton("CSV...")
         self.csv_button.setToolTip("Save the series as CSV: one row per frame, units in the header")
-        self.csv_button.clicked.connect(self._csv_dialog)
+        self.csv_button.clicked.connect(
+            lambda: self._save_dialog("Save the time series", "series.csv", "CSV (*.csv)", self.export_csv))
         self.png_button = QtWidgets.QPushButton("PNG...")
         self.png_button.setToolTip("Save the plots as a PNG image")
-        self.png_button.clicked.connect(self._png_dialog)
+        self.png_button.clicked.connect(
+            lambda: self._save_dialog("Save the time plots", "time_plots.png", "PNG image (*.png)",
+                                      self.export_png))
         bar.addWidget(self.status, 1)
         bar.addWidget(self.csv_button)
         bar.addWidget(self.png_button)
@@ -590,23 +593,14 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         self._notify(f"saved {path}")
         return path
 
-    def _csv_dialog(self):
-        path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Save the time series", "series.csv",
-                                                        "CSV (*.csv)")
+    def _save_dialog(self, title: str, default: str, file_filter: str, export):
+        # the name picked, given the default's ending (a name so made must be free), to ``export``
+        path, _ = QtWidgets.QFileDialog.getSaveFileName(self, title, default, file_filter)
         if path:
             try:
-                self.export_csv(derived_name(path, ".csv", what="table"))
+                export(derived_name(path, Path(default).suffix, what=Path(default).stem.replace("_", " ")))
             except FileExistsError as exc:
-                self._error("Cannot save the time series", str(exc.strerror))
-
-    def _png_dialog(self):
-        path, _ = QtWidgets.QFileDialog.getSaveFileName(self, "Save the time plots", "time_plots.png",
-                                                        "PNG image (*.png)")
-        if path:
-            try:
-                self.export_png(derived_name(path, ".png", what="image"))
-            except FileExistsError as exc:
-                self._error("Cannot save the plots", str(exc.strerror))
+                self._error(f"Cannot {title[0].lower()}{title[1:]}", str(exc.strerror))
 
     def _message_box(self, title, text):
         QtWidgets.QMessageBox.critical(self, title, text)
