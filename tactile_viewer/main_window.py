@@ -297,8 +297,8 @@ class MainWindow(QtWidgets.QMainWindow):
             action.setEnabled(on)
         for action in self._exports[2:4]:  # whole recording, movie: a live source has no "whole recording"
             action.setEnabled(on and not live)
-        source = self.model.source
-        raw = on and not live and getattr(getattr(source, "recording", None), "calibration", None) is not None
+        recording = self.model.recording  # None for a live source
+        raw = on and recording is not None and recording.calibration is not None
         for action in self.tare_actions.values():
             action.setEnabled(raw)
 
