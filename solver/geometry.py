@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -162,7 +163,7 @@ class SensorGrid:
         """Number of sensors ``m``."""
         return self.positions.shape[0]
 
-    @property
+    @functools.cached_property
     def is_regular(self) -> bool:
         """True when the layout is a full ``(ny, nx)`` grid at spacing ``pitch``."""
         if len(self.shape) != 2:

@@ -4,11 +4,10 @@ import math
 
 import numpy as np
 import pytest
-from scipy.optimize import nnls
 
 import solver.efficiency as efficiency
 from solver import Reconstructor, SensorGrid, loads
-from solver.efficiency import ContactFit, NoShear, nonnegative_fit
+from solver.efficiency import ContactFit, NoShear
 from solver.kernels import stress_matrix
 
 
@@ -238,89 +237,3 @@ def test_contact_fit_keeps_valid_arguments():
 def test_region_settings_are_checked(kwargs, message):
     with pytest.raises(ValueError, match=message):
         Reconstructor(SensorGrid.regular(3, 3, 1e-3, 1e-3), **kwargs)
-
-
-# -- nonnegative_fit ---------------------------------------------------------------------------------
-
-def random_problem(seed):
-    rng = np.random.default_rng(seed)  # one random problem per seed, some with more unknowns than rows
-    m, n = int(rng.integers(3, 60)), int(rng.integers(1, 30))
-    return rng, rng.standard_normal((m, n)), rng.standard_normal(m)
-
-
-def assert_kkt(A, b, g):
-    # the optimality conditions of min |A g - b| over g >= 0
-    assert g.shape == (A.shape[1],) and np.all(g >= 0)
-    w = A.T @ (b - A @ g)
-    scale = np.abs(A.T @ b).max()
-    np.testing.assert_allclose(w[g > 0], 0, atol=1e-8 * scale)
-    assert np.all(w[g == 0] <= 1e-8 * scale)
-
-
-@pytest.mark.parametrize("seed", range(40))
-def test_nonnegative_fit_matches_scipy_cold_and_warm(seed):
-    rng, A, b = random_problem(seed)
-    n = A.shape[1]
-    reference = nnls(A, b, maxiter=30 * n)[0]
-    objective = lambda v: np.sum((A @ v - b) ** 2)  # noqa: E731
-    supports = {"cold": None, "good": reference > 0, "bad": rng.random(n) < 0.5,
-                "empty": np.zeros(n, bool), "full": np.ones(n, bool), "complement": ~(reference > 0)}
-    for name, support in supports.items():
-        before = None if support is None else support.copy()
-        g = nonnegative_fit(A, b, support=support)
-        assert_kkt(A, b, g)
-        # measured excess at most 2e-16 of |b|^2 over these seeds
-        assert objective(g) <= objective(reference) + 1e-12 * (b @ b), name
-        if A.shape[0] >= n:  # full column rank: the minimizer is unique (measured 5e-15 apart)
-            np.testing.assert_allclose(g, reference, rtol=0, atol=1e-9 * max(np.abs(reference).max(), 1.0),
-                                       err_msg=name)
-        if support is not None:
-            np.testing.assert_array_equal(support, before)  # the caller's guess is not modified
-
-
-@pytest.mark.parametrize("seed", range(40))
-def test_nonnegative_fit_from_the_right_support_needs_no_scipy(seed, monkeypatch):
-    # the warm start really solves: scipy (the fallback) must not be reached from the answer's support
-    rng, A, b = random_problem(seed)
-    reference = nnls(A, b, maxiter=30 * A.shape[1])[0]
-
-    def forbidden(*args, **kwargs):
-        raise AssertionError("fell back to scipy")
-    monkeypatch.setattr(efficiency, "nnls", forbidden)
-    monkeypatch.setattr(efficiency, "lsq_linear", forbidden)
-    if not (reference > 0).any():
-        with pytest.raises(AssertionError, match="fell back to scipy"):  # an empty guess is a cold start
-            nonnegative_fit(A, b, support=reference > 0)
-        return
-    g = nonnegative_fit(A, b, support=reference > 0, max_swaps=0)
-    assert_kkt(A, b, g)
-
-
-def test_nonnegative_fit_falls_back_when_the_warm_start_cannot_settle(monkeypatch):
-    rng, A, b = random_problem(7)  # fixed seed
-    reference = nnls(A, b, maxiter=30 * A.shape[1])[0]
-    calls = []
-    original = efficiency.nnls
-    monkeypatch.setattr(efficiency, "nnls", lambda *a, **k: calls.append(1) or original(*a, **k))
-    # no swaps allowed from the wrong support: the answer comes from scipy
-    g = nonnegative_fit(A, b, support=~(reference > 0), max_swaps=0)
-    assert calls and np.allclose(g, reference, atol=1e-12)
-    assert_kkt(A, b, g)
-    # duplicated columns: the support's Cholesky factor is singular, so it falls back too
-    twin = np.hstack([A, A[:, :1]])
-    calls.clear()
-    g = nonnegative_fit(twin, b, support=np.ones(twin.shape[1], bool))
-    assert calls
-    assert_kkt(twin, b, g)
-
-
-def test_nonnegative_fit_survives_scipy_running_out_of_iterations(monkeypatch):
-    rng, A, b = random_problem(11)  # fixed seed
-    reference = nnls(A, b, maxiter=30 * A.shape[1])[0]
-
-    def exhausted(*args, **kwargs):
-        raise RuntimeError("Maximum number of iterations reached.")
-    monkeypatch.setattr(efficiency, "nnls", exhausted)
-    g = nonnegative_fit(A, b)  # cold: scipy's nnls fails, bounded least squares answers
-    np.testing.assert_allclose(g, reference, rtol=0, atol=1e-8 * max(np.abs(reference).max(), 1.0))
-    assert_kkt(A, b, g)
