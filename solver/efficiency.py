@@ -19,11 +19,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
-import scipy.linalg
 
 from .checks import real_number, whole_number
-from .nnls import nonnegative_fit
+from .nnls import _solve, lawson_hanson, nonnegative_fit, workspace
 
 __all__ = ["Frame", "Choice", "ContactFit", "NoShear", "FUNCTIONALS"]
 
@@ -184,45 +184,32 @@ class ContactFit:
 
     def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None) -> Choice:
         K = frame.contacts
-        mu_max = frame.max_shear_ratio
         if shear_ratio is not None and shear_direction is not None:
             pair = shear_ratio * np.array([math.cos(shear_direction), math.sin(shear_direction)])
             shear = np.tile(pair, (K, 1))
             g, residual = self.fit(frame, shear)
             return self._choice(frame, shear, g, residual, np.full(K, math.nan), np.zeros(K, bool))
 
-        # Free parameters p (K, k) -> pairs s (K, 2), with ds/dp per contact (K, 2, k).
-        if shear_ratio is None and shear_direction is None:
-            def pairs(p):
-                mu = np.hypot(p[:, 0], p[:, 1])
-                return p * np.minimum(1.0, mu_max / np.maximum(mu, 1e-300))[:, None]
+        # Free parameters p (K, k) -> pairs s (K, 2): both free, the ratio alone, the direction alone
+        ratio = 0.0 if shear_ratio is None else float(shear_ratio)
+        angle = 0.0 if shear_direction is None else float(shear_direction)
+        mode = _BOTH if shear_ratio is None and shear_direction is None else (
+            _RATIO if shear_ratio is None else _DIRECTION)
+        direction = np.array([math.cos(angle), math.sin(angle)])
 
-            def jacobian(p):
-                return np.broadcast_to(np.eye(2), (K, 2, 2))
-            start = np.zeros((K, 2))
-        elif shear_ratio is None:
-            direction = np.array([math.cos(shear_direction), math.sin(shear_direction)])
-
-            def pairs(p):
-                return np.clip(p, 0.0, mu_max) * direction
-
-            def jacobian(p):
-                return np.broadcast_to(direction[:, None], (K, 2, 1))
-            start = np.zeros((K, 1))
-        else:
-            mu = float(shear_ratio)
-
-            def pairs(p):
-                return mu * np.column_stack([np.cos(p[:, 0]), np.sin(p[:, 0])])
-
-            def jacobian(p):
-                return mu * np.stack([-np.sin(p), np.cos(p)], axis=1)
+        def pairs(p):
+            s = np.empty((K, 2))
+            _pairs(p, mode, direction, ratio, frame.max_shear_ratio, s)
+            return s
+        if mode == _DIRECTION:
             # theta alone is periodic with several local optima: start from the best of a scan
             scan = [np.full((K, 1), t) for t in np.linspace(-math.pi, math.pi, 12, endpoint=False)]
             start = min(scan, key=lambda p: float(np.sum(self.fit(frame, pairs(p))[1] ** 2)))
-
-        g0, residual0 = self.fit(frame, pairs(start))
-        p, g, residual = self._gauss_newton(frame, start, g0, residual0, pairs, jacobian)
+        else:
+            start = np.zeros((K, 2 if mode == _BOTH else 1))
+        p, g, residual, g0, residual0 = _search(
+            frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact, frame.stress, mode, direction,
+            ratio, frame.max_shear_ratio, start, self.max_iterations, self.tolerance)
         if shear_ratio is not None:  # only the direction was free: nothing to decide
             return self._choice(frame, pairs(p), g, residual, np.full(K, math.nan), np.zeros(K, bool))
 
@@ -251,50 +238,147 @@ class ContactFit:
             g, residual = self.fit(frame, pairs(p), support=g > 0)
         return self._choice(frame, pairs(p), g, residual, evidence, keep > 0)
 
-    def _gauss_newton(self, frame, p, g, residual, pairs, jacobian):
-        # Linearize A(s + ds) g' ~ A(s) g' + sum_k (dsx_k Sx_k g_k + dsy_k Sy_k g_k) and solve
-        # for (g' on the support, dp) together, by the normal equations.
-        K, k = p.shape
-        rho = float(residual @ residual)
-        onehot = np.eye(K)[frame.column_contact]          # (n, K) column -> contact
-        for _ in range(self.max_iterations):
-            support = g > 0
-            if not support.any():
-                break
-            matrix = self._matrix(frame, pairs(p))
-            # d(A g)/ds for each contact: (R, K, 2), then d/dp through the Jacobian
-            weighted = onehot * g[:, None]
-            sens = np.stack([frame.fit_x @ weighted, frame.fit_y @ weighted], axis=2)
-            sens = np.einsum("rcj,cjl->rcl", sens, jacobian(p)).reshape(len(frame.stress), K * k)
-            design = np.hstack([matrix[:, support], sens])
-            try:
-                factor = scipy.linalg.cho_factor(design.T @ design, lower=True, check_finite=False)
-                solution = scipy.linalg.cho_solve(factor, design.T @ frame.stress, check_finite=False)
-            except np.linalg.LinAlgError:
-                solution = np.linalg.lstsq(design, frame.stress, rcond=None)[0]
-            step = solution[-K * k:].reshape(K, k)
-            for _halving in range(6):
-                trial = p + step
-                g_trial, residual_trial = self.fit(frame, pairs(trial), support=support)
-                rho_trial = float(residual_trial @ residual_trial)
-                if rho_trial < rho:
-                    break
-                step = step / 2
-            else:
-                break
-            converged = (np.max(np.abs(step)) < self.tolerance
-                         or rho - rho_trial < self.tolerance * 0.1 * rho)
-            p, g, residual, rho = trial, g_trial, residual_trial, rho_trial
-            if converged:
-                break
-        return p, g, residual
-
     @staticmethod
     def _choice(frame, shear, g, residual, evidence, detected):
         norm = float(np.linalg.norm(frame.stress))
         misfit = float(np.linalg.norm(residual))
         efficiency = 1.0 if norm == 0 else 1.0 - misfit / norm
         return Choice(np.asarray(shear, float), g, efficiency, evidence, detected, misfit)
+
+
+# -- the compiled search ------------------------------------------------------------------------
+# The search runs a dozen NNLS fits per frame on about 120 sensors and 150 sub-cell columns;
+# in numpy each fit and step costs hundreds of calls of a few microseconds, so the whole
+# search is compiled (docs/efficiency.md has the measurements).
+
+_BOTH, _RATIO, _DIRECTION = 0, 1, 2    # which parameters are free
+
+
+@numba.njit(cache=True)
+def _pairs(p, mode, direction, ratio, max_ratio, s):
+    # the pairs s (K, 2) of the free parameters p (K, k)
+    for c in range(p.shape[0]):
+        if mode == _BOTH:  # p = s, its ratio clipped to max_ratio
+            mu = math.hypot(p[c, 0], p[c, 1])
+            scale = min(1.0, max_ratio / max(mu, 1e-300))
+            s[c, 0], s[c, 1] = p[c, 0] * scale, p[c, 1] * scale
+        elif mode == _RATIO:  # p = mu along the given direction
+            mu = min(max(p[c, 0], 0.0), max_ratio)
+            s[c, 0], s[c, 1] = mu * direction[0], mu * direction[1]
+        else:  # p = theta at the given ratio
+            s[c, 0], s[c, 1] = ratio * math.cos(p[c, 0]), ratio * math.sin(p[c, 0])
+
+
+@numba.njit(cache=True)
+def _jacobian(p, mode, direction, ratio, jacobian):
+    # ds/dp (K, 2, k)
+    for c in range(p.shape[0]):
+        if mode == _BOTH:
+            jacobian[c, 0, 0], jacobian[c, 0, 1] = 1.0, 0.0
+            jacobian[c, 1, 0], jacobian[c, 1, 1] = 0.0, 1.0
+        elif mode == _RATIO:
+            jacobian[c, 0, 0], jacobian[c, 1, 0] = direction[0], direction[1]
+        else:
+            jacobian[c, 0, 0], jacobian[c, 1, 0] = -ratio * math.sin(p[c, 0]), ratio * math.cos(p[c, 0])
+
+
+@numba.njit(cache=True)
+def _fit(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns):
+    # the NNLS profile at the pairs s, warm from the set ``free``; returns (k, |residual|^2)
+    n, rows = zt.shape
+    for j in range(n):
+        sx, sy = s[contact[j], 0], s[contact[j], 1]
+        for r in range(rows):
+            columns[j, r] = zt[j, r] + sx * xt[j, r] + sy * yt[j, r]
+    _, k = lawson_hanson(columns, b, free, 3 * n + 10, g, factor, index)
+    for r in range(rows):
+        residual[r] = -b[r]
+    for i in range(k):
+        residual += g[index[i]] * columns[index[i]]
+    return k, residual @ residual
+
+
+@numba.njit(cache=True)
+def _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp):
+    # Gauss-Newton step of the linearized problem in (g on its set, dp) together, with g
+    # eliminated through the set's Cholesky factor: with J = d(A g)/dp and W = A_S^T J,
+    # (J^T J - W^T G^-1 W) dp = -J^T r, G = A_S^T A_S = L L^T
+    K = jacobian.shape[0]
+    q = K * kp
+    rows = residual.shape[0]
+    sx = np.zeros((K, rows))
+    sy = np.zeros((K, rows))
+    for j in range(g.shape[0]):
+        if g[j] > 0:
+            sx[contact[j]] += g[j] * xt[j]
+            sy[contact[j]] += g[j] * yt[j]
+    J = np.empty((q, rows))
+    for c in range(K):
+        for l in range(kp):
+            J[c * kp + l] = sx[c] * jacobian[c, 0, l] + sy[c] * jacobian[c, 1, l]
+    W = np.empty((q, k))
+    V = np.empty((q, k))
+    for a in range(q):
+        for i in range(k):
+            W[a, i] = J[a] @ columns[index[i]]
+        _solve(factor, k, W[a], V[a])
+    schur = J @ J.T - W @ V.T
+    rhs = -(J @ residual)
+    try:
+        return np.linalg.solve(schur, rhs)
+    except Exception:  # a contact whose columns carry no load: no curvature along its pair
+        return np.linalg.lstsq(schur, rhs)[0]
+
+
+@numba.njit(cache=True)
+def _search(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, max_iterations, tolerance):
+    # Gauss-Newton with step halving on the free parameters, the profile eliminated (variable
+    # projection); each trial's NNLS starts from the current positive set. Returns the
+    # parameters, profile and residual found, and the profile and residual at the start.
+    n, rows = zt.shape
+    K, kp = p.shape
+    s = np.empty((K, 2))
+    jacobian = np.zeros((K, 2, kp))
+    columns, trial_columns = np.empty((n, rows)), np.empty((n, rows))
+    factor, index = workspace(zt)
+    trial_factor, trial_index = workspace(zt)
+    free, trial_free = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
+    g, trial_g = np.zeros(n), np.zeros(n)
+    residual, trial_residual = np.empty(rows), np.empty(rows)
+    p = p.copy()
+    _pairs(p, mode, direction, ratio, max_ratio, s)
+    k, rho = _fit(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns)
+    start_g, start_residual = g.copy(), residual.copy()
+    for _ in range(max_iterations):
+        if k == 0:
+            break
+        _jacobian(p, mode, direction, ratio, jacobian)
+        step = _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp).reshape(K, kp)
+        accepted = False
+        for _halving in range(6):
+            trial = p + step
+            _pairs(trial, mode, direction, ratio, max_ratio, s)
+            for j in range(n):
+                trial_free[j] = g[j] > 0
+            trial_k, trial_rho = _fit(xt, yt, zt, contact, b, s, trial_free, trial_g, trial_residual,
+                                      trial_factor, trial_index, trial_columns)
+            if trial_rho < rho:
+                accepted = True
+                break
+            step = step / 2
+        if not accepted:
+            break
+        converged = np.max(np.abs(step)) < tolerance or rho - trial_rho < tolerance * 0.1 * rho
+        p = trial
+        k, rho = trial_k, trial_rho
+        g, trial_g = trial_g, g
+        residual, trial_residual = trial_residual, residual
+        factor, trial_factor = trial_factor, factor
+        index, trial_index = trial_index, index
+        columns, trial_columns = trial_columns, columns
+        if converged:
+            break
+    return p, g, residual, start_g, start_residual
 
 
 class NoShear:

@@ -267,8 +267,10 @@ class Reconstructor:
         m = grid.size
         self.matrix = stress_matrix(grid, kernel)
         self.matrix.setflags(write=False)
-        self._fit_matrix = (self.matrix if self.subdivision == 1
-                            else stress_matrix(grid, kernel, subdivision=self.subdivision))
+        # stored by column (3 s^2 m, m): the contact fit reads whole columns
+        self._fit_columns = np.ascontiguousarray(
+            (self.matrix if self.subdivision == 1
+             else stress_matrix(grid, kernel, subdivision=self.subdivision)).T)
         # Cz = cz^T is symmetric positive definite (every kernel is even in the offset): one
         # Cholesky factor serves the normal-only path.
         self._normal = SymmetricFactor.of(self.matrix[:, 2 * m:], max_condition=self.max_condition)
@@ -475,11 +477,12 @@ class Reconstructor:
         cells = self.subdivision ** 2
         columns = (np.arange(cells)[:, None] * m + index).ravel()  # sub-cell q of node j: q m + j
         width = cells * m
-        fit = self._fit_matrix[np.ix_(rows, np.concatenate([columns, columns + width, columns + 2 * width]))]
+        fit = self._fit_columns.take(np.concatenate([columns, columns + width, columns + 2 * width]), axis=0)
+        fit = fit.take(rows, axis=1).T  # (R, 3n), each column contiguous
         n = columns.size
         frame = Frame(stress=b[rows], fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],
-                      column_contact=np.tile(labels[index] - 1, cells), row_contact=near[rows],
-                      max_shear_ratio=self.max_shear_ratio)
+                      column_contact=np.tile(labels[index] - 1, cells).astype(np.intp),
+                      row_contact=near[rows], max_shear_ratio=self.max_shear_ratio)
         return frame, labels, np.tile(index, cells)
 
     def _residual(self, x: np.ndarray, b: np.ndarray) -> float:

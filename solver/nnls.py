@@ -51,7 +51,9 @@ def nonnegative_fit(matrix, stress, *, support=None, max_swaps=None):
     b = np.ascontiguousarray(stress, dtype=float)
     guess = np.zeros(n, dtype=bool) if support is None else np.array(support, dtype=bool)
     g = np.zeros(n)
-    steps = _lawson_hanson(columns, b, guess, 3 * n + 10 if max_swaps is None else int(max_swaps), g)
+    factor, index = workspace(columns)
+    steps, _ = lawson_hanson(columns, b, guess, 3 * n + 10 if max_swaps is None else int(max_swaps), g,
+                             factor, index)
     if steps >= 0:
         return g
     try:
@@ -123,21 +125,30 @@ def _solve(factor, k, rhs, z):
 
 
 @numba.njit(cache=True)
-def _lawson_hanson(columns, b, free, max_steps, g):
-    # Lawson-Hanson from the guessed set ``free`` (changed in place); the answer goes to g.
-    # Returns the changes of the set made, or -1 when the method cannot go on: a dependent
-    # column, a full set, or more than max_steps changes (the caller falls back to scipy).
+def workspace(columns):
+    """The factor and set buffers of :func:`lawson_hanson` for ``columns`` (n, R)."""
+    size = min(columns.shape[0], columns.shape[1])
+    return np.zeros((size + 1, size + 1)), np.empty(size + 1, np.int64)
+
+
+@numba.njit(cache=True)
+def lawson_hanson(columns, b, free, max_steps, g, factor, index):
+    # Lawson-Hanson from the guessed set ``free`` (changed in place: the final set); the
+    # answer goes to g, the set's Cholesky factor to factor[:k, :k] and its columns to
+    # index[:k]. Returns (changes of the set made, k); the changes are -1 when the method
+    # stopped short of the optimum (a full set, or more than max_steps changes): g is then
+    # feasible, not optimal. A column dependent on the set never enters it.
     n, rows = columns.shape
     size = min(rows, n)
-    factor = np.zeros((size + 1, size + 1))
-    index = np.empty(size + 1, np.int64)          # the set, in factor order
     gram = np.empty(size + 1)
     rhs = np.empty(size + 1)
     z = np.empty(size + 1)
     correlation = np.empty(n)                     # A^T b
     norm2 = np.empty(n)
+    barred = np.zeros(n, np.bool_)
     largest = 0.0
     for j in range(n):
+        g[j] = 0.0
         correlation[j] = _dot(columns[j], b)
         norm2[j] = _dot(columns[j], columns[j])
         largest = max(largest, abs(correlation[j]))
@@ -174,28 +185,32 @@ def _lawson_hanson(columns, b, free, max_steps, g):
             break
         steps += 1
         if steps > max_steps:
-            return -1
+            return -1, k
     while True:
         # optimal on the set: the variable outside it with the steepest descent enters
         residual = b.copy()
         for i in range(k):
             residual -= g[index[i]] * columns[index[i]]
-        entering = -1
-        best = tolerance
-        for j in range(n):
-            if not free[j]:
-                slope = _dot(columns[j], residual)
-                if slope > best:
-                    best, entering = slope, j
-        if entering < 0:
-            return steps
+        while True:
+            entering = -1
+            best = tolerance
+            for j in range(n):
+                if not free[j] and not barred[j]:
+                    slope = _dot(columns[j], residual)
+                    if slope > best:
+                        best, entering = slope, j
+            if entering < 0:
+                return steps, k
+            if k >= size:
+                return -1, k
+            for i in range(k):
+                gram[i] = _dot(columns[index[i]], columns[entering])
+            if _append(factor, k, gram, norm2[entering]):
+                break
+            barred[entering] = True
         steps += 1
-        if steps > max_steps or k >= size:
-            return -1
-        for i in range(k):
-            gram[i] = _dot(columns[index[i]], columns[entering])
-        if not _append(factor, k, gram, norm2[entering]):
-            return -1
+        if steps > max_steps:
+            return -1, k
         index[k] = entering
         free[entering] = True
         k += 1
@@ -219,7 +234,7 @@ def _lawson_hanson(columns, b, free, max_steps, g):
                 break
             steps += 1
             if steps > max_steps:
-                return -1
+                return -1, k
             for i in range(k):
                 current = g[index[i]]
                 g[index[i]] = current + step * (z[i] - current)
