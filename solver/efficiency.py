@@ -3,11 +3,12 @@
 Every ``x(mu, theta) = C+ b + (I - C+ C) y(mu, theta)`` fits the data exactly,
 so a functional must reward physical admissibility, not fit. A functional here
 is an object with a ``name`` and a method
-``choose(frame, *, shear_ratio=None, shear_direction=None) -> Choice`` that
-returns the shear parameters of every contact (the given ones, or the
+``choose(frame, *, shear_ratio=None, shear_direction=None, start=None) -> Choice``
+that returns the shear parameters of every contact (the given ones, or the
 maximizer over the free ones), the compressive normal profile ``g`` of the
-template load and the value of the functional. :class:`solver.Reconstructor`
-takes any such object.
+template load and the value of the functional; ``start`` is an earlier
+choice on the same frame, which may make the work cheaper but must not
+change the answer. :class:`solver.Reconstructor` takes any such object.
 
 Chosen: :class:`ContactFit` (see its notes and ``docs/efficiency.md`` for the
 measured comparison). Kept for comparison: :class:`NoShear`, the baseline
@@ -160,12 +161,6 @@ class ContactFit:
 
     # -- the profile at given parameters ---------------------------------------------
 
-    @staticmethod
-    def _matrix(frame: Frame, shear: np.ndarray) -> np.ndarray:
-        # A(s) = Sz + Sx diag(sx) + Sy diag(sy), each column with its contact's pair
-        sx, sy = shear[frame.column_contact, 0], shear[frame.column_contact, 1]
-        return frame.fit_z + frame.fit_x * sx + frame.fit_y * sy
-
     def fit(self, frame: Frame, shear: np.ndarray, *, support=None):
         """Best compressive profile at the pairs ``shear`` (K, 2) and its residual vector.
 
@@ -176,18 +171,27 @@ class ContactFit:
         residual : (R,) ndarray
             ``A(s) g - b``, pascals.
         """
-        matrix = self._matrix(frame, shear)
-        g = nonnegative_fit(matrix, frame.stress, support=support)
-        return g, matrix @ g - frame.stress
+        zt = frame.fit_z.T
+        n, rows = zt.shape
+        free = np.zeros(n, bool) if support is None else np.array(support, dtype=bool)
+        g, residual, columns = np.zeros(n), np.empty(rows), np.empty((n, rows))
+        steps, _, _ = _fit(frame.fit_x.T, frame.fit_y.T, zt, frame.column_contact, frame.stress,
+                           np.asarray(shear, dtype=float), free, g, residual, *workspace(zt), columns)
+        if steps < 0:  # stopped short of the optimum (module notes of solver.nnls)
+            g = nonnegative_fit(columns.T, frame.stress)
+            residual = columns.T @ g - frame.stress
+        return g, residual
 
     # -- the search ------------------------------------------------------------------------
 
-    def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None) -> Choice:
+    def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None, start=None) -> Choice:
         K = frame.contacts
         if shear_ratio is not None and shear_direction is not None:
+            # given parameters (a slider move): the fit warm-starts from an earlier choice's
+            # positive set on this frame, which the minimizer does not depend on
             pair = shear_ratio * np.array([math.cos(shear_direction), math.sin(shear_direction)])
             shear = np.tile(pair, (K, 1))
-            g, residual = self.fit(frame, shear)
+            g, residual = self.fit(frame, shear, support=None if start is None else start.profile > 0)
             return self._choice(frame, shear, g, residual, np.full(K, math.nan), np.zeros(K, bool))
 
         # Free parameters p (K, k) -> pairs s (K, 2): both free, the ratio alone, the direction alone
@@ -284,18 +288,19 @@ def _jacobian(p, mode, direction, ratio, jacobian):
 
 @numba.njit(cache=True)
 def _fit(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns):
-    # the NNLS profile at the pairs s, warm from the set ``free``; returns (k, |residual|^2)
+    # the NNLS profile at the pairs s, warm from the set ``free``; returns the set changes
+    # (-1: stopped short of the optimum, see lawson_hanson), the set size and |residual|^2
     n, rows = zt.shape
     for j in range(n):
         sx, sy = s[contact[j], 0], s[contact[j], 1]
         for r in range(rows):
             columns[j, r] = zt[j, r] + sx * xt[j, r] + sy * yt[j, r]
-    _, k = lawson_hanson(columns, b, free, 3 * n + 10, g, factor, index)
+    steps, k = lawson_hanson(columns, b, free, 3 * n + 10, g, factor, index)
     for r in range(rows):
         residual[r] = -b[r]
     for i in range(k):
         residual += g[index[i]] * columns[index[i]]
-    return k, residual @ residual
+    return steps, k, residual @ residual
 
 
 @numba.njit(cache=True)
@@ -347,7 +352,7 @@ def _search(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, max_it
     residual, trial_residual = np.empty(rows), np.empty(rows)
     p = p.copy()
     _pairs(p, mode, direction, ratio, max_ratio, s)
-    k, rho = _fit(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns)
+    _, k, rho = _fit(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns)
     start_g, start_residual = g.copy(), residual.copy()
     for _ in range(max_iterations):
         if k == 0:
@@ -360,8 +365,8 @@ def _search(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, max_it
             _pairs(trial, mode, direction, ratio, max_ratio, s)
             for j in range(n):
                 trial_free[j] = g[j] > 0
-            trial_k, trial_rho = _fit(xt, yt, zt, contact, b, s, trial_free, trial_g, trial_residual,
-                                      trial_factor, trial_index, trial_columns)
+            _, trial_k, trial_rho = _fit(xt, yt, zt, contact, b, s, trial_free, trial_g, trial_residual,
+                                         trial_factor, trial_index, trial_columns)
             if trial_rho < rho:
                 accepted = True
                 break
@@ -386,9 +391,9 @@ class NoShear:
 
     name = "no_shear"
 
-    def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None) -> Choice:
+    def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None, start=None) -> Choice:
         return ContactFit().choose(frame, shear_ratio=shear_ratio or 0.0,
-                                   shear_direction=shear_direction or 0.0)
+                                   shear_direction=shear_direction or 0.0, start=start)
 
 
 FUNCTIONALS = {f.name: f for f in (ContactFit, NoShear)}

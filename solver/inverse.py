@@ -189,6 +189,12 @@ class Reconstruction:
         return self.forces.sum(axis=0)
 
 
+def _relative(misfit: np.ndarray, b: np.ndarray) -> float:
+    # |C x - b| / |b|, 0 for an all-zero frame
+    norm = np.linalg.norm(b)
+    return 0.0 if norm == 0 else float(np.linalg.norm(misfit) / norm)
+
+
 def _direction(x: float, y: float, fallback: float = 0.0) -> float:
     if x == 0 and y == 0:
         return math.remainder(fallback, 2 * math.pi) if fallback != -math.pi else math.pi
@@ -257,6 +263,7 @@ class Reconstructor:
         self.region_margin = int(region_margin)
         self.reach = float(reach)
         self.efficiency = ContactFit() if efficiency is None else efficiency
+        self._recent = None  # (stress bytes, frame, labels, nodes, choice) of the last frame fitted
         # Sub-cells need translation invariance and a kernel that spreads the force over a
         # cell, and a layer thick enough to tell them apart: under a layer thinner than half
         # a sub-cell each sensor sees only its sub-cells' shared corner, and the fit exploits
@@ -358,10 +365,20 @@ class Reconstructor:
         exact = check_parameters(shear_ratio, shear_direction, exact)
         m = self.grid.size
         fallback = 0.0 if shear_direction is None else float(shear_direction)
-        frame, labels, nodes = self._frame(b)
+        # A slider moves the parameters on the frame shown: its contacts and fit matrices are
+        # kept from the last solve of that frame, and the fit starts from the last profile.
+        key = b.tobytes()
+        recent = self._recent
+        if recent is not None and recent[0] == key:
+            _, frame, labels, nodes, start = recent
+        else:
+            (frame, labels, nodes), start = self._frame(b), None
         if frame is None:  # nothing compressive anywhere: no contact to fit
             return self._without_contact(b, exact, fallback)
-        choice = self.efficiency.choose(frame, shear_ratio=shear_ratio, shear_direction=shear_direction)
+        choice = self.efficiency.choose(frame, shear_ratio=shear_ratio, shear_direction=shear_direction,
+                                        start=start)
+        # one tuple, replaced whole: solves on other threads read either the old or the new one
+        self._recent = (key, frame, labels, nodes, choice)
         # the answer stays one force per node: the sum of its sub-cells
         g = np.bincount(nodes, weights=choice.profile, minlength=m)
         # a patch the compressive fit gives no load (tension read through a damped inverse
@@ -372,7 +389,15 @@ class Reconstructor:
         pair = np.zeros((m, 2))
         pair[labels > 0] = choice.shear[labels[labels > 0] - 1]
         template = np.concatenate([pair[:, 0] * g, pair[:, 1] * g, g])
-        x = template + self.apply_pinv(b - self.matrix @ template) if exact else template
+        misfit = b - self.matrix @ template
+        if exact:
+            # x = y + C^T w with (C C^T + lambda I) w = b - C y, so C x - b = -lambda w: the
+            # residual needs no product with C
+            w = self._gram.solve(misfit)
+            x = template + self.matrix.T @ w
+            misfit = self._gram.shift * w
+        else:
+            x = template
         forces = x.reshape(3, m).T
         contacts = []
         for k in np.flatnonzero(loaded):
@@ -388,7 +413,7 @@ class Reconstructor:
         main = contacts[0]
         return Reconstruction(
             forces=read_only(forces), shear_ratio=main.shear_ratio, shear_direction=main.shear_direction,
-            efficiency=choice.efficiency, residual=self._residual(x, b),
+            efficiency=choice.efficiency, residual=_relative(misfit, b),
             condition=self._gram.condition, regularized=exact and self._gram.shift > 0,
             normal_only=False, shear_detected=any(c.shear_detected for c in contacts),
             region=read_only(region, bool), exact=bool(exact), contacts=tuple(contacts))
@@ -486,10 +511,7 @@ class Reconstructor:
         return frame, labels, np.tile(index, cells)
 
     def _residual(self, x: np.ndarray, b: np.ndarray) -> float:
-        norm = np.linalg.norm(b)
-        if norm == 0:
-            return 0.0
-        return float(np.linalg.norm(self.matrix @ x - b) / norm)
+        return _relative(self.matrix @ x - b, b)
 
 
 def check_options(grid, *, kernel="layer", max_condition=100.0, max_shear_ratio=1.5, region_threshold=0.2,

@@ -154,9 +154,26 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
         largest = max(largest, abs(correlation[j]))
     tolerance = 1e-10 * n * largest
     k = 0
-    for j in range(n):
-        if free[j]:
-            free[j] = False
+    guess = np.flatnonzero(free)
+    free[:] = False
+    if 0 < guess.size <= size:
+        # the guessed set's factor at once (BLAS and LAPACK) unless one of its columns depends
+        # on the others; then column by column below, which leaves such columns out
+        block = columns[guess]
+        try:
+            lower = np.linalg.cholesky(block @ block.T)
+            independent = True
+            for i in range(guess.size):
+                independent &= lower[i, i] ** 2 > _DEPENDENT * norm2[guess[i]]
+            if independent:
+                k = guess.size
+                factor[:k, :k] = lower
+                index[:k] = guess
+                free[guess] = True
+        except Exception:  # not positive definite
+            pass
+    if k == 0:
+        for j in guess:
             if k < size:
                 for i in range(k):
                     gram[i] = _dot(columns[index[i]], columns[j])

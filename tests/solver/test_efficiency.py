@@ -100,6 +100,24 @@ def test_fit_is_the_nonnegative_least_squares_profile(reconstructor, sheared):
     assert math.isnan(choice.evidence[0]) and not choice.shear_detected[0]
 
 
+def test_a_fit_the_compiled_set_leaves_short_of_the_optimum_is_finished_by_scipy(reconstructor, sheared,
+                                                                                   monkeypatch):
+    frame, _, _ = reconstructor._frame(np.asarray(sheared.stress))
+    shear = np.array([[0.1, -0.2]])
+    expected, _ = ContactFit().fit(frame, shear)
+    compiled = efficiency._fit
+
+    def stopped_short(*args):
+        steps, k, rho = compiled(*args)
+        args[7][:] = 0.0  # g: feasible, not optimal
+        return -1, k, rho
+    monkeypatch.setattr(efficiency, "_fit", stopped_short)
+    g, residual = ContactFit().fit(frame, shear)
+    A = frame.fit_z + 0.1 * frame.fit_x - 0.2 * frame.fit_y
+    np.testing.assert_allclose(residual, A @ g - frame.stress, rtol=0, atol=1e-12 * np.abs(frame.stress).max())
+    assert np.sum(residual ** 2) == pytest.approx(np.sum((A @ expected - frame.stress) ** 2), rel=1e-9)
+
+
 # -- the search over the shear parameters ----------------------------------------------------------
 
 def test_contact_fit_finds_free_direction_or_free_ratio(reconstructor, sheared):
@@ -186,7 +204,7 @@ def test_alternative_functionals_plug_in(sheared):
         # any object with a name and choose() will do: this one always picks (0.2, 1.0)
         name = "fixed"
 
-        def choose(self, frame, *, shear_ratio=None, shear_direction=None):
+        def choose(self, frame, *, shear_ratio=None, shear_direction=None, start=None):
             return ContactFit().choose(frame, shear_ratio=0.2, shear_direction=1.0)
 
     plugged = Reconstructor(grid, efficiency=Fixed()).solve(sheared.stress)

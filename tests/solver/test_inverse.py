@@ -321,3 +321,24 @@ def test_automatic_answer_is_the_fitted_compressive_load():
     np.testing.assert_allclose(given.forces[:, 1], 0.4 * math.sin(0.7) * fz, rtol=0, atol=1e-15)
     x = given.forces.T.ravel()
     assert given.residual == pytest.approx(np.linalg.norm(r.matrix @ x - b) / np.linalg.norm(b), rel=1e-12)
+
+
+def test_a_slider_move_on_the_frame_just_solved_gives_a_fresh_solves_answer(monkeypatch):
+    # the frame's contacts are kept and the fit starts from the last profile: cheaper, same answer
+    grid = SensorGrid.regular(12, 12, pitch=2e-3, thickness=2e-3)
+    rng = np.random.default_rng(5)  # fixed seed
+    b = loads.simulate(grid, loads.hertz((1e-3, -0.5e-3), 4e-3, 1.0, shear_ratio=0.3, shear_direction=0.7),
+                       noise=0.01, rng=rng).stress
+    other = loads.simulate(grid, loads.hertz((-4e-3, 3e-3), 4e-3, 1.0), noise=0.01, rng=rng).stress
+    moved, fresh = Reconstructor(grid), Reconstructor(grid)
+    moved.solve(b)
+    framed, original = [], moved._frame
+    monkeypatch.setattr(moved, "_frame", lambda stress: framed.append(1) or original(stress))
+    for mu, theta in [(0.3, 0.7), (0.32, 0.7), (0.6, -1.0), (0.0, 0.0), (1.2, 3.0)]:
+        slid = moved.solve(b, shear_ratio=mu, shear_direction=theta)
+        fresh.solve(other)  # so that fresh fits b from scratch
+        cold = fresh.solve(b, shear_ratio=mu, shear_direction=theta)
+        np.testing.assert_allclose(slid.forces, cold.forces, rtol=0, atol=1e-9 * np.abs(cold.forces).max())
+    assert not framed  # the frame's contacts were kept
+    moved.solve(other, shear_ratio=0.3, shear_direction=0.7)
+    assert framed == [1]  # another frame is framed afresh
