@@ -20,11 +20,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from .checks import real_number, whole_number
-from .nnls import _solve, lawson_hanson, nonnegative_fit, workspace
+from .search import BOTH, DIRECTION, RATIO, fit_at, gauss_newton, nonnegative_fit, pairs_of, workspace
 
 __all__ = ["Frame", "Choice", "ContactFit", "NoShear", "FUNCTIONALS"]
 
@@ -175,7 +174,7 @@ class ContactFit:
         n, rows = zt.shape
         free = np.zeros(n, bool) if support is None else np.array(support, dtype=bool)
         g, residual, columns = np.zeros(n), np.empty(rows), np.empty((n, rows))
-        steps, _, _ = _fit(frame.fit_x.T, frame.fit_y.T, zt, frame.column_contact, frame.stress,
+        steps, _, _ = fit_at(frame.fit_x.T, frame.fit_y.T, zt, frame.column_contact, frame.stress,
                            np.asarray(shear, dtype=float), free, g, residual, *workspace(zt), columns)
         if steps < 0:  # stopped short of the optimum (module notes of solver.nnls)
             g = nonnegative_fit(columns.T, frame.stress)
@@ -197,21 +196,21 @@ class ContactFit:
         # Free parameters p (K, k) -> pairs s (K, 2): both free, the ratio alone, the direction alone
         ratio = 0.0 if shear_ratio is None else float(shear_ratio)
         angle = 0.0 if shear_direction is None else float(shear_direction)
-        mode = _BOTH if shear_ratio is None and shear_direction is None else (
-            _RATIO if shear_ratio is None else _DIRECTION)
+        mode = BOTH if shear_ratio is None and shear_direction is None else (
+            RATIO if shear_ratio is None else DIRECTION)
         direction = np.array([math.cos(angle), math.sin(angle)])
 
         def pairs(p):
             s = np.empty((K, 2))
-            _pairs(p, mode, direction, ratio, frame.max_shear_ratio, s)
+            pairs_of(p, mode, direction, ratio, frame.max_shear_ratio, s)
             return s
-        if mode == _DIRECTION:
+        if mode == DIRECTION:
             # theta alone is periodic with several local optima: start from the best of a scan
             scan = [np.full((K, 1), t) for t in np.linspace(-math.pi, math.pi, 12, endpoint=False)]
             start = min(scan, key=lambda p: float(np.sum(self.fit(frame, pairs(p))[1] ** 2)))
         else:
-            start = np.zeros((K, 2 if mode == _BOTH else 1))
-        p, g, residual, g0, residual0 = _search(
+            start = np.zeros((K, 2 if mode == BOTH else 1))
+        p, g, residual, g0, residual0 = gauss_newton(
             frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact, frame.stress, mode, direction,
             ratio, frame.max_shear_ratio, start, self.max_iterations, self.tolerance)
         if shear_ratio is not None:  # only the direction was free: nothing to decide
@@ -248,142 +247,6 @@ class ContactFit:
         misfit = float(np.linalg.norm(residual))
         efficiency = 1.0 if norm == 0 else 1.0 - misfit / norm
         return Choice(np.asarray(shear, float), g, efficiency, evidence, detected, misfit)
-
-
-# -- the compiled search ------------------------------------------------------------------------
-# The search runs a dozen NNLS fits per frame on about 120 sensors and 150 sub-cell columns;
-# in numpy each fit and step costs hundreds of calls of a few microseconds, so the whole
-# search is compiled (docs/efficiency.md has the measurements).
-
-_BOTH, _RATIO, _DIRECTION = 0, 1, 2    # which parameters are free
-
-
-@numba.njit(cache=True)
-def _pairs(p, mode, direction, ratio, max_ratio, s):
-    # the pairs s (K, 2) of the free parameters p (K, k)
-    for c in range(p.shape[0]):
-        if mode == _BOTH:  # p = s, its ratio clipped to max_ratio
-            mu = math.hypot(p[c, 0], p[c, 1])
-            scale = min(1.0, max_ratio / max(mu, 1e-300))
-            s[c, 0], s[c, 1] = p[c, 0] * scale, p[c, 1] * scale
-        elif mode == _RATIO:  # p = mu along the given direction
-            mu = min(max(p[c, 0], 0.0), max_ratio)
-            s[c, 0], s[c, 1] = mu * direction[0], mu * direction[1]
-        else:  # p = theta at the given ratio
-            s[c, 0], s[c, 1] = ratio * math.cos(p[c, 0]), ratio * math.sin(p[c, 0])
-
-
-@numba.njit(cache=True)
-def _jacobian(p, mode, direction, ratio, jacobian):
-    # ds/dp (K, 2, k)
-    for c in range(p.shape[0]):
-        if mode == _BOTH:
-            jacobian[c, 0, 0], jacobian[c, 0, 1] = 1.0, 0.0
-            jacobian[c, 1, 0], jacobian[c, 1, 1] = 0.0, 1.0
-        elif mode == _RATIO:
-            jacobian[c, 0, 0], jacobian[c, 1, 0] = direction[0], direction[1]
-        else:
-            jacobian[c, 0, 0], jacobian[c, 1, 0] = -ratio * math.sin(p[c, 0]), ratio * math.cos(p[c, 0])
-
-
-@numba.njit(cache=True)
-def _fit(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns):
-    # the NNLS profile at the pairs s, warm from the set ``free``; returns the set changes
-    # (-1: stopped short of the optimum, see lawson_hanson), the set size and |residual|^2
-    n, rows = zt.shape
-    for j in range(n):
-        sx, sy = s[contact[j], 0], s[contact[j], 1]
-        for r in range(rows):
-            columns[j, r] = zt[j, r] + sx * xt[j, r] + sy * yt[j, r]
-    steps, k = lawson_hanson(columns, b, free, 3 * n + 10, g, factor, index)
-    for r in range(rows):
-        residual[r] = -b[r]
-    for i in range(k):
-        residual += g[index[i]] * columns[index[i]]
-    return steps, k, residual @ residual
-
-
-@numba.njit(cache=True)
-def _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp):
-    # Gauss-Newton step of the linearized problem in (g on its set, dp) together, with g
-    # eliminated through the set's Cholesky factor: with J = d(A g)/dp and W = A_S^T J,
-    # (J^T J - W^T G^-1 W) dp = -J^T r, G = A_S^T A_S = L L^T
-    K = jacobian.shape[0]
-    q = K * kp
-    rows = residual.shape[0]
-    sx = np.zeros((K, rows))
-    sy = np.zeros((K, rows))
-    for j in range(g.shape[0]):
-        if g[j] > 0:
-            sx[contact[j]] += g[j] * xt[j]
-            sy[contact[j]] += g[j] * yt[j]
-    J = np.empty((q, rows))
-    for c in range(K):
-        for l in range(kp):
-            J[c * kp + l] = sx[c] * jacobian[c, 0, l] + sy[c] * jacobian[c, 1, l]
-    W = np.empty((q, k))
-    V = np.empty((q, k))
-    for a in range(q):
-        for i in range(k):
-            W[a, i] = J[a] @ columns[index[i]]
-        _solve(factor, k, W[a], V[a])
-    schur = J @ J.T - W @ V.T
-    rhs = -(J @ residual)
-    try:
-        return np.linalg.solve(schur, rhs)
-    except Exception:  # a contact whose columns carry no load: no curvature along its pair
-        return np.linalg.lstsq(schur, rhs)[0]
-
-
-@numba.njit(cache=True)
-def _search(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, max_iterations, tolerance):
-    # Gauss-Newton with step halving on the free parameters, the profile eliminated (variable
-    # projection); each trial's NNLS starts from the current positive set. Returns the
-    # parameters, profile and residual found, and the profile and residual at the start.
-    n, rows = zt.shape
-    K, kp = p.shape
-    s = np.empty((K, 2))
-    jacobian = np.zeros((K, 2, kp))
-    columns, trial_columns = np.empty((n, rows)), np.empty((n, rows))
-    factor, index = workspace(zt)
-    trial_factor, trial_index = workspace(zt)
-    free, trial_free = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
-    g, trial_g = np.zeros(n), np.zeros(n)
-    residual, trial_residual = np.empty(rows), np.empty(rows)
-    p = p.copy()
-    _pairs(p, mode, direction, ratio, max_ratio, s)
-    _, k, rho = _fit(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns)
-    start_g, start_residual = g.copy(), residual.copy()
-    for _ in range(max_iterations):
-        if k == 0:
-            break
-        _jacobian(p, mode, direction, ratio, jacobian)
-        step = _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp).reshape(K, kp)
-        accepted = False
-        for _halving in range(6):
-            trial = p + step
-            _pairs(trial, mode, direction, ratio, max_ratio, s)
-            for j in range(n):
-                trial_free[j] = g[j] > 0
-            _, trial_k, trial_rho = _fit(xt, yt, zt, contact, b, s, trial_free, trial_g, trial_residual,
-                                         trial_factor, trial_index, trial_columns)
-            if trial_rho < rho:
-                accepted = True
-                break
-            step = step / 2
-        if not accepted:
-            break
-        converged = np.max(np.abs(step)) < tolerance or rho - trial_rho < tolerance * 0.1 * rho
-        p = trial
-        k, rho = trial_k, trial_rho
-        g, trial_g = trial_g, g
-        residual, trial_residual = trial_residual, residual
-        factor, trial_factor = trial_factor, factor
-        index, trial_index = trial_index, index
-        columns, trial_columns = trial_columns, columns
-        if converged:
-            break
-    return p, g, residual, start_g, start_residual
 
 
 class NoShear:

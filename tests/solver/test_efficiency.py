@@ -105,13 +105,13 @@ def test_a_fit_the_compiled_set_leaves_short_of_the_optimum_is_finished_by_scipy
     frame, _, _ = reconstructor._frame(np.asarray(sheared.stress))
     shear = np.array([[0.1, -0.2]])
     expected, _ = ContactFit().fit(frame, shear)
-    compiled = efficiency._fit
+    compiled = efficiency.fit_at
 
     def stopped_short(*args):
         steps, k, rho = compiled(*args)
         args[7][:] = 0.0  # g: feasible, not optimal
         return -1, k, rho
-    monkeypatch.setattr(efficiency, "_fit", stopped_short)
+    monkeypatch.setattr(efficiency, "fit_at", stopped_short)
     g, residual = ContactFit().fit(frame, shear)
     A = frame.fit_z + 0.1 * frame.fit_x - 0.2 * frame.fit_y
     np.testing.assert_allclose(residual, A @ g - frame.stress, rtol=0, atol=1e-12 * np.abs(frame.stress).max())

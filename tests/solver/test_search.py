@@ -1,11 +1,11 @@
-"""Tests of solver/nnls.py: the warm-started, compiled Lawson-Hanson NNLS against scipy."""
+"""Tests of solver/search.py: the compiled, warm-started Lawson-Hanson NNLS against scipy."""
 
 import numpy as np
 import pytest
 from scipy.optimize import nnls
 
-import solver.nnls as nnls_module
-from solver.nnls import nonnegative_fit
+import solver.search as search
+from solver.search import nonnegative_fit
 
 
 def random_problem(seed):
@@ -52,8 +52,8 @@ def test_nonnegative_fit_from_the_right_support_needs_no_scipy(seed, monkeypatch
 
     def forbidden(*args, **kwargs):
         raise AssertionError("fell back to scipy")
-    monkeypatch.setattr(nnls_module, "nnls", forbidden)
-    monkeypatch.setattr(nnls_module, "lsq_linear", forbidden)
+    monkeypatch.setattr(search, "nnls", forbidden)
+    monkeypatch.setattr(search, "lsq_linear", forbidden)
     if not (reference > 0).any():
         with pytest.raises(AssertionError, match="fell back to scipy"):  # an empty guess is a cold start
             nonnegative_fit(A, b, support=reference > 0)
@@ -66,8 +66,8 @@ def test_nonnegative_fit_falls_back_when_the_warm_start_cannot_settle(monkeypatc
     rng, A, b = random_problem(7)  # fixed seed
     reference = nnls(A, b, maxiter=30 * A.shape[1])[0]
     calls = []
-    original = nnls_module.nnls
-    monkeypatch.setattr(nnls_module, "nnls", lambda *a, **k: calls.append(1) or original(*a, **k))
+    original = search.nnls
+    monkeypatch.setattr(search, "nnls", lambda *a, **k: calls.append(1) or original(*a, **k))
     # no swaps allowed from the wrong support: the answer comes from scipy
     g = nonnegative_fit(A, b, support=~(reference > 0), max_swaps=0)
     assert calls and np.allclose(g, reference, atol=1e-12)
@@ -79,7 +79,7 @@ def test_nonnegative_fit_leaves_a_dependent_column_out_of_the_set(monkeypatch):
     # left out and the warm start still solves, with no fallback
     rng, A, b = random_problem(7)  # fixed seed
     twin = np.hstack([A, A[:, :1]])
-    monkeypatch.setattr(nnls_module, "nnls", lambda *a, **k: pytest.fail("fell back to scipy"))
+    monkeypatch.setattr(search, "nnls", lambda *a, **k: pytest.fail("fell back to scipy"))
     g = nonnegative_fit(twin, b, support=np.ones(twin.shape[1], bool))
     assert_kkt(twin, b, g)
     assert g[0] == 0 or g[-1] == 0
@@ -91,7 +91,7 @@ def test_nonnegative_fit_survives_scipy_running_out_of_iterations(monkeypatch):
 
     def exhausted(*args, **kwargs):
         raise RuntimeError("Maximum number of iterations reached.")
-    monkeypatch.setattr(nnls_module, "nnls", exhausted)
+    monkeypatch.setattr(search, "nnls", exhausted)
     g = nonnegative_fit(A, b)  # cold: scipy's nnls fails, bounded least squares answers
     np.testing.assert_allclose(g, reference, rtol=0, atol=1e-8 * max(np.abs(reference).max(), 1.0))
     assert_kkt(A, b, g)

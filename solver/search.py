@@ -1,25 +1,35 @@
-"""Non-negative least squares, warm-started: ``argmin_{g >= 0} |A g - b|``.
+"""The contact fit's numerical core, compiled with numba.
 
-The contact fit solves many NNLS problems that differ only a little from
-the previous one (the next Gauss-Newton trial, the shrunk parameters), on
-more sub-cell columns than sensors. Lawson and Hanson's active-set method
-fits that case when it can start from a guessed positive set and update the
-Cholesky factor of that set's Gram matrix as columns come and go: adding a
-column costs one triangular solve, removing one a sweep of Givens
-rotations, where solving each set afresh costs a factorization.
-``scipy.optimize.nnls`` has neither a warm start nor updates, so this module
-compiles the method with numba; scipy stays the fallback for the degenerate
-problems the updated factor cannot hold (``docs/efficiency.md`` has the
-measurements that justify the compiled code).
+The contact fit (:class:`solver.efficiency.ContactFit`) is a Gauss-Newton
+search over each contact's shear pair whose every trial is a non-negative
+least-squares problem ``argmin_{g >= 0} |A g - b|`` on about 120 sensors and
+150 sub-cell columns, each differing only a little from the last. Lawson and
+Hanson's active-set method fits that case when it starts from a guessed
+positive set and updates the Cholesky factor of that set's Gram matrix as
+columns come and go: adding a column costs one triangular solve, removing
+one a sweep of Givens rotations, where solving each set afresh costs a
+factorization. The Gauss-Newton step then reuses that factor to eliminate
+the profile. ``scipy.optimize.nnls`` has neither a warm start nor updates,
+and in numpy each fit costs hundreds of calls of a few microseconds, so the
+whole search is compiled here; scipy stays the fallback for the degenerate
+problems the updated factor cannot hold. ``docs/efficiency.md`` has the
+measurements that justify the compiled code.
+
+Everything compiled lives in this one module: numba's on-disk cache checks
+only the file a function is defined in, so a compiled caller in another
+file could keep running an old version of a function changed here.
 """
 
 from __future__ import annotations
+
+import math
 
 import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["nonnegative_fit"]
+__all__ = ["nonnegative_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
+           "BOTH", "RATIO", "DIRECTION"]
 
 # Columns whose remaining norm after projecting out the set's columns is below this fraction
 # of their own norm are taken as dependent: the factor could not stay positive definite.
@@ -62,13 +72,20 @@ def nonnegative_fit(matrix, stress, *, support=None, max_swaps=None):
         return lsq_linear(matrix, stress, bounds=(0.0, np.inf), method="bvls").x
 
 
-@numba.njit(cache=True, fastmath={"reassoc", "contract"}, inline="always")
+@numba.njit(cache=True, fastmath={"reassoc", "contract"})
 def _dot(x, y):
     # reassociation lets LLVM vectorize the sum; these are the method's inner products
     total = 0.0
     for r in range(x.shape[0]):
         total += x[r] * y[r]
     return total
+
+
+@numba.njit(cache=True, fastmath={"contract"})
+def _axpy(a, x, y):
+    # y += a x in place (no temporary)
+    for r in range(x.shape[0]):
+        y[r] += a * x[r]
 
 
 @numba.njit(cache=True)
@@ -146,6 +163,7 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
     correlation = np.empty(n)                     # A^T b
     norm2 = np.empty(n)
     barred = np.zeros(n, np.bool_)
+    residual = np.empty(rows)
     largest = 0.0
     for j in range(n):
         g[j] = 0.0
@@ -205,9 +223,10 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
             return -1, k
     while True:
         # optimal on the set: the variable outside it with the steepest descent enters
-        residual = b.copy()
+        for r in range(rows):
+            residual[r] = b[r]
         for i in range(k):
-            residual -= g[index[i]] * columns[index[i]]
+            _axpy(-g[index[i]], columns[index[i]], residual)
         while True:
             entering = -1
             best = tolerance
@@ -264,3 +283,136 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
                     for t in range(i, k - 1):
                         index[t] = index[t + 1]
                     k -= 1
+
+
+# -- the Gauss-Newton search over the shear pairs ----------------------------------------------
+
+BOTH, RATIO, DIRECTION = 0, 1, 2    # which parameters are free
+
+
+@numba.njit(cache=True)
+def pairs_of(p, mode, direction, ratio, max_ratio, s):
+    # the pairs s (K, 2) of the free parameters p (K, k)
+    for c in range(p.shape[0]):
+        if mode == BOTH:  # p = s, its ratio clipped to max_ratio
+            mu = math.hypot(p[c, 0], p[c, 1])
+            scale = min(1.0, max_ratio / max(mu, 1e-300))
+            s[c, 0], s[c, 1] = p[c, 0] * scale, p[c, 1] * scale
+        elif mode == RATIO:  # p = mu along the given direction
+            mu = min(max(p[c, 0], 0.0), max_ratio)
+            s[c, 0], s[c, 1] = mu * direction[0], mu * direction[1]
+        else:  # p = theta at the given ratio
+            s[c, 0], s[c, 1] = ratio * math.cos(p[c, 0]), ratio * math.sin(p[c, 0])
+
+
+@numba.njit(cache=True)
+def _jacobian(p, mode, direction, ratio, jacobian):
+    # ds/dp (K, 2, k)
+    for c in range(p.shape[0]):
+        if mode == BOTH:
+            jacobian[c, 0, 0], jacobian[c, 0, 1] = 1.0, 0.0
+            jacobian[c, 1, 0], jacobian[c, 1, 1] = 0.0, 1.0
+        elif mode == RATIO:
+            jacobian[c, 0, 0], jacobian[c, 1, 0] = direction[0], direction[1]
+        else:
+            jacobian[c, 0, 0], jacobian[c, 1, 0] = -ratio * math.sin(p[c, 0]), ratio * math.cos(p[c, 0])
+
+
+@numba.njit(cache=True)
+def fit_at(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns):
+    # the NNLS profile at the pairs s, warm from the set ``free``; returns the set changes
+    # (-1: stopped short of the optimum, see lawson_hanson), the set size and |residual|^2
+    n, rows = zt.shape
+    for j in range(n):
+        sx, sy = s[contact[j], 0], s[contact[j], 1]
+        for r in range(rows):
+            columns[j, r] = zt[j, r] + sx * xt[j, r] + sy * yt[j, r]
+    steps, k = lawson_hanson(columns, b, free, 3 * n + 10, g, factor, index)
+    for r in range(rows):
+        residual[r] = -b[r]
+    for i in range(k):
+        _axpy(g[index[i]], columns[index[i]], residual)
+    return steps, k, residual @ residual
+
+
+@numba.njit(cache=True)
+def _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp):
+    # Gauss-Newton step of the linearized problem in (g on its set, dp) together, with g
+    # eliminated through the set's Cholesky factor: with J = d(A g)/dp and W = A_S^T J,
+    # (J^T J - W^T G^-1 W) dp = -J^T r, G = A_S^T A_S = L L^T
+    K = jacobian.shape[0]
+    q = K * kp
+    rows = residual.shape[0]
+    sx = np.zeros((K, rows))
+    sy = np.zeros((K, rows))
+    for j in range(g.shape[0]):
+        if g[j] > 0:
+            sx[contact[j]] += g[j] * xt[j]
+            sy[contact[j]] += g[j] * yt[j]
+    J = np.empty((q, rows))
+    for c in range(K):
+        for l in range(kp):
+            J[c * kp + l] = sx[c] * jacobian[c, 0, l] + sy[c] * jacobian[c, 1, l]
+    W = np.empty((q, k))
+    V = np.empty((q, k))
+    for a in range(q):
+        for i in range(k):
+            W[a, i] = J[a] @ columns[index[i]]
+        _solve(factor, k, W[a], V[a])
+    schur = J @ J.T - W @ V.T
+    rhs = -(J @ residual)
+    try:
+        return np.linalg.solve(schur, rhs)
+    except Exception:  # a contact whose columns carry no load: no curvature along its pair
+        return np.linalg.lstsq(schur, rhs)[0]
+
+
+@numba.njit(cache=True)
+def gauss_newton(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, max_iterations, tolerance):
+    # Gauss-Newton with step halving on the free parameters, the profile eliminated (variable
+    # projection); each trial's NNLS starts from the current positive set. Returns the
+    # parameters, profile and residual found, and the profile and residual at the start.
+    n, rows = zt.shape
+    K, kp = p.shape
+    s = np.empty((K, 2))
+    jacobian = np.zeros((K, 2, kp))
+    columns, trial_columns = np.empty((n, rows)), np.empty((n, rows))
+    factor, index = workspace(zt)
+    trial_factor, trial_index = workspace(zt)
+    free, trial_free = np.zeros(n, np.bool_), np.zeros(n, np.bool_)
+    g, trial_g = np.zeros(n), np.zeros(n)
+    residual, trial_residual = np.empty(rows), np.empty(rows)
+    p = p.copy()
+    pairs_of(p, mode, direction, ratio, max_ratio, s)
+    _, k, rho = fit_at(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns)
+    start_g, start_residual = g.copy(), residual.copy()
+    for _ in range(max_iterations):
+        if k == 0:
+            break
+        _jacobian(p, mode, direction, ratio, jacobian)
+        step = _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp).reshape(K, kp)
+        accepted = False
+        for _halving in range(6):
+            trial = p + step
+            pairs_of(trial, mode, direction, ratio, max_ratio, s)
+            for j in range(n):
+                trial_free[j] = g[j] > 0
+            _, trial_k, trial_rho = fit_at(xt, yt, zt, contact, b, s, trial_free, trial_g, trial_residual,
+                                         trial_factor, trial_index, trial_columns)
+            if trial_rho < rho:
+                accepted = True
+                break
+            step = step / 2
+        if not accepted:
+            break
+        converged = np.max(np.abs(step)) < tolerance or rho - trial_rho < tolerance * 0.1 * rho
+        p = trial
+        k, rho = trial_k, trial_rho
+        g, trial_g = trial_g, g
+        residual, trial_residual = trial_residual, residual
+        factor, trial_factor = trial_factor, factor
+        index, trial_index = trial_index, index
+        columns, trial_columns = trial_columns, columns
+        if converged:
+            break
+    return p, g, residual, start_g, start_residual
