@@ -19,7 +19,12 @@ from solver import loads
 from solver.geometry import SensorGrid
 
 __all__ = ["Case", "SHAPES", "GOLDEN_ANGLE", "LAYER_SEED", "standard_contact", "standard_cases",
-           "tuning_cases", "validation_cases", "layer_cases", "default_cases"]
+           "tuning_cases", "validation_cases", "layer_cases", "default_cases", "load_decision_frames",
+           "LOAD_TUNING_SEEDS", "LOAD_VALIDATION_SEEDS"]
+
+# The load decision's threshold was chosen on the first seeds and is judged on the second.
+LOAD_TUNING_SEEDS = (1, 2, 3)
+LOAD_VALIDATION_SEEDS = (11, 12, 13)
 
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 
@@ -160,3 +165,24 @@ def default_cases(grid: SensorGrid, *, noises=(0.003, 0.01), seed: int = 11) -> 
                 cases.append(Case(f"{shape} mu={ratio:g} noise={100 * noise:g}%", shape,
                                   grid.thickness / grid.pitch, ratio, direction, frame))
     return cases
+
+
+def load_decision_frames(seed: int, *, sizes=(16, 32), thickness_ratios=(0.5, 1.0, 2.0, 3.0, 5.0),
+                         pitch: float = 2e-3):
+    """Frames that tell load from noise: ``(grid, kind, stress)`` for each skin and thickness.
+
+    One smooth 1 N Hertz load as wide as the layer is thick (at least 2.5
+    pitches), under noise of 1%, 10% and 20% of its peak stress (kinds
+    ``"1%"``, ``"snr10"``, ``"snr5"``), and noise alone (10 Pa, kind
+    ``"noise"``), on ``n x n`` skins, layer data.
+    """
+    rng = np.random.default_rng(seed)  # fixed seed per set: every run scores the very same frames
+    for n in sizes:
+        for ratio in thickness_ratios:
+            grid = SensorGrid.regular(n, n, pitch, ratio * pitch)
+            contact = loads.hertz((0.25 * pitch, -0.15 * pitch), max(2.5, ratio) * pitch, 1.0)
+            clean = loads.simulate(grid, contact).stress
+            peak = float(clean.max())
+            yield grid, "noise", rng.normal(0.0, 10.0, grid.size)
+            for kind, sigma in (("1%", 0.01 * peak), ("snr10", 0.1 * peak), ("snr5", 0.2 * peak)):
+                yield grid, kind, clean + rng.normal(0.0, sigma, grid.size)

@@ -13,14 +13,21 @@ import time
 import numpy as np
 
 from solver import Reconstructor, loads, metrics
-from solver.efficiency import FUNCTIONALS
+from solver.efficiency import FUNCTIONALS, ContactFit
 from solver.kernels import KERNELS
 
-from .cases import layer_cases, tuning_cases, validation_cases
+from .cases import (
+    LOAD_TUNING_SEEDS,
+    LOAD_VALIDATION_SEEDS,
+    layer_cases,
+    load_decision_frames,
+    tuning_cases,
+    validation_cases,
+)
 from .tables import DIRECTION, NORMAL, TANGENTIAL, Column, format_table, value
 
-__all__ = ["evaluate", "summarize", "counts", "false_shear", "MISMATCH_MEDIA", "mismatch",
-           "format_cases", "format_mismatch", "format_summary", "main"]
+__all__ = ["evaluate", "summarize", "counts", "false_shear", "MISMATCH_MEDIA", "mismatch", "load_decision",
+           "format_cases", "format_mismatch", "format_summary", "format_load_decision", "main"]
 
 
 def evaluate(cases, make_reconstructor, *, solve=None):
@@ -133,6 +140,44 @@ _CASES = (
 )
 
 
+def load_decision(seeds, *, min_load_evidence: float | None = None) -> dict:
+    """How the load decision does on :func:`measurement.cases.load_decision_frames`.
+
+    Returns, per kind of frame, the frames with exactly one contact, with
+    none, and the median and largest normal-total error (for noise alone:
+    the frames that report any contact).
+    """
+    options = {} if min_load_evidence is None else dict(min_load_evidence=min_load_evidence)
+    results, solvers = {}, {}
+    for seed in seeds:
+        for grid, kind, stress in load_decision_frames(seed):
+            key = (grid.shape, grid.thickness)
+            if key not in solvers:
+                solvers[key] = Reconstructor(grid, efficiency=ContactFit(**options))
+            result = solvers[key].solve(stress)
+            results.setdefault(kind, []).append((len(result.contacts), float(result.total_force[2])))
+    summary = {}
+    for kind, rows in results.items():
+        contacts = np.array([r[0] for r in rows])
+        error = np.abs(np.array([r[1] for r in rows]) - 1.0)
+        summary[kind] = dict(frames=len(rows), one=int(np.sum(contacts == 1)),
+                             none=int(np.sum(contacts == 0)), median=float(np.median(error)),
+                             worst=float(error.max()))
+    return summary
+
+
+def format_load_decision(summary) -> str:
+    lines = ["frames      one contact  none  total error median  worst"]
+    for kind, row in summary.items():
+        if kind == "noise":
+            reporting = row["frames"] - row["none"]
+            lines.append(f"{'noise alone':11} {reporting:>4} of {row['frames']:<3} report a contact")
+            continue
+        lines.append(f"{kind:11} {row['one']:>4} of {row['frames']:<3} {row['none']:>4}  "
+                     f"{100 * row['median']:17.1f}%  {100 * row['worst']:5.1f}%")
+    return "\n".join(lines)
+
+
 def format_cases(rows) -> str:
     """One line per case of :func:`evaluate`, then the :func:`summarize` medians."""
     return format_table([*rows, dict(case="median", **summarize(rows))], _CASES)
@@ -186,7 +231,15 @@ def main(argv=None):
     parser.add_argument("--cases", action="store_true", help="print the per-case table too")
     parser.add_argument("--mismatch", action="store_true",
                         help="every kernel on half-space and layer data (the physics set, h/p 0.5 to 2)")
+    parser.add_argument("--load-decision", action="store_true",
+                        help="load or noise: one Hertz load under 1%%, 10%% and 20%% noise and noise alone, "
+                             "16x16 and 32x32, h/p 0.5 to 5")
     args = parser.parse_args(argv)
+    if args.load_decision:
+        seeds = LOAD_VALIDATION_SEEDS if args.set == "validation" else LOAD_TUNING_SEEDS
+        print(f"load decision, {args.set} seeds {seeds}: 16x16 and 32x32, h/p 0.5 1 2 3 5, layer data")
+        print(format_load_decision(load_decision(seeds)))
+        return
     if args.mismatch:
         print(f"physics set: 48 cases per medium, 16x16, noise {args.noise:g}, automatic parameters")
         print(format_mismatch(mismatch(noise=args.noise)))

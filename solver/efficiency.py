@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse.csgraph import connected_components
 
 from .checks import real_number, whole_number
 from .search import BOTH, DIRECTION, RATIO, fit_at, gauss_newton, nonnegative_fit, pairs_of, workspace
@@ -50,6 +51,11 @@ class Frame:
         Rows near each contact (its local statistics).
     max_shear_ratio : float
         Upper bound for the shear ratio search.
+    column_node : (n,) ndarray of int
+        Skin node (0 to m-1) of each column.
+    neighbours : (m, m) sparse matrix
+        Nonzero between nodes within two pitches: the gaps a patch of load may
+        have (the load decision's patches).
     """
 
     stress: np.ndarray
@@ -59,6 +65,8 @@ class Frame:
     column_contact: np.ndarray
     row_contact: np.ndarray
     max_shear_ratio: float
+    column_node: np.ndarray
+    neighbours: object
 
     @property
     def contacts(self) -> int:
@@ -84,6 +92,10 @@ class Choice:
         Where the automatic search kept a non-zero shear.
     residual : float
         ``|A g - b|`` on the rows, pascals.
+    load_evidence : (K,) ndarray
+        Load evidence ``L`` of each contact's strongest patch kept (class
+        notes of :class:`ContactFit`; 0 when none was kept, ``nan`` when a
+        parameter was given).
     """
 
     shear: np.ndarray
@@ -92,6 +104,7 @@ class Choice:
     evidence: np.ndarray
     shear_detected: np.ndarray
     residual: float
+    load_evidence: np.ndarray
 
 
 class ContactFit:
@@ -130,6 +143,21 @@ class ContactFit:
     the tuning set (:func:`measurement.cases.tuning_cases`) and are judged on
     the validation set (``docs/efficiency.md``).
 
+    **Load decision.** Load the data cannot tell from noise is not reported.
+    Each patch ``P`` of a contact's fitted load (its connected pieces, gaps
+    of one node bridged) explains the stress ``A_P g_P``; were it noise
+    fitted by ``n_P`` positive sub-cells, ``chi2_P = |A_P g_P|^2 / variance``
+    (``variance`` the contact's as above, without the shear parameters)
+    would be about ``n_P``, give or take ``sqrt(2 n_P)``. A patch is kept when
+
+        L_P = (chi2_P - n_P) / sqrt(2 n_P) >= min_load_evidence
+
+    and a contact left without load is not reported. Only the automatic
+    search decides: with a parameter given, the answer is the exact member,
+    which keeps all the data anyway. Without it the damped normal-only solve
+    of a thick layer turns noise into regions over which the fit scatters
+    small loads, and pure noise makes contacts (``docs/efficiency.md``).
+
     Parameters
     ----------
     shrinkage : float, optional
@@ -144,12 +172,17 @@ class ContactFit:
         Stop when a step changes the parameters by less (shear ratio units),
         or lowers the residual by less than a tenth of this fraction.
         Default 1e-3.
+    min_load_evidence : float, optional
+        Smallest load evidence ``L_P`` of a reported patch of load, in
+        deviations of ``chi2``. Default 8 (chosen on seeds 1 to 3 of the
+        load-decision frames, :func:`measurement.cases.load_decision_frames`;
+        judged on seeds 11 to 13).
     """
 
     name = "contact_fit"
 
     def __init__(self, *, shrinkage: float = 2.0, model_error: float = 0.002,
-                 max_iterations: int = 12, tolerance: float = 1e-3):
+                 max_iterations: int = 12, tolerance: float = 1e-3, min_load_evidence: float = 8.0):
         self.shrinkage = real_number("shrinkage", shrinkage, rule="finite and >= 0",
                                      valid=lambda v: math.isfinite(v) and v >= 0)
         self.model_error = real_number("model_error", model_error, rule="finite and >= 0",
@@ -157,6 +190,8 @@ class ContactFit:
         self.max_iterations = whole_number("max_iterations", max_iterations, low=0)
         self.tolerance = real_number("tolerance", tolerance, rule="finite and > 0",
                                      valid=lambda v: math.isfinite(v) and v > 0)
+        self.min_load_evidence = real_number("min_load_evidence", min_load_evidence, rule="finite and >= 0",
+                                             valid=lambda v: math.isfinite(v) and v >= 0)
 
     # -- the profile at given parameters ---------------------------------------------
 
@@ -191,7 +226,8 @@ class ContactFit:
             pair = shear_ratio * np.array([math.cos(shear_direction), math.sin(shear_direction)])
             shear = np.tile(pair, (K, 1))
             g, residual = self.fit(frame, shear, support=None if start is None else start.profile > 0)
-            return self._choice(frame, shear, g, residual, np.full(K, math.nan), np.zeros(K, bool))
+            return self._choice(frame, shear, g, residual, np.full(K, math.nan), np.zeros(K, bool),
+                                decide=False)
 
         # Free parameters p (K, k) -> pairs s (K, 2): both free, the ratio alone, the direction alone
         ratio = 0.0 if shear_ratio is None else float(shear_ratio)
@@ -214,19 +250,16 @@ class ContactFit:
             frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact, frame.stress, mode, direction,
             ratio, frame.max_shear_ratio, start, self.max_iterations, self.tolerance)
         if shear_ratio is not None:  # only the direction was free: nothing to decide
-            return self._choice(frame, pairs(p), g, residual, np.full(K, math.nan), np.zeros(K, bool))
+            return self._choice(frame, pairs(p), g, residual, np.full(K, math.nan), np.zeros(K, bool),
+                                decide=False)
 
         # Soft decision from the sensors near each contact (module notes).
         k = p.shape[1]
         near = frame.row_contact
         rho0 = (residual0 ** 2) @ near
         rho = (residual ** 2) @ near
-        positive = np.bincount(frame.column_contact[g > 0], minlength=K)
-        dof = near.sum(axis=0) - positive - k
-        peak = np.array([np.abs(frame.stress[near[:, c]]).max(initial=0.0) for c in range(K)])
-        floor = (self.model_error * peak) ** 2
+        variance = self._variance(frame, g, residual, k)
         with np.errstate(divide="ignore", invalid="ignore"):
-            variance = np.where(dof > 0, np.maximum(rho / np.maximum(dof, 1), floor), np.inf)
             # an improvement within the fits' rounding is no evidence: on exact template data the
             # updated factors leave up to 4e-11 of |b|^2 (measured)
             gain = rho0 - rho
@@ -241,12 +274,59 @@ class ContactFit:
             g, residual = self.fit(frame, pairs(p), support=g > 0)
         return self._choice(frame, pairs(p), g, residual, evidence, keep > 0)
 
-    @staticmethod
-    def _choice(frame, shear, g, residual, evidence, detected):
+    def _variance(self, frame, g, residual, parameters, *, unknown=np.inf):
+        # misfit variance near each contact (K,): its residual over its degrees of freedom, at
+        # least the model's own error; ``unknown`` where no freedom is left
+        near = frame.row_contact
+        positive = np.bincount(frame.column_contact[g > 0], minlength=frame.contacts)
+        dof = near.sum(axis=0) - positive - parameters
+        peak = np.array([np.abs(frame.stress[near[:, c]]).max(initial=0.0) for c in range(frame.contacts)])
+        floor = (self.model_error * peak) ** 2
+        rho = (residual ** 2) @ near
+        return np.where(dof > 0, np.maximum(rho / np.maximum(dof, 1), floor),
+                        floor if unknown is None else unknown)
+
+    def _choice(self, frame, shear, g, residual, evidence, detected, *, decide=True):
+        # the load decision (class notes) when the search was free, then the functional's value
+        shear = np.asarray(shear, float)
+        load_evidence = np.full(frame.contacts, math.nan)
+        if decide:
+            g, residual, load_evidence = self._load_decision(frame, shear, g, residual)
         norm = float(np.linalg.norm(frame.stress))
         misfit = float(np.linalg.norm(residual))
         efficiency = 1.0 if norm == 0 else 1.0 - misfit / norm
-        return Choice(np.asarray(shear, float), g, efficiency, evidence, detected, misfit)
+        return Choice(shear, g, efficiency, evidence, detected, misfit, load_evidence)
+
+    def _load_decision(self, frame, shear, g, residual):
+        K = frame.contacts
+        # patches: the connected pieces of each contact's fitted load, gaps of a pitch bridged
+        node_load = np.bincount(frame.column_node, weights=g, minlength=frame.neighbours.shape[0])
+        loaded = np.flatnonzero(node_load > 0)
+        _, piece = connected_components(frame.neighbours[loaded][:, loaded], directed=False)
+        node_piece = np.full(node_load.size, -1)
+        node_piece[loaded] = piece
+        on = g > 0
+        patches, column_patch = np.unique(node_piece[frame.column_node[on]] * K + frame.column_contact[on],
+                                          return_inverse=True)
+        weights = np.zeros((g.size, patches.size))
+        weights[np.flatnonzero(on), column_patch] = g[on]
+        explained = (frame.fit_z @ weights + frame.fit_x @ (weights * shear[frame.column_contact, :1])
+                     + frame.fit_y @ (weights * shear[frame.column_contact, 1:]))   # (R, P)
+        # with no freedom left to measure the noise, only the model's own error is known
+        variance = self._variance(frame, g, residual, 0, unknown=None)[patches % K]
+        size = np.bincount(column_patch)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            chi2 = np.nan_to_num(np.sum(explained ** 2, axis=0) / variance, nan=0.0)
+        patch_evidence = (chi2 - size) / np.sqrt(2 * size)
+        noise = patch_evidence < self.min_load_evidence
+        if noise.any():
+            g = g.copy()
+            g[np.flatnonzero(on)[noise[column_patch]]] = 0.0
+            residual = residual - explained[:, noise].sum(axis=1)
+        # each contact's evidence: that of its strongest patch kept
+        load_evidence = np.zeros(K)
+        np.maximum.at(load_evidence, patches[~noise] % K, patch_evidence[~noise])
+        return g, residual, load_evidence
 
 
 class NoShear:

@@ -286,6 +286,7 @@ class Reconstructor:
         # Contact regions: connected patches of the normal-only solution, grown by a margin.
         tree = cKDTree(grid.positions)
         self._adjacent = _within(tree, 1.5 * grid.pitch)
+        self._neighbours = _within(tree, 2.5 * grid.pitch)
         self._margin = _within(tree, self.region_margin * grid.pitch * 1.0001)
         self._rings = math.ceil(self.reach * grid.thickness / grid.pitch) + 1
         self._near = _within(tree, self._rings * grid.pitch * 1.0001)
@@ -462,7 +463,7 @@ class Reconstructor:
         core = np.flatnonzero(normal > self.region_threshold * peak)
         count, labels = connected_components(self._adjacent[core][:, core], directed=False)
         mass = np.bincount(labels, weights=normal[core], minlength=count)
-        keep = np.zeros(normal.size, dtype=np.int8)
+        keep = np.zeros(normal.size, dtype=np.int32)  # counts of neighbours: int8 would wrap
         keep[core[mass[labels] >= 0.05 * mass.max()]] = 1
         return np.asarray(self._margin @ keep).ravel() > 0
 
@@ -494,7 +495,8 @@ class Reconstructor:
         labels, count = self.contacts_of(region)
         if count == 0:
             return None, labels, None
-        onehot = np.zeros((m, count), dtype=np.int8)
+        # int32: the products count a sensor's contact nodes within reach, which can pass 127
+        onehot = np.zeros((m, count), dtype=np.int32)
         onehot[np.flatnonzero(labels), labels[labels > 0] - 1] = 1
         near = np.asarray(self._near @ onehot) > 0              # (m, K) sensors near each contact
         rows = np.flatnonzero(near.any(axis=1))
@@ -507,8 +509,9 @@ class Reconstructor:
         n = columns.size
         frame = Frame(stress=b[rows], fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],
                       column_contact=np.tile(labels[index] - 1, cells).astype(np.intp),
-                      row_contact=near[rows], max_shear_ratio=self.max_shear_ratio)
-        return frame, labels, np.tile(index, cells)
+                      row_contact=near[rows], max_shear_ratio=self.max_shear_ratio,
+                      column_node=np.tile(index, cells), neighbours=self._neighbours)
+        return frame, labels, frame.column_node
 
     def _residual(self, x: np.ndarray, b: np.ndarray) -> float:
         return _relative(self.matrix @ x - b, b)

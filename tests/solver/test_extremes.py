@@ -278,11 +278,14 @@ def test_one_hot_taxel_under_a_thick_layer_reports_its_residual(kernel):
         result = solve(hot)
         # damped where exact; the automatic fit is never damped
         assert np.isfinite(result.forces).all() and result.regularized == (name != "auto"), name
-        # measured 0.87 to 0.89 (exact), 0.96 to 0.97 (automatic fit)
-        assert 0.1 < result.residual < 1.0, name
         assert result.residual == pytest.approx(recomputed_residual(r, result, hot), rel=1e-9), name
         if name == "auto":
-            check_fit(r, result, hot)
+            # no surface load under this layer makes a one-taxel spike: what the fit can explain
+            # of it is within the noise the spike implies, so no contact, nothing explained
+            assert result.contacts == () and result.residual == 1.0 and not result.region.any()
+            continue
+        # measured 0.87 to 0.89
+        assert 0.1 < result.residual < 1.0, name
 
 
 # (kernel, where, bound) -- measured worst relative error of the total normal force

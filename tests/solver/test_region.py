@@ -229,19 +229,23 @@ def test_totals_do_not_drift_with_skin_size():
     assert max(tangential) <= 1.2 * min(tangential) + 0.002
 
 
-@pytest.mark.parametrize("ratio, n", [(2.0, 16), (3.0, 16), (5.0, 32)])
+@pytest.mark.parametrize("ratio, n", [(2.0, 16), (3.0, 16), (5.0, 16), (7.0, 16), (2.0, 32), (3.0, 32),
+                                      (5.0, 32), (7.0, 32), (10.0, 32)])
 def test_thick_layers_keep_the_normal_total_and_add_no_tension(ratio, n):
-    # measured fit totals 1.022, 1.015 (16x16), 1.016 (32x32); at h/p 5 on 16x16 (the skin
-    # narrower than the stress spread) 1.62 and at 10 on 32x32 1.11: not met yet
+    # a smooth load about as wide as the layer is thick; at h/p 10 it is wider than a 16x16
+    # skin (measured 0.89 there: the load off the skin is not sensed), so that case is 32x32.
+    # Measured over seeds 40-42: totals within 0.8% (16x16) and 0.5% (32x32); before the load
+    # decision noise patches added up to 8% at h/p 2-3 on 32x32.
     grid = SensorGrid.regular(n, n, PITCH, ratio * PITCH)
-    # a smooth load about as wide as the layer is thick
     contact = loads.hertz((0.5e-3, -0.3e-3), max(2.5, ratio) * PITCH, 1.0)
-    rng = np.random.default_rng(12)  # fixed seed
-    frame = loads.simulate(grid, contact, noise=0.01, rng=rng)
-    result = make_solver(grid).solve(frame.stress)
-    assert result.total_force[2] == pytest.approx(1.0, rel=0.05)
-    assert result.forces[:, 2].min() >= 0.0  # the compressive fit has no tension at all
-    normal = make_solver(grid).solve_normal(frame.stress).forces[:, 2]
+    solver = make_solver(grid)
+    for seed in (40, 41, 42):  # fixed seeds, none of them used to choose the load decision
+        frame = loads.simulate(grid, contact, noise=0.01, rng=np.random.default_rng(seed))
+        result = solver.solve(frame.stress)
+        assert result.total_force[2] == pytest.approx(1.0, rel=0.05), seed
+        assert len(result.contacts) == 1, seed
+        assert result.forces[:, 2].min() >= 0.0  # the compressive fit has no tension at all
+    normal = solver.solve_normal(frame.stress).forces[:, 2]
     assert normal.min() < 0  # where the normal-only inverse has some
 
 
