@@ -7,8 +7,10 @@ is an object with a ``name`` and a method
 that returns the shear parameters of every contact (the given ones, or the
 maximizer over the free ones), the compressive normal profile ``g`` of the
 template load and the value of the functional; ``start`` is an earlier
-choice on the same frame, which may make the work cheaper but must not
-change the answer. :class:`solver.Reconstructor` takes any such object.
+choice (on this frame, or the frame before it in playback and live mode),
+which may make the work cheaper but must not change the answer beyond
+rounding.
+:class:`solver.Reconstructor` takes any such object.
 
 Chosen: :class:`ContactFit` (see its notes and ``docs/efficiency.md`` for the
 measured comparison). Kept for comparison: :class:`NoShear`, the baseline
@@ -21,10 +23,19 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.sparse.csgraph import connected_components
 
 from .checks import real_number, whole_number
-from .search import BOTH, DIRECTION, RATIO, fit_at, gauss_newton, nonnegative_fit, pairs_of, workspace
+from .search import (
+    BOTH,
+    DIRECTION,
+    RATIO,
+    fit_at,
+    gauss_newton,
+    load_patches,
+    nonnegative_fit,
+    pairs_of,
+    workspace,
+)
 
 __all__ = ["Frame", "Choice", "ContactFit", "NoShear", "FUNCTIONALS"]
 
@@ -53,6 +64,9 @@ class Frame:
         Upper bound for the shear ratio search.
     column_node : (n,) ndarray of int
         Skin node (0 to m-1) of each column.
+    column_id : (n,) ndarray of int
+        The column's sub-cell on the whole skin (``q m + node`` for sub-cell
+        ``q``): the same sub-cell has the same id in every frame.
     neighbours : (m, m) sparse matrix
         Nonzero between nodes within two pitches: the gaps a patch of load may
         have (the load decision's patches).
@@ -67,6 +81,7 @@ class Frame:
     max_shear_ratio: float
     column_node: np.ndarray
     neighbours: object
+    column_id: np.ndarray
 
     @property
     def contacts(self) -> int:
@@ -96,6 +111,8 @@ class Choice:
         Load evidence ``L`` of each contact's strongest patch kept (class
         notes of :class:`ContactFit`; 0 when none was kept, ``nan`` when a
         parameter was given).
+    column_id : (n,) ndarray of int
+        The frame's :attr:`Frame.column_id`.
     """
 
     shear: np.ndarray
@@ -105,6 +122,7 @@ class Choice:
     shear_detected: np.ndarray
     residual: float
     load_evidence: np.ndarray
+    column_id: np.ndarray
 
 
 class ContactFit:
@@ -221,11 +239,11 @@ class ContactFit:
     def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None, start=None) -> Choice:
         K = frame.contacts
         if shear_ratio is not None and shear_direction is not None:
-            # given parameters (a slider move): the fit warm-starts from an earlier choice's
-            # positive set on this frame, which the minimizer does not depend on
+            # given parameters (a slider move, or playback at fixed sliders): the fit starts from
+            # the earlier choice's positive set, which the minimizer does not depend on
             pair = shear_ratio * np.array([math.cos(shear_direction), math.sin(shear_direction)])
             shear = np.tile(pair, (K, 1))
-            g, residual = self.fit(frame, shear, support=None if start is None else start.profile > 0)
+            g, residual = self.fit(frame, shear, support=_guess(frame, start))
             return self._choice(frame, shear, g, residual, np.full(K, math.nan), np.zeros(K, bool),
                                 decide=False)
 
@@ -243,12 +261,18 @@ class ContactFit:
         if mode == DIRECTION:
             # theta alone is periodic with several local optima: start from the best of a scan
             scan = [np.full((K, 1), t) for t in np.linspace(-math.pi, math.pi, 12, endpoint=False)]
-            start = min(scan, key=lambda p: float(np.sum(self.fit(frame, pairs(p))[1] ** 2)))
+            first = min(scan, key=lambda p: float(np.sum(self.fit(frame, pairs(p))[1] ** 2)))
+            guess = np.zeros(frame.column_id.size, bool)
         else:
-            start = np.zeros((K, 2 if mode == BOTH else 1))
+            first = np.zeros((K, 2 if mode == BOTH else 1))
+            # The search starts cold. From the previous frame's shear-free set it needs about half
+            # the set changes (101 to 52, median), 60 us of 270; but the Gauss-Newton path then
+            # depends on rounding, and the answer on the frames before by up to its tolerance
+            # (0.4% of a node's force measured): the same frame would not give the same forces.
+            guess = np.zeros(frame.column_id.size, bool)
         p, g, residual, g0, residual0 = gauss_newton(
             frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact, frame.stress, mode, direction,
-            ratio, frame.max_shear_ratio, start, self.max_iterations, self.tolerance)
+            ratio, frame.max_shear_ratio, first, guess, self.max_iterations, self.tolerance)
         if shear_ratio is not None:  # only the direction was free: nothing to decide
             return self._choice(frame, pairs(p), g, residual, np.full(K, math.nan), np.zeros(K, bool),
                                 decide=False)
@@ -295,38 +319,39 @@ class ContactFit:
         norm = float(np.linalg.norm(frame.stress))
         misfit = float(np.linalg.norm(residual))
         efficiency = 1.0 if norm == 0 else 1.0 - misfit / norm
-        return Choice(shear, g, efficiency, evidence, detected, misfit, load_evidence)
+        return Choice(shear, g, efficiency, evidence, detected, misfit, load_evidence, frame.column_id)
 
     def _load_decision(self, frame, shear, g, residual):
         K = frame.contacts
         # patches: the connected pieces of each contact's fitted load, gaps of a pitch bridged
-        node_load = np.bincount(frame.column_node, weights=g, minlength=frame.neighbours.shape[0])
-        loaded = np.flatnonzero(node_load > 0)
-        _, piece = connected_components(frame.neighbours[loaded][:, loaded], directed=False)
-        node_piece = np.full(node_load.size, -1)
-        node_piece[loaded] = piece
-        on = g > 0
-        patches, column_patch = np.unique(node_piece[frame.column_node[on]] * K + frame.column_contact[on],
-                                          return_inverse=True)
-        weights = np.zeros((g.size, patches.size))
-        weights[np.flatnonzero(on), column_patch] = g[on]
-        explained = (frame.fit_z @ weights + frame.fit_x @ (weights * shear[frame.column_contact, :1])
-                     + frame.fit_y @ (weights * shear[frame.column_contact, 1:]))   # (R, P)
+        column_patch, patch_contact, size, explained = load_patches(
+            frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact, frame.column_node, shear, g,
+            frame.neighbours.indptr, frame.neighbours.indices)
         # with no freedom left to measure the noise, only the model's own error is known
-        variance = self._variance(frame, g, residual, 0, unknown=None)[patches % K]
-        size = np.bincount(column_patch)
+        variance = self._variance(frame, g, residual, 0, unknown=None)[patch_contact]
         with np.errstate(divide="ignore", invalid="ignore"):
-            chi2 = np.nan_to_num(np.sum(explained ** 2, axis=0) / variance, nan=0.0)
+            chi2 = np.nan_to_num(np.sum(explained ** 2, axis=1) / variance, nan=0.0)
         patch_evidence = (chi2 - size) / np.sqrt(2 * size)
         noise = patch_evidence < self.min_load_evidence
         if noise.any():
-            g = g.copy()
-            g[np.flatnonzero(on)[noise[column_patch]]] = 0.0
-            residual = residual - explained[:, noise].sum(axis=1)
+            g = np.where(noise[column_patch] & (column_patch >= 0), 0.0, g)
+            residual = residual - explained[noise].sum(axis=0)
         # each contact's evidence: that of its strongest patch kept
         load_evidence = np.zeros(K)
-        np.maximum.at(load_evidence, patches[~noise] % K, patch_evidence[~noise])
+        np.maximum.at(load_evidence, patch_contact[~noise], patch_evidence[~noise])
         return g, residual, load_evidence
+
+
+def _guess(frame, start):
+    # the positive set of an earlier choice's profile on this frame's columns, through the
+    # sub-cells' skin-wide ids; empty without one
+    guess = np.zeros(frame.column_id.size, bool)
+    if start is not None:
+        ids = start.column_id[start.profile > 0]
+        on = np.zeros(max(ids.max(initial=-1), frame.column_id.max(initial=-1)) + 1, bool)
+        on[ids] = True
+        guess = on[frame.column_id]
+    return guess
 
 
 class NoShear:

@@ -33,6 +33,7 @@ from .checks import optional_flag, real_number, whole_number
 from .efficiency import ContactFit, Frame
 from .geometry import SensorGrid
 from .kernels import KERNELS, stress_matrix
+from .search import gather
 
 __all__ = ["Reconstructor", "Reconstruction", "Contact", "SymmetricFactor", "check_options",
            "check_parameters"]
@@ -263,7 +264,8 @@ class Reconstructor:
         self.region_margin = int(region_margin)
         self.reach = float(reach)
         self.efficiency = ContactFit() if efficiency is None else efficiency
-        self._recent = None  # (stress bytes, frame, labels, nodes, choice) of the last frame fitted
+        # (stress bytes, frame, labels, nodes, choice, its parameters) of the last frame fitted
+        self._recent = None
         # Sub-cells need translation invariance and a kernel that spreads the force over a
         # cell, and a layer thick enough to tell them apart: under a layer thinner than half
         # a sub-cell each sensor sees only its sub-cells' shared corner, and the fit exploits
@@ -367,19 +369,23 @@ class Reconstructor:
         m = self.grid.size
         fallback = 0.0 if shear_direction is None else float(shear_direction)
         # A slider moves the parameters on the frame shown: its contacts and fit matrices are
-        # kept from the last solve of that frame, and the fit starts from the last profile.
-        key = b.tobytes()
+        # kept from the last solve of that frame, and the fit starts from the last profile (the
+        # same parameters again give the same choice, not one equal up to rounding). With given
+        # parameters another frame starts its fit from the last one's (playback and live mode:
+        # the frame before), which changes the answer only by rounding.
+        key, parameters = b.tobytes(), (shear_ratio, shear_direction)
         recent = self._recent
         if recent is not None and recent[0] == key:
-            _, frame, labels, nodes, start = recent
+            _, frame, labels, nodes, start, solved_for = recent
         else:
-            (frame, labels, nodes), start = self._frame(b), None
+            (frame, labels, nodes), solved_for = self._frame(b), None
+            start = None if recent is None else recent[4]
         if frame is None:  # nothing compressive anywhere: no contact to fit
             return self._without_contact(b, exact, fallback)
-        choice = self.efficiency.choose(frame, shear_ratio=shear_ratio, shear_direction=shear_direction,
-                                        start=start)
+        choice = start if solved_for == parameters else self.efficiency.choose(
+            frame, shear_ratio=shear_ratio, shear_direction=shear_direction, start=start)
         # one tuple, replaced whole: solves on other threads read either the old or the new one
-        self._recent = (key, frame, labels, nodes, choice)
+        self._recent = (key, frame, labels, nodes, choice, parameters)
         # the answer stays one force per node: the sum of its sub-cells
         g = np.bincount(nodes, weights=choice.profile, minlength=m)
         # a patch the compressive fit gives no load (tension read through a damped inverse
@@ -504,13 +510,13 @@ class Reconstructor:
         cells = self.subdivision ** 2
         columns = (np.arange(cells)[:, None] * m + index).ravel()  # sub-cell q of node j: q m + j
         width = cells * m
-        fit = self._fit_columns.take(np.concatenate([columns, columns + width, columns + 2 * width]), axis=0)
-        fit = fit.take(rows, axis=1).T  # (R, 3n), each column contiguous
+        every = np.concatenate([columns, columns + width, columns + 2 * width])
+        fit = gather(self._fit_columns, rows, every).T  # (R, 3n), each column contiguous
         n = columns.size
         frame = Frame(stress=b[rows], fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],
                       column_contact=np.tile(labels[index] - 1, cells).astype(np.intp),
                       row_contact=near[rows], max_shear_ratio=self.max_shear_ratio,
-                      column_node=np.tile(index, cells), neighbours=self._neighbours)
+                      column_node=np.tile(index, cells), neighbours=self._neighbours, column_id=columns)
         return frame, labels, frame.column_node
 
     def _residual(self, x: np.ndarray, b: np.ndarray) -> float:

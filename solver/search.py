@@ -28,8 +28,8 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["nonnegative_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
-           "BOTH", "RATIO", "DIRECTION"]
+__all__ = ["gather", "load_patches", "nonnegative_fit", "workspace", "lawson_hanson", "fit_at",
+           "gauss_newton", "pairs_of", "BOTH", "RATIO", "DIRECTION"]
 
 # Columns whose remaining norm after projecting out the set's columns is below this fraction
 # of their own norm are taken as dependent: the factor could not stay positive definite.
@@ -285,6 +285,88 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
                     k -= 1
 
 
+@numba.njit(cache=True)
+def gather(matrix, rows, columns):
+    """``matrix[columns][:, rows]`` in one pass: the fit's columns, each on the fit's sensors.
+
+    Parameters
+    ----------
+    matrix : (N, m) ndarray
+        Stress matrix stored by column (one row of ``matrix`` per force column).
+    rows : (R,) ndarray of int
+    columns : (n,) ndarray of int
+
+    Returns
+    -------
+    (n, R) ndarray
+    """
+    out = np.empty((columns.size, rows.size))
+    for i in range(columns.size):
+        source = matrix[columns[i]]
+        for j in range(rows.size):
+            out[i, j] = source[rows[j]]
+    return out
+
+
+@numba.njit(cache=True)
+def load_patches(xt, yt, zt, contact, node, shear, g, indptr, indices):
+    """The patches of a fitted load and the stress each explains (the contact fit's load decision).
+
+    A patch is a connected piece of one contact's positive load: nodes with load,
+    linked when neighbours (``indptr``, ``indices``: the CSR rows of the
+    neighbour matrix over the skin's m nodes) and of the same contact.
+
+    Returns
+    -------
+    column_patch : (n,) ndarray of int
+        Patch of each column, -1 where ``g`` is 0.
+    patch_contact : (P,) ndarray of int
+    size : (P,) ndarray of int
+        Positive columns of each patch.
+    explained : (P, R) ndarray
+        Stress on the rows of each patch's load, ``A_P g_P``.
+    """
+    n, rows = zt.shape
+    m = indptr.size - 1
+    node_contact = np.full(m, -1, np.int64)
+    for j in range(n):
+        if g[j] > 0:
+            node_contact[node[j]] = contact[j]
+    node_patch = np.full(m, -1, np.int64)
+    patch_contact = np.empty(m, np.int64)
+    stack = np.empty(m, np.int64)
+    patches = 0
+    for seed in range(m):
+        if node_contact[seed] < 0 or node_patch[seed] >= 0:
+            continue
+        node_patch[seed] = patches
+        patch_contact[patches] = node_contact[seed]
+        top = 1
+        stack[0] = seed
+        while top > 0:
+            top -= 1
+            here = stack[top]
+            for e in range(indptr[here], indptr[here + 1]):
+                there = indices[e]
+                if node_patch[there] < 0 and node_contact[there] == node_contact[seed]:
+                    node_patch[there] = patches
+                    stack[top] = there
+                    top += 1
+        patches += 1
+    column_patch = np.full(n, -1, np.int64)
+    size = np.zeros(patches, np.int64)
+    explained = np.zeros((patches, rows))
+    for j in range(n):
+        if g[j] > 0:
+            k = node_patch[node[j]]
+            column_patch[j] = k
+            size[k] += 1
+            sx, sy = g[j] * shear[contact[j], 0], g[j] * shear[contact[j], 1]
+            for r in range(rows):
+                explained[k, r] += g[j] * zt[j, r] + sx * xt[j, r] + sy * yt[j, r]
+    return column_patch, patch_contact[:patches].copy(), size, explained
+
+
 # -- the Gauss-Newton search over the shear pairs ----------------------------------------------
 
 BOTH, RATIO, DIRECTION = 0, 1, 2    # which parameters are free
@@ -368,10 +450,12 @@ def _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp)
 
 
 @numba.njit(cache=True)
-def gauss_newton(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, max_iterations, tolerance):
+def gauss_newton(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, guess, max_iterations,
+                 tolerance):
     # Gauss-Newton with step halving on the free parameters, the profile eliminated (variable
-    # projection); each trial's NNLS starts from the current positive set. Returns the
-    # parameters, profile and residual found, and the profile and residual at the start.
+    # projection); the first NNLS starts from the set ``guess``, each trial's from the current
+    # positive set. Returns the parameters, profile and residual found, and the profile and
+    # residual at the start.
     n, rows = zt.shape
     K, kp = p.shape
     s = np.empty((K, 2))
@@ -383,6 +467,7 @@ def gauss_newton(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, m
     g, trial_g = np.zeros(n), np.zeros(n)
     residual, trial_residual = np.empty(rows), np.empty(rows)
     p = p.copy()
+    free[:] = guess
     pairs_of(p, mode, direction, ratio, max_ratio, s)
     _, k, rho = fit_at(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns)
     start_g, start_residual = g.copy(), residual.copy()

@@ -2,10 +2,11 @@
 
 import numpy as np
 import pytest
+from scipy import sparse
 from scipy.optimize import nnls
 
 import solver.search as search
-from solver.search import nonnegative_fit
+from solver.search import load_patches, nonnegative_fit
 
 
 def random_problem(seed):
@@ -95,3 +96,24 @@ def test_nonnegative_fit_survives_scipy_running_out_of_iterations(monkeypatch):
     g = nonnegative_fit(A, b)  # cold: scipy's nnls fails, bounded least squares answers
     np.testing.assert_allclose(g, reference, rtol=0, atol=1e-8 * max(np.abs(reference).max(), 1.0))
     assert_kkt(A, b, g)
+
+
+def test_load_patches_are_connected_pieces_of_one_contacts_load():
+    # nodes 0..7 on a line, neighbours within two steps (a gap of one node is bridged);
+    # one column per node, all of contact 0 but nodes 6 and 7 (contact 1)
+    m = 8
+    neighbours = sparse.csr_matrix(np.abs(np.subtract.outer(np.arange(m), np.arange(m))) <= 2)
+    contact = np.array([0, 0, 0, 0, 0, 0, 1, 1])
+    node = np.arange(m)
+    g = np.array([1.0, 0.0, 2.0, 0.0, 0.0, 3.0, 4.0, 0.0])   # 0 and 2 bridged; 5 alone; 6 another contact
+    rng = np.random.default_rng(4)  # fixed seed
+    xt, yt, zt = (rng.standard_normal((m, 5)) for _ in range(3))
+    shear = np.array([[0.1, -0.2], [0.3, 0.0]])
+    column_patch, patch_contact, size, explained = load_patches(
+        xt, yt, zt, contact, node, shear, g, neighbours.indptr, neighbours.indices)
+    np.testing.assert_array_equal(column_patch, [0, -1, 0, -1, -1, 1, 2, -1])
+    np.testing.assert_array_equal(patch_contact, [0, 0, 1])
+    np.testing.assert_array_equal(size, [2, 1, 1])
+    columns = zt + shear[contact, :1] * xt + shear[contact, 1:] * yt   # A's columns, one per row
+    for k in range(3):
+        np.testing.assert_allclose(explained[k], (g * (column_patch == k)) @ columns, rtol=1e-12)
