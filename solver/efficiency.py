@@ -7,9 +7,10 @@ is an object with a ``name`` and a method
 that returns the shear parameters of every contact (the given ones, or the
 maximizer over the free ones), the compressive normal profile ``g`` of the
 template load and the value of the functional; ``start`` is an earlier
-choice (on this frame, or the frame before it in playback and live mode),
-which may make the work cheaper but must not change the answer beyond
-rounding.
+choice of the same solver (on this frame after a slider move; in playback
+and live mode the frame before; or whatever the solver did last, on any
+thread), which may make the work cheaper but must not change the answer
+beyond rounding.
 :class:`solver.Reconstructor` takes any such object.
 
 Chosen: :class:`ContactFit` (see its notes and ``docs/efficiency.md`` for the
@@ -25,17 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .checks import real_number, whole_number
-from .search import (
-    BOTH,
-    DIRECTION,
-    RATIO,
-    fit_at,
-    gauss_newton,
-    load_patches,
-    nonnegative_fit,
-    pairs_of,
-    workspace,
-)
+from .search import BOTH, DIRECTION, RATIO, fit_at, gauss_newton, load_patches, pairs_of, scipy_fit, workspace
 
 __all__ = ["Frame", "Choice", "ContactFit", "NoShear", "FUNCTIONALS"]
 
@@ -68,8 +59,8 @@ class Frame:
         The column's sub-cell on the whole skin (``q m + node`` for sub-cell
         ``q``): the same sub-cell has the same id in every frame.
     neighbours : (m, m) sparse matrix
-        Nonzero between nodes within two pitches: the gaps a patch of load may
-        have (the load decision's patches).
+        Nonzero between nodes within 2.5 pitches, so a patch of load may have
+        gaps of one node, straight or diagonal (the load decision's patches).
     """
 
     stress: np.ndarray
@@ -171,8 +162,10 @@ class ContactFit:
         L_P = (chi2_P - n_P) / sqrt(2 n_P) >= min_load_evidence
 
     and a contact left without load is not reported. Only the automatic
-    search decides: with a parameter given, the answer is the exact member,
-    which keeps all the data anyway. Without it the damped normal-only solve
+    search decides: with a parameter given, the answer is by default the
+    exact member, which puts all the data back anyway (with ``exact=False``
+    the template keeps its noise patches). Without the decision the damped
+    normal-only solve
     of a thick layer turns noise into regions over which the fit scatters
     small loads, and pure noise makes contacts (``docs/efficiency.md``).
 
@@ -194,7 +187,8 @@ class ContactFit:
         Smallest load evidence ``L_P`` of a reported patch of load, in
         deviations of ``chi2``. Default 8 (chosen on seeds 1 to 3 of the
         load-decision frames, :func:`measurement.cases.load_decision_frames`;
-        judged on seeds 11 to 13).
+        judged on seeds 11 to 13). ``-inf`` keeps every patch (0 still drops
+        those that explain less than noise would).
     """
 
     name = "contact_fit"
@@ -208,8 +202,9 @@ class ContactFit:
         self.max_iterations = whole_number("max_iterations", max_iterations, low=0)
         self.tolerance = real_number("tolerance", tolerance, rule="finite and > 0",
                                      valid=lambda v: math.isfinite(v) and v > 0)
-        self.min_load_evidence = real_number("min_load_evidence", min_load_evidence, rule="finite and >= 0",
-                                             valid=lambda v: math.isfinite(v) and v >= 0)
+        self.min_load_evidence = real_number("min_load_evidence", min_load_evidence,
+                                             rule="a number below inf (-inf keeps every patch)",
+                                             valid=lambda v: not math.isnan(v) and v < math.inf)
 
     # -- the profile at given parameters ---------------------------------------------
 
@@ -229,8 +224,8 @@ class ContactFit:
         g, residual, columns = np.zeros(n), np.empty(rows), np.empty((n, rows))
         steps, _, _ = fit_at(frame.fit_x.T, frame.fit_y.T, zt, frame.column_contact, frame.stress,
                            np.asarray(shear, dtype=float), free, g, residual, *workspace(zt), columns)
-        if steps < 0:  # stopped short of the optimum (module notes of solver.nnls)
-            g = nonnegative_fit(columns.T, frame.stress)
+        if steps < 0:  # stopped short of the optimum (solver.search.lawson_hanson)
+            g = scipy_fit(columns.T, frame.stress)
             residual = columns.T @ g - frame.stress
         return g, residual
 
@@ -258,19 +253,19 @@ class ContactFit:
             s = np.empty((K, 2))
             pairs_of(p, mode, direction, ratio, frame.max_shear_ratio, s)
             return s
+        # The search starts cold (or from the best scan's fit). From the previous frame's set
+        # it needs half the set changes (101 to 52), but its path then depends on rounding and
+        # the answer on the frames before, by up to the search's tolerance (docs/efficiency.md).
+        guess = np.zeros(frame.column_id.size, bool)
         if mode == DIRECTION:
             # theta alone is periodic with several local optima: start from the best of a scan
             scan = [np.full((K, 1), t) for t in np.linspace(-math.pi, math.pi, 12, endpoint=False)]
-            first = min(scan, key=lambda p: float(np.sum(self.fit(frame, pairs(p))[1] ** 2)))
-            guess = np.zeros(frame.column_id.size, bool)
+            fits = [self.fit(frame, pairs(p)) for p in scan]
+            best = min(range(len(scan)), key=lambda i: float(np.sum(fits[i][1] ** 2)))
+            first, guess = scan[best], fits[best][0] > 0
         else:
             first = np.zeros((K, 2 if mode == BOTH else 1))
-            # The search starts cold. From the previous frame's shear-free set it needs about half
-            # the set changes (101 to 52, median), 60 us of 270; but the Gauss-Newton path then
-            # depends on rounding, and the answer on the frames before by up to its tolerance
-            # (0.4% of a node's force measured): the same frame would not give the same forces.
-            guess = np.zeros(frame.column_id.size, bool)
-        p, g, residual, g0, residual0 = gauss_newton(
+        p, g, residual, g0, residual0, _ = gauss_newton(
             frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact, frame.stress, mode, direction,
             ratio, frame.max_shear_ratio, first, guess, self.max_iterations, self.tolerance)
         if shear_ratio is not None:  # only the direction was free: nothing to decide
@@ -284,8 +279,8 @@ class ContactFit:
         rho = (residual ** 2) @ near
         variance = self._variance(frame, g, residual, k)
         with np.errstate(divide="ignore", invalid="ignore"):
-            # an improvement within the fits' rounding is no evidence: on exact template data the
-            # updated factors leave up to 4e-11 of |b|^2 (measured)
+            # an improvement below 1e-10 of |b|^2 is no evidence: rounding (on exact template data
+            # the search gains up to 1e-31 of |b|^2, measured) or far below any noise
             gain = rho0 - rho
             gain = np.where(gain > 1e-10 * ((frame.stress ** 2) @ near), gain, 0.0)
             evidence = np.where(variance > 0, gain / k / variance, np.inf)
@@ -323,7 +318,7 @@ class ContactFit:
 
     def _load_decision(self, frame, shear, g, residual):
         K = frame.contacts
-        # patches: the connected pieces of each contact's fitted load, gaps of a pitch bridged
+        # patches: the connected pieces of each contact's fitted load, gaps of one node bridged
         column_patch, patch_contact, size, explained = load_patches(
             frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact, frame.column_node, shear, g,
             frame.neighbours.indptr, frame.neighbours.indices)

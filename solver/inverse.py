@@ -415,7 +415,7 @@ class Reconstructor:
                 shear_direction=_direction(sx, sy, fallback), evidence=float(choice.evidence[k]),
                 shear_detected=bool(choice.shear_detected[k]), at_edge=bool(np.any(mask & self._border)),
                 total_force=read_only(forces[mask].sum(axis=0))))
-        region = np.isin(labels, 1 + np.flatnonzero(loaded))
+        region = np.concatenate([[False], loaded])[labels]  # the nodes of the contacts kept
         contacts.sort(key=lambda c: -c.total_force[2])
         main = contacts[0]
         return Reconstruction(
@@ -462,7 +462,7 @@ class Reconstructor:
             core = image > self.region_threshold * peak
             labels, count = ndimage.label(core, structure=np.ones((3, 3)))
             mass = ndimage.sum_labels(image, labels, index=np.arange(1, count + 1))
-            kept = np.isin(labels, 1 + np.flatnonzero(mass >= 0.05 * mass.max()))
+            kept = np.concatenate([[False], mass >= 0.05 * mass.max()])[labels]
             if self.region_margin == 0:
                 return kept.ravel()
             return ndimage.binary_dilation(kept, structure=self._disk).ravel()

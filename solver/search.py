@@ -11,8 +11,10 @@ one a sweep of Givens rotations, where solving each set afresh costs a
 factorization. The Gauss-Newton step then reuses that factor to eliminate
 the profile. ``scipy.optimize.nnls`` has neither a warm start nor updates,
 and in numpy each fit costs hundreds of calls of a few microseconds, so the
-whole search is compiled here; scipy stays the fallback for the degenerate
-problems the updated factor cannot hold. ``docs/efficiency.md`` has the
+whole search is compiled here. A fit the updated factor cannot take to its
+optimum (a full set, or a cap on the set changes) is finished by scipy when it
+is the answer (:func:`nonnegative_fit`, ``ContactFit.fit``); inside the search
+it ends the search at the last optimal fit. ``docs/efficiency.md`` has the
 measurements that justify the compiled code.
 
 Everything compiled lives in this one module: numba's on-disk cache checks
@@ -28,8 +30,8 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["warm_up", "gather", "load_patches", "nonnegative_fit", "workspace", "lawson_hanson", "fit_at",
-           "gauss_newton", "pairs_of", "BOTH", "RATIO", "DIRECTION"]
+__all__ = ["warm_up", "gather", "load_patches", "nonnegative_fit", "scipy_fit", "workspace", "lawson_hanson",
+           "fit_at", "gauss_newton", "pairs_of", "BOTH", "RATIO", "DIRECTION"]
 
 def warm_up():
     """Compile (or load from numba's cache) every path of the contact fit: about 14 s the first
@@ -50,6 +52,8 @@ def warm_up():
 # Columns whose remaining norm after projecting out the set's columns is below this fraction
 # of their own norm are taken as dependent: the factor could not stay positive definite.
 _DEPENDENT = 1e-12
+# The optimality test's relative size (lawson_hanson).
+_OPTIMAL = 1e-12
 
 
 def nonnegative_fit(matrix, stress, *, support=None, max_swaps=None):
@@ -80,15 +84,19 @@ def nonnegative_fit(matrix, stress, *, support=None, max_swaps=None):
     factor, index = workspace(columns)
     steps, _ = lawson_hanson(columns, b, guess, 3 * n + 10 if max_swaps is None else int(max_swaps), g,
                              factor, index)
-    if steps >= 0:
-        return g
+    return g if steps >= 0 else scipy_fit(matrix, stress)
+
+
+def scipy_fit(matrix, stress):
+    """The fallback: ``scipy.optimize.nnls``, and bounded least squares if it runs out of
+    iterations on a degenerate problem."""
     try:
-        return nnls(matrix, stress, maxiter=30 * max(n, 1))[0]
+        return nnls(matrix, stress, maxiter=30 * max(matrix.shape[1], 1))[0]
     except RuntimeError:
         return lsq_linear(matrix, stress, bounds=(0.0, np.inf), method="bvls").x
 
 
-@numba.njit(cache=True, fastmath={"reassoc", "contract"})
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _dot(x, y):
     # reassociation lets LLVM vectorize the sum; these are the method's inner products
     total = 0.0
@@ -97,14 +105,14 @@ def _dot(x, y):
     return total
 
 
-@numba.njit(cache=True, fastmath={"contract"})
+@numba.njit(cache=True, nogil=True, fastmath={"contract"})
 def _axpy(a, x, y):
     # y += a x in place (no temporary)
     for r in range(x.shape[0]):
         y[r] += a * x[r]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _append(factor, k, gram, diagonal):
     # Border the k x k lower factor with a column whose Gram entries with the set are ``gram``:
     # row k is L^-1 gram and the new diagonal what is left of the column's squared norm.
@@ -122,7 +130,7 @@ def _append(factor, k, gram, diagonal):
     return True
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _remove(factor, k, p):
     # Drop row and column p of the k x k factor: the rows below move up and are then lower
     # Hessenberg; Givens rotations on column pairs (i, i + 1) make them triangular again.
@@ -142,7 +150,7 @@ def _remove(factor, k, p):
         factor[k - 1, i] = 0.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _solve(factor, k, rhs, z):
     # (L L^T) z = rhs by two triangular solves
     for i in range(k):
@@ -157,14 +165,14 @@ def _solve(factor, k, rhs, z):
         z[i] = total / factor[i, i]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def workspace(columns):
     """The factor and set buffers of :func:`lawson_hanson` for ``columns`` (n, R)."""
     size = min(columns.shape[0], columns.shape[1])
     return np.zeros((size + 1, size + 1)), np.empty(size + 1, np.int64)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def lawson_hanson(columns, b, free, max_steps, g, factor, index):
     # Lawson-Hanson from the guessed set ``free`` (changed in place: the final set); the
     # answer goes to g, the set's Cholesky factor to factor[:k, :k] and its columns to
@@ -180,13 +188,15 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
     norm2 = np.empty(n)
     barred = np.zeros(n, np.bool_)
     residual = np.empty(rows)
-    largest = 0.0
     for j in range(n):
         g[j] = 0.0
         correlation[j] = _dot(columns[j], b)
         norm2[j] = _dot(columns[j], columns[j])
-        largest = max(largest, abs(correlation[j]))
-    tolerance = 1e-10 * n * largest
+    # A column's slope a_j . r counts as zero below _OPTIMAL |a_j| |b|: far above its rounding,
+    # far below any slope that moves the fit. A looser test (1e-10 n max|A^T b|, once used here)
+    # stopped where the residual is flat but the profile is not, so the answer depended on the
+    # starting set by up to 31% of a node's force.
+    scale = _OPTIMAL * np.sqrt(_dot(b, b))
     k = 0
     guess = np.flatnonzero(free)
     free[:] = False
@@ -245,11 +255,11 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
             _axpy(-g[index[i]], columns[index[i]], residual)
         while True:
             entering = -1
-            best = tolerance
+            best = 0.0
             for j in range(n):
                 if not free[j] and not barred[j]:
                     slope = _dot(columns[j], residual)
-                    if slope > best:
+                    if slope > scale * np.sqrt(norm2[j]) and slope > best:
                         best, entering = slope, j
             if entering < 0:
                 return steps, k
@@ -268,10 +278,19 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
         k += 1
         # least squares on the set; while a variable is not positive, step from the current g
         # (feasible) towards it until the first variable reaches zero, and drop those at zero
+        entered = True
         while True:
             for i in range(k):
                 rhs[i] = correlation[index[i]]
             _solve(factor, k, rhs, z)
+            if entered and z[k - 1] <= 0:
+                # rounding: the entering column does not come out positive; it would only
+                # enter again and again, so it is barred (as scipy does)
+                k -= 1
+                free[entering] = False
+                barred[entering] = True
+                break
+            entered = False
             blocking = -1
             step = 1.0
             for i in range(k):
@@ -299,9 +318,10 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
                     for t in range(i, k - 1):
                         index[t] = index[t + 1]
                     k -= 1
+            barred[:] = False  # a smaller set: what depended on it, or failed to enter, may now
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def gather(matrix, rows, columns):
     """``matrix[columns][:, rows]`` in one pass: the fit's columns, each on the fit's sensors.
 
@@ -324,7 +344,7 @@ def gather(matrix, rows, columns):
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def load_patches(xt, yt, zt, contact, node, shear, g, indptr, indices):
     """The patches of a fitted load and the stress each explains (the contact fit's load decision).
 
@@ -388,7 +408,7 @@ def load_patches(xt, yt, zt, contact, node, shear, g, indptr, indices):
 BOTH, RATIO, DIRECTION = 0, 1, 2    # which parameters are free
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def pairs_of(p, mode, direction, ratio, max_ratio, s):
     # the pairs s (K, 2) of the free parameters p (K, k)
     for c in range(p.shape[0]):
@@ -403,7 +423,7 @@ def pairs_of(p, mode, direction, ratio, max_ratio, s):
             s[c, 0], s[c, 1] = ratio * math.cos(p[c, 0]), ratio * math.sin(p[c, 0])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _jacobian(p, mode, direction, ratio, jacobian):
     # ds/dp (K, 2, k)
     for c in range(p.shape[0]):
@@ -416,7 +436,7 @@ def _jacobian(p, mode, direction, ratio, jacobian):
             jacobian[c, 0, 0], jacobian[c, 1, 0] = -ratio * math.sin(p[c, 0]), ratio * math.cos(p[c, 0])
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def fit_at(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns):
     # the NNLS profile at the pairs s, warm from the set ``free``; returns the set changes
     # (-1: stopped short of the optimum, see lawson_hanson), the set size and |residual|^2
@@ -433,7 +453,7 @@ def fit_at(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns)
     return steps, k, residual @ residual
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp):
     # Gauss-Newton step of the linearized problem in (g on its set, dp) together, with g
     # eliminated through the set's Cholesky factor: with J = d(A g)/dp and W = A_S^T J,
@@ -465,13 +485,14 @@ def _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp)
         return np.linalg.lstsq(schur, rhs)[0]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def gauss_newton(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, guess, max_iterations,
                  tolerance):
     # Gauss-Newton with step halving on the free parameters, the profile eliminated (variable
     # projection); the first NNLS starts from the set ``guess``, each trial's from the current
-    # positive set. Returns the parameters, profile and residual found, and the profile and
-    # residual at the start.
+    # positive set. Returns the parameters, profile and residual found, the profile and
+    # residual at the start, and whether every fit reached its optimum (the step assumes it:
+    # a fit stopped short ends the search at the last optimal one, or is not a trial).
     n, rows = zt.shape
     K, kp = p.shape
     s = np.empty((K, 2))
@@ -485,10 +506,11 @@ def gauss_newton(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, g
     p = p.copy()
     free[:] = guess
     pairs_of(p, mode, direction, ratio, max_ratio, s)
-    _, k, rho = fit_at(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns)
+    steps, k, rho = fit_at(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns)
+    optimal = steps >= 0
     start_g, start_residual = g.copy(), residual.copy()
     for _ in range(max_iterations):
-        if k == 0:
+        if k == 0 or not optimal:
             break
         _jacobian(p, mode, direction, ratio, jacobian)
         step = _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp).reshape(K, kp)
@@ -498,9 +520,9 @@ def gauss_newton(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, g
             pairs_of(trial, mode, direction, ratio, max_ratio, s)
             for j in range(n):
                 trial_free[j] = g[j] > 0
-            _, trial_k, trial_rho = fit_at(xt, yt, zt, contact, b, s, trial_free, trial_g, trial_residual,
-                                         trial_factor, trial_index, trial_columns)
-            if trial_rho < rho:
+            trial_steps, trial_k, trial_rho = fit_at(xt, yt, zt, contact, b, s, trial_free, trial_g,
+                                                     trial_residual, trial_factor, trial_index, trial_columns)
+            if trial_steps >= 0 and trial_rho < rho:
                 accepted = True
                 break
             step = step / 2
@@ -516,4 +538,4 @@ def gauss_newton(xt, yt, zt, contact, b, mode, direction, ratio, max_ratio, p, g
         columns, trial_columns = trial_columns, columns
         if converged:
             break
-    return p, g, residual, start_g, start_residual
+    return p, g, residual, start_g, start_residual, optimal

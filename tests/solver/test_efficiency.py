@@ -228,8 +228,8 @@ def test_alternative_functionals_plug_in(sheared):
     (dict(tolerance=0), "tolerance must be finite and > 0, got 0"),
     (dict(tolerance=-1e-3), "tolerance must be finite and > 0, got -0.001"),
     (dict(tolerance=math.inf), "tolerance must be finite and > 0, got inf"),
-    (dict(min_load_evidence=-1), "min_load_evidence must be finite and >= 0, got -1"),
-    (dict(min_load_evidence=math.nan), "min_load_evidence must be finite and >= 0, got nan"),
+    (dict(min_load_evidence=math.inf), r"min_load_evidence must be a number below inf \(-inf keeps every patch\), got inf"),
+    (dict(min_load_evidence=math.nan), r"min_load_evidence must be a number below inf \(-inf keeps every patch\), got nan"),
     (dict(shrinkage="2"), "shrinkage must be finite and >= 0, got '2'"),
     (dict(max_iterations=math.nan), "max_iterations must be a whole number >= 0, got nan"),
     (dict(max_iterations=math.inf), "max_iterations must be a whole number >= 0, got inf"),
@@ -237,7 +237,7 @@ def test_alternative_functionals_plug_in(sheared):
     (dict(tolerance=True), "tolerance must be finite and > 0, got True"),
 ], ids=["shrinkage", "shrinkage-inf", "shrinkage-nan", "model_error", "model_error-nan", "max_iterations",
         "max_iterations-fraction", "max_iterations-bool", "tolerance", "tolerance-negative", "tolerance-inf",
-        "min_load_evidence", "min_load_evidence-nan",
+        "min_load_evidence-inf", "min_load_evidence-nan",
         "shrinkage-text", "max_iterations-nan", "max_iterations-inf", "max_iterations-none", "tolerance-bool"])
 def test_contact_fit_checks_its_arguments(kwargs, message):
     with pytest.raises(ValueError, match=message):
@@ -269,8 +269,7 @@ def test_noise_alone_is_no_contact(ratio):
     for seed in (300, 301, 302):
         result = r.solve(np.random.default_rng(seed).normal(0.0, 10.0, grid.size))
         assert result.contacts == () and not result.region.any() and np.all(result.forces == 0), seed
-    unfiltered = Reconstructor(grid, efficiency=ContactFit(min_load_evidence=0))
-    unfiltered.efficiency.min_load_evidence = -math.inf  # the decision off, to show it matters
+    unfiltered = Reconstructor(grid, efficiency=ContactFit(min_load_evidence=-math.inf))  # decision off
     assert unfiltered.solve(np.random.default_rng(300).normal(0.0, 10.0, grid.size)).contacts
 
 
