@@ -33,6 +33,7 @@ from scipy.optimize import lsq_linear, nnls
 __all__ = ["warm_up", "gather", "load_patches", "nonnegative_fit", "scipy_fit", "workspace", "lawson_hanson",
            "fit_at", "gauss_newton", "pairs_of", "BOTH", "RATIO", "DIRECTION"]
 
+
 def warm_up():
     """Compile (or load from numba's cache) every path of the contact fit: about 14 s the first
     time after an install or a change to this module, 0.2 s after. ``make`` runs it once when it
