@@ -152,6 +152,16 @@ def _remove(factor, k, p):
 
 
 @numba.njit(cache=True, nogil=True)
+def _leave(factor, index, free, k, i):
+    # the set's i-th column leaves it: out of the factor, the order and the mask; returns k - 1
+    free[index[i]] = False
+    _remove(factor, k, i)
+    for t in range(i, k - 1):
+        index[t] = index[t + 1]
+    return k - 1
+
+
+@numba.njit(cache=True, nogil=True)
 def _solve(factor, k, rhs, z):
     # (L L^T) z = rhs by two triangular solves
     for i in range(k):
@@ -236,11 +246,7 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
         for i in range(k - 1, -1, -1):
             if z[i] <= 0:
                 dropped = True
-                free[index[i]] = False
-                _remove(factor, k, i)
-                for t in range(i, k - 1):
-                    index[t] = index[t + 1]
-                k -= 1
+                k = _leave(factor, index, free, k, i)
         if not dropped:
             for i in range(k):
                 g[index[i]] = z[i]
@@ -314,11 +320,7 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
             for i in range(k - 1, -1, -1):
                 if g[index[i]] <= 0:
                     g[index[i]] = 0.0
-                    free[index[i]] = False
-                    _remove(factor, k, i)
-                    for t in range(i, k - 1):
-                        index[t] = index[t + 1]
-                    k -= 1
+                    k = _leave(factor, index, free, k, i)
             barred[:] = False  # a smaller set: what depended on it, or failed to enter, may now
 
 
