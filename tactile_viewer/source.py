@@ -110,7 +110,7 @@ class Source:
         self.state_changed = Signal()
         self.message = Signal()
         self.recorder: Recorder | None = None
-        self.published = 0  # frames produced so far
+        self.published = 0  # frames produced so far (each counted once it went to the recorder)
         self.clock_origin = time.time()  # UNIX seconds of the frames' time 0
         self._state = "stopped"
         self._latest: SourceFrame | None = None
@@ -209,10 +209,11 @@ class Source:
         if not frames:
             return
         for frame in frames:
-            self.published += 1
-            seq = frame.index if frame.index is not None else self.published - 1
+            seq = frame.index if frame.index is not None else self.published
             values = frame.stress if frame.raw is None else frame.raw
             self._to_recorder(lambda recorder: recorder.add(seq, frame.t, values))  # noqa: B023 (called now)
+            # counted once handed to the recorder: a stop_recording that follows the count keeps it
+            self.published += 1
         with self._lock:
             self._latest = frames[-1]
             notify = not self._notified

@@ -227,7 +227,7 @@ def test_reader_records_every_frame(pty, make_reader, tmp_path):
     for start in range(0, 300, 50):  # bursts, so that the reader sees many reads
         write_all(pty[0], b"".join(encode_binary(s, values(s % 7)) for s in range(start, start + 50)))
         time.sleep(0.01)
-    wait_for(lambda: reader.stats.received == 300, what="300 frames")
+    wait_for(lambda: reader.published == 300, what="300 frames handed to the recorder")
     path = reader.stop_recording()
     assert path == tmp_path / "rec.mcap" and reader.recorder is None
     loaded = recording.load(path)
@@ -419,7 +419,7 @@ def test_a_tare_taken_while_recording_is_recorded_from_its_frame_and_a_loaded_on
     loaded = values(0) + np.where(np.arange(6) == 2, 50.0, 0.0)  # a press on taxel 2 while taring
     rng = np.random.default_rng(3)  # fixed seed: the noise of the tared frames
     write_all(pty[0], b"".join(encode_binary(s, loaded + rng.normal(0, 0.01, 6)) for s in range(10, 20)))
-    wait_for(lambda: reader.stats.received == 20, what="twenty frames")
+    wait_for(lambda: reader.published == 20, what="twenty frames handed to the recorder")
     path = reader.stop_recording()
     saved = recording.load(path)
     [tare] = saved.calibration.tares
@@ -519,7 +519,7 @@ def test_another_device_is_refused_unopened_until_the_first_comes_back(board, tm
     wait_for(lambda: reader.reconnects == 1 and reader.state == "connected", what="the first board back")
     assert reader.error == "" and len(board.ports) == 2
     board.send(range(2, 4))
-    wait_for(lambda: reader.stats.received == 4, what="frames from the first board again")
+    wait_for(lambda: reader.published == 4, what="the first board's frames handed on")
     path = reader.stop_recording()
     assert list(recording.load(path).sequence()) == [0, 1, 2, 3]  # one device, one file
     assert board.messages == [("info", "recording saved", str(path))]
