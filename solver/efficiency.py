@@ -58,9 +58,10 @@ class Frame:
     column_id : (n,) ndarray of int
         The column's sub-cell on the whole skin (``q m + node`` for sub-cell
         ``q``): the same sub-cell has the same id in every frame.
-    neighbours : (m, m) sparse matrix
-        Nonzero between nodes within 2.5 pitches, so a patch of load may have
-        gaps of one node, straight or diagonal (the load decision's patches).
+    neighbours : tuple of two ndarrays of int
+        ``(indptr, indices)`` of the CSR matrix linking nodes within 2.5
+        pitches, so a patch of load may have gaps of one node, straight or
+        diagonal (the load decision's patches).
     """
 
     stress: np.ndarray
@@ -71,7 +72,7 @@ class Frame:
     row_contact: np.ndarray
     max_shear_ratio: float
     column_node: np.ndarray
-    neighbours: object
+    neighbours: tuple
     column_id: np.ndarray
 
     @property
@@ -321,7 +322,7 @@ class ContactFit:
         # patches: the connected pieces of each contact's fitted load, gaps of one node bridged
         column_patch, patch_contact, size, explained = load_patches(
             frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact, frame.column_node, shear, g,
-            frame.neighbours.indptr, frame.neighbours.indices)
+            *frame.neighbours)
         # with no freedom left to measure the noise, only the model's own error is known
         variance = self._variance(frame, g, residual, 0, unknown=None)[patch_contact]
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -24,8 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from scipy import ndimage, sparse
-from scipy.sparse.csgraph import connected_components
+from scipy import sparse
 from scipy.spatial import cKDTree
 
 from .arrays import read_only
@@ -33,7 +32,7 @@ from .checks import optional_flag, real_number, whole_number
 from .efficiency import ContactFit, Frame
 from .geometry import SensorGrid
 from .kernels import KERNELS, stress_matrix
-from .search import gather
+from .search import contact_labels, gather
 
 __all__ = ["Reconstructor", "Reconstruction", "Contact", "SymmetricFactor", "check_options",
            "check_parameters"]
@@ -285,18 +284,14 @@ class Reconstructor:
         self._normal = SymmetricFactor.of(self.matrix[:, 2 * m:], max_condition=self.max_condition)
         # C+ = C^T (C C^T)^-1; cond(C C^T) = cond(C)^2.
         self._gram = SymmetricFactor.of(self.matrix @ self.matrix.T, max_condition=self.max_condition**2)
-        # Contact regions: connected patches of the normal-only solution, grown by a margin.
+        # Contact regions: connected patches of the normal-only solution, grown by a margin;
+        # the neighbourhoods as (indptr, indices) of their CSR matrices (solver.search).
         tree = cKDTree(grid.positions)
-        self._adjacent = _within(tree, 1.5 * grid.pitch)
-        self._neighbours = _within(tree, 2.5 * grid.pitch)
-        self._margin = _within(tree, self.region_margin * grid.pitch * 1.0001)
+        self._adjacent = _csr(_within(tree, 1.5 * grid.pitch))
+        self._neighbours = _csr(_within(tree, 2.5 * grid.pitch))
+        self._margin = _csr(_within(tree, self.region_margin * grid.pitch * 1.0001))
         self._rings = math.ceil(self.reach * grid.thickness / grid.pitch) + 1
-        self._near = _within(tree, self._rings * grid.pitch * 1.0001)
-        self._disk = None
-        if grid.is_regular:
-            k = self.region_margin
-            oy, ox = np.mgrid[-k:k + 1, -k:k + 1]
-            self._disk = ox * ox + oy * oy <= k * k * 1.0001
+        self._near = _csr(_within(tree, self._rings * grid.pitch * 1.0001))
         self._border = np.zeros(m, dtype=bool)
         if grid.is_regular:
             edge = np.zeros(grid.shape, dtype=bool)
@@ -445,66 +440,37 @@ class Reconstructor:
         """Condition estimate of ``C C^T`` as factored (damping included)."""
         return self._gram.condition
 
-    def contact_region(self, normal: np.ndarray) -> np.ndarray:
-        """Nodes that may carry contact load, from a normal-only solution.
+    def contact_labels(self, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Separate contacts of a normal-only solution, and the sensors near each.
 
-        The core is every node above ``region_threshold`` of the peak; of its connected patches
-        only those holding at least 5% of the largest patch's force are kept
-        (isolated noise spikes of the inversion are dropped); the result is
-        grown by ``region_margin`` pitches.
-        """
-        peak = normal.max() if normal.size else 0.0
-        if not peak > 0:
-            return np.zeros(normal.size, dtype=bool)
-        if self._disk is not None:
-            # Regular grid: the same operations on the image, much cheaper.
-            image = normal.reshape(self.grid.shape)
-            core = image > self.region_threshold * peak
-            labels, count = ndimage.label(core, structure=np.ones((3, 3)))
-            mass = ndimage.sum_labels(image, labels, index=np.arange(1, count + 1))
-            kept = np.concatenate([[False], mass >= 0.05 * mass.max()])[labels]
-            if self.region_margin == 0:
-                return kept.ravel()
-            return ndimage.binary_dilation(kept, structure=self._disk).ravel()
-        core = np.flatnonzero(normal > self.region_threshold * peak)
-        count, labels = connected_components(self._adjacent[core][:, core], directed=False)
-        mass = np.bincount(labels, weights=normal[core], minlength=count)
-        keep = np.zeros(normal.size, dtype=np.int32)  # counts of neighbours: int8 would wrap
-        keep[core[mass[labels] >= 0.05 * mass.max()]] = 1
-        return np.asarray(self._margin @ keep).ravel() > 0
+        The core is every node above ``region_threshold`` of the peak; of its
+        connected patches (8 neighbours on a grid) only those holding at least
+        5% of the largest patch's force are kept (isolated noise spikes of the
+        inversion are dropped); they grow by ``region_margin`` pitches, and the
+        connected patches of that region are the contacts.
 
-    def contacts_of(self, region: np.ndarray) -> tuple[np.ndarray, int]:
-        """Separate contacts: the connected patches of a region (8-neighbours on a grid).
+        Parameters
+        ----------
+        normal : (m,) ndarray
+            Normal-only force of each node, newtons.
 
         Returns
         -------
         labels : (m,) ndarray of int
-            Contact number 1..K of each region node, 0 elsewhere.
-        count : int
-            ``K``.
+            Contact 1..K of each node, 0 outside every contact.
+        near : (m, K) ndarray of bool
+            The sensors within the fit's reach of each contact.
         """
-        if self.grid.is_regular:
-            labels, count = ndimage.label(region.reshape(self.grid.shape), structure=np.ones((3, 3)))
-            return labels.ravel(), int(count)
-        index = np.flatnonzero(region)
-        count, parts = connected_components(self._adjacent[index][:, index], directed=False)
-        labels = np.zeros(region.size, dtype=int)
-        labels[index] = parts + 1
-        return labels, int(count)
+        return contact_labels(np.ascontiguousarray(normal, dtype=float), self.region_threshold,
+                              self._adjacent, self._margin, self._near)
 
     def _frame(self, b: np.ndarray):
         # The contact fit's view of a frame: sub-cell columns of every contact's region
         # and the sensors near the contacts.
         m = self.grid.size
-        normal = self._normal.solve(b)
-        region = self.contact_region(normal)
-        labels, count = self.contacts_of(region)
-        if count == 0:
+        labels, near = self.contact_labels(self._normal.solve(b))
+        if near.shape[1] == 0:
             return None, labels, None
-        # int32: the products count a sensor's contact nodes within reach, which can pass 127
-        onehot = np.zeros((m, count), dtype=np.int32)
-        onehot[np.flatnonzero(labels), labels[labels > 0] - 1] = 1
-        near = np.asarray(self._near @ onehot) > 0              # (m, K) sensors near each contact
         rows = np.flatnonzero(near.any(axis=1))
         index = np.flatnonzero(labels)
         cells = self.subdivision ** 2
@@ -594,6 +560,11 @@ def check_stress(stress, grid: SensorGrid) -> np.ndarray:
             f"{np.flatnonzero(bad)[:10].tolist()}"
         )
     return b
+
+
+def _csr(matrix):
+    # (indptr, indices) of a CSR matrix, as the compiled code takes them
+    return matrix.indptr.astype(np.int64), matrix.indices.astype(np.int64)
 
 
 def _within(tree: cKDTree, distance: float):

@@ -1,4 +1,5 @@
-"""The contact fit's numerical core, compiled with numba.
+"""The solver's compiled core (numba): the contact fit's search, and the labelling of the
+contacts it fits.
 
 The contact fit (:class:`solver.efficiency.ContactFit`) is a Gauss-Newton
 search over each contact's shear pair whose every trial is a non-negative
@@ -11,11 +12,14 @@ one a sweep of Givens rotations, where solving each set afresh costs a
 factorization. The Gauss-Newton step then reuses that factor to eliminate
 the profile. ``scipy.optimize.nnls`` has neither a warm start nor updates,
 and in numpy each fit costs hundreds of calls of a few microseconds, so the
-whole search is compiled here. A fit the updated factor cannot take to its
-optimum (a full set, or a cap on the set changes) is finished by scipy when it
-is the answer (:func:`nonnegative_fit`, ``ContactFit.fit``); inside the search
-it ends the search at the last optimal fit. ``docs/efficiency.md`` has the
-measurements that justify the compiled code.
+whole search is compiled here, and with it the per-frame bookkeeping around
+it (the contacts of the normal-only solution, the gather of their columns,
+the patches of the load decision), which in scipy cost about 0.1 ms of
+calls. A fit the updated factor cannot take to its optimum (a full set, or
+a cap on the set changes) is finished by scipy when it is the answer
+(:func:`nonnegative_fit`, ``ContactFit.fit``); inside the search it ends the
+search at the last optimal fit. ``docs/efficiency.md`` has the measurements
+that justify the compiled code.
 
 Everything compiled lives in this one module: numba's on-disk cache checks
 only the file a function is defined in, so a compiled caller in another
@@ -30,8 +34,8 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["warm_up", "gather", "load_patches", "nonnegative_fit", "scipy_fit", "workspace", "lawson_hanson",
-           "fit_at", "gauss_newton", "pairs_of", "BOTH", "RATIO", "DIRECTION"]
+__all__ = ["warm_up", "contact_labels", "gather", "load_patches", "nonnegative_fit", "scipy_fit", "workspace",
+           "lawson_hanson", "fit_at", "gauss_newton", "pairs_of", "BOTH", "RATIO", "DIRECTION"]
 
 
 def warm_up():
@@ -325,6 +329,88 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
 
 
 @numba.njit(cache=True, nogil=True)
+def _components(kind, indptr, indices, labels):
+    # connected components of the nodes of kind >= 0, linked over the CSR adjacency when of the
+    # same kind: labels 1..K in the order of each component's first node (raster order on a
+    # grid), 0 elsewhere; returns K
+    m = kind.size
+    stack = np.empty(m, np.int64)
+    count = 0
+    labels[:] = 0
+    for seed in range(m):
+        if kind[seed] < 0 or labels[seed] > 0:
+            continue
+        count += 1
+        labels[seed] = count
+        stack[0] = seed
+        top = 1
+        while top > 0:
+            top -= 1
+            here = stack[top]
+            for e in range(indptr[here], indptr[here + 1]):
+                there = indices[e]
+                if kind[there] == kind[seed] and labels[there] == 0:
+                    labels[there] = count
+                    stack[top] = there
+                    top += 1
+    return count
+
+
+@numba.njit(cache=True, nogil=True)
+def contact_labels(normal, threshold, adjacent, margin, near):
+    """The contacts of a normal-only solution and the sensors near each.
+
+    The core is every node above ``threshold`` of the peak; of its connected
+    patches only those holding at least 5% of the largest patch's force are
+    kept (isolated noise spikes of the inversion are dropped); the kept
+    nodes grow by the margin, and the connected patches of that region are
+    the contacts.
+
+    Parameters
+    ----------
+    normal : (m,) ndarray
+        Normal-only force of each node, newtons.
+    threshold : float
+        Fraction of the peak.
+    adjacent, margin, near : tuple of two (.,) ndarrays of int
+        ``(indptr, indices)`` of the CSR neighbourhoods: nodes linked in a
+        patch (8 neighbours on a grid), the margin, and a contact's reach.
+
+    Returns
+    -------
+    labels : (m,) ndarray of int
+        Contact 1..K of each node, 0 outside every contact.
+    near : (m, K) ndarray of bool
+        The sensors near each contact.
+    """
+    m = normal.size
+    labels = np.zeros(m, np.int64)
+    peak = -np.inf
+    for i in range(m):
+        peak = max(peak, normal[i])
+    if not peak > 0:
+        return labels, np.zeros((m, 0), np.bool_)
+    core = np.where(normal > threshold * peak, 0, -1)
+    count = _components(core, adjacent[0], adjacent[1], labels)
+    mass = np.zeros(count + 1)
+    for i in range(m):
+        mass[labels[i]] += normal[i] if labels[i] > 0 else 0.0
+    largest = mass[1:].max()
+    region = np.zeros(m, np.bool_)
+    for i in range(m):
+        if labels[i] > 0 and mass[labels[i]] >= 0.05 * largest:
+            for e in range(margin[0][i], margin[0][i + 1]):
+                region[margin[1][e]] = True
+    count = _components(np.where(region, 0, -1), adjacent[0], adjacent[1], labels)
+    reach = np.zeros((m, count), np.bool_)
+    for i in range(m):
+        if labels[i] > 0:
+            for e in range(near[0][i], near[0][i + 1]):
+                reach[near[1][e], labels[i] - 1] = True
+    return labels, reach
+
+
+@numba.njit(cache=True, nogil=True)
 def gather(matrix, rows, columns):
     """``matrix[columns][:, rows]`` in one pass: the fit's columns, each on the fit's sensors.
 
@@ -371,27 +457,13 @@ def load_patches(xt, yt, zt, contact, node, shear, g, indptr, indices):
     for j in range(n):
         if g[j] > 0:
             node_contact[node[j]] = contact[j]
-    node_patch = np.full(m, -1, np.int64)
-    patch_contact = np.empty(m, np.int64)
-    stack = np.empty(m, np.int64)
-    patches = 0
-    for seed in range(m):
-        if node_contact[seed] < 0 or node_patch[seed] >= 0:
-            continue
-        node_patch[seed] = patches
-        patch_contact[patches] = node_contact[seed]
-        top = 1
-        stack[0] = seed
-        while top > 0:
-            top -= 1
-            here = stack[top]
-            for e in range(indptr[here], indptr[here + 1]):
-                there = indices[e]
-                if node_patch[there] < 0 and node_contact[there] == node_contact[seed]:
-                    node_patch[there] = patches
-                    stack[top] = there
-                    top += 1
-        patches += 1
+    node_patch = np.empty(m, np.int64)
+    patches = _components(node_contact, indptr, indices, node_patch)
+    node_patch -= 1
+    patch_contact = np.empty(patches, np.int64)
+    for i in range(m):
+        if node_patch[i] >= 0:
+            patch_contact[node_patch[i]] = node_contact[i]
     column_patch = np.full(n, -1, np.int64)
     size = np.zeros(patches, np.int64)
     explained = np.zeros((patches, rows))
@@ -403,7 +475,7 @@ def load_patches(xt, yt, zt, contact, node, shear, g, indptr, indices):
             sx, sy = g[j] * shear[contact[j], 0], g[j] * shear[contact[j], 1]
             for r in range(rows):
                 explained[k, r] += g[j] * zt[j, r] + sx * xt[j, r] + sy * yt[j, r]
-    return column_patch, patch_contact[:patches].copy(), size, explained
+    return column_patch, patch_contact, size, explained
 
 
 # -- the Gauss-Newton search over the shear pairs ----------------------------------------------

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 import solver.efficiency as efficiency
 from solver import Reconstructor, SensorGrid, loads
@@ -25,27 +26,52 @@ def sheared(reconstructor):
 
 # -- the contact region ------------------------------------------------------------------------
 
-def test_regular_region_equals_the_general_graph_path(reconstructor, sheared):
+def _contacts_by_image(r, normal):
+    # the contact labelling of Reconstructor.contact_labels, written independently on the
+    # image with scipy.ndimage (raster order numbers the contacts as the compiled one does)
+    image = normal.reshape(r.grid.shape)
+    if not image.max() > 0:
+        return np.zeros(normal.size, int)
+    core, count = ndimage.label(image > r.region_threshold * image.max(), structure=np.ones((3, 3)))
+    mass = ndimage.sum_labels(image, core, index=np.arange(1, count + 1))
+    kept = np.concatenate([[False], mass >= 0.05 * mass.max()])[core]
+    oy, ox = np.mgrid[-1:2, -1:2]
+    grown = ndimage.binary_dilation(kept, structure=ox * ox + oy * oy <= 1)  # region_margin 1
+    return ndimage.label(grown, structure=np.ones((3, 3)))[0].ravel()
+
+
+def test_contacts_are_the_grown_patches_of_the_normal_solution(reconstructor, sheared):
     grid = reconstructor.grid
-    irregular = SensorGrid(grid.positions, grid.thickness, grid.pitch, (grid.size,))
-    general = Reconstructor(irregular)
-    assert general._disk is None and reconstructor._disk is not None
+    irregular = Reconstructor(SensorGrid(grid.positions, grid.thickness, grid.pitch, (grid.size,)))
     rng = np.random.default_rng(8)  # fixed seed
-    for noise in (0.0, 0.02, 0.1):
-        b = sheared.stress + rng.normal(0, noise * sheared.stress.max(), grid.size)
+    second = loads.simulate(grid, loads.hertz((-9e-3, 8e-3), 2e-3, 0.5)).stress
+    counts = []
+    for noise in (0.0, 0.02, 0.1, 0.3):
+        b = sheared.stress + second + rng.normal(0, noise * sheared.stress.max(), grid.size)
         normal = reconstructor.solve_normal(b).forces[:, 2]
-        np.testing.assert_array_equal(reconstructor.contact_region(normal), general.contact_region(normal))
+        expected = _contacts_by_image(reconstructor, normal)
+        counts.append(expected.max())
+        for r in (reconstructor, irregular):
+            labels, near = r.contact_labels(normal)
+            np.testing.assert_array_equal(labels, expected)
+            # near: the sensors within the fit's reach of each contact's nodes
+            distance = np.linalg.norm(grid.positions[:, None] - grid.positions[None], axis=2)
+            within = distance <= r._rings * grid.pitch * 1.0001
+            np.testing.assert_array_equal(
+                near, np.stack([within[:, labels == k].any(axis=1) for k in range(1, labels.max() + 1)], axis=1))
+    assert counts[0] == 2 and max(counts) >= 2  # two contacts apart, and noise that joins or adds
 
 
 def test_region_holds_the_contact_and_drops_isolated_spikes(reconstructor, sheared):
     normal = reconstructor.solve_normal(sheared.stress).forces[:, 2].copy()
-    region = reconstructor.contact_region(normal)
-    assert region[sheared.forces[:, 2] > 0.05 * sheared.forces[:, 2].max()].all()
+    labels, _ = reconstructor.contact_labels(normal)
+    assert labels[sheared.forces[:, 2] > 0.05 * sheared.forces[:, 2].max()].all()
     # a lone spike far from the contact, at 25% of the peak but carrying 1% of the force
     spike = normal.copy()
     spike[0] = 0.25 * normal.max()
-    assert not reconstructor.contact_region(spike)[0]
-    assert not reconstructor.contact_region(np.full(reconstructor.grid.size, -1.0)).any()
+    assert reconstructor.contact_labels(spike)[0][0] == 0
+    labels, near = reconstructor.contact_labels(np.full(reconstructor.grid.size, -1.0))
+    assert not labels.any() and near.shape == (reconstructor.grid.size, 0)
 
 
 # -- what the contact fit sees and fits ----------------------------------------------------------
