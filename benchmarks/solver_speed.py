@@ -37,13 +37,19 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
     frame's contacts for slider moves), and its fastest run is kept: this
     machine is a shared VM whose hiccups would otherwise dominate.
     ``slider`` is a slider move: the frame just solved, solved again at
-    parameters one step away.
+    parameters one step away. ``playback`` is the automatic solve of a
+    recording's frames in order (a contact sliding 0.05 mm and turning its
+    shear by 0.01 rad per frame, the same noise): each frame after the one
+    before it, as in playback and live mode.
     """
     grid = SensorGrid.regular(n, n, 2e-3, 2e-3)
     rng = np.random.default_rng(0)  # fixed seed: the same frames every run
     stress = [loads.simulate(grid, loads.hertz(tuple(rng.uniform(-2e-3, 2e-3, 2)), 5e-3, 1.0,
                                                shear_ratio=0.3 * (k % 2), shear_direction=0.4 * k),
                              noise=0.01, rng=rng).stress for k in range(frames)]
+    sliding = [loads.simulate(grid, loads.hertz((-1e-3 + 5e-5 * k, 0.5e-3), 5e-3, 1.0, shear_ratio=0.3,
+                                                shear_direction=0.4 + 0.01 * k), noise=0.01, rng=rng).stress
+               for k in range(frames)]
     r = Reconstructor(grid, kernel=kernel)
     matrix = np.ascontiguousarray(r.matrix.T)  # (768, 256) at 16x16
 
@@ -52,17 +58,18 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
         return r.solve(b, shear_ratio=0.3 + 0.01 * (step[0] % 2), shear_direction=0.5)
 
     out = {}
-    for label, call, before in (
-            ("auto", lambda b: r.solve(b), None),
-            ("given", lambda b: r.solve(b, shear_ratio=0.3, shear_direction=0.5), None),
-            ("slider", slider, slider),
-            ("normal", lambda b: r.solve_normal(b), None),
+    for label, call, before, sequence in (
+            ("auto", lambda b: r.solve(b), None, stress),
+            ("playback", lambda b: r.solve(b), None, sliding),
+            ("given", lambda b: r.solve(b, shear_ratio=0.3, shear_direction=0.5), None, stress),
+            ("slider", slider, slider, stress),
+            ("normal", lambda b: r.solve_normal(b), None, stress),
             # the floor: two dense (3m, m) matrix-vector products, as in one exact solve
-            ("floor", lambda b: matrix @ (matrix.T @ (matrix @ b)), None)):
+            ("floor", lambda b: matrix @ (matrix.T @ (matrix @ b)), None, stress)):
         times = np.full((repeat, frames), np.inf)
         cpu = np.full((repeat, frames), np.inf)
         for run in range(repeat):
-            for k, b in enumerate(stress):
+            for k, b in enumerate(sequence):
                 if before is not None:
                     before(b)
                 start, start_cpu = time.perf_counter(), time.process_time()
@@ -107,6 +114,7 @@ def main(argv=None):
     for kernel in KERNELS:
         t = per_frame(kernel=kernel)
         print(f"16x16 {kernel:5} solve median wall (CPU) ms: auto {t['auto']:.3f} ({t['auto_cpu']:.3f}), "
+              f"auto in playback {t['playback']:.3f} ({t['playback_cpu']:.3f}), "
               f"given parameters {t['given']:.3f} ({t['given_cpu']:.3f}), slider move {t['slider']:.3f} "
               f"({t['slider_cpu']:.3f}), normal only {t['normal']:.3f} "
               f"({t['normal_cpu']:.3f}); dense-product floor {t['floor']:.3f} ({t['floor_cpu']:.3f}), "

@@ -105,6 +105,10 @@ class Choice:
         parameter was given).
     column_id : (n,) ndarray of int
         The frame's :attr:`Frame.column_id`.
+    shear_free : (n,) ndarray or None
+        The best compressive profile with no shear, where the automatic
+        search starts (None when none was fitted), newtons: the next
+        frame's search starts from its positive set.
     """
 
     shear: np.ndarray
@@ -115,6 +119,7 @@ class Choice:
     residual: float
     load_evidence: np.ndarray
     column_id: np.ndarray
+    shear_free: np.ndarray | None = None
 
 
 class ContactFit:
@@ -254,10 +259,10 @@ class ContactFit:
             s = np.empty((K, 2))
             pairs_of(p, mode, direction, ratio, frame.max_shear_ratio, s)
             return s
-        # The search starts cold (or from the best scan's fit). From the previous frame's set
-        # it needs half the set changes (101 to 52), but its path then depends on rounding and
-        # the answer on the frames before, by up to the search's tolerance (docs/efficiency.md).
-        guess = np.zeros(frame.column_id.size, bool)
+        # The search's first fit has no shear; it starts from the earlier choice's shear-free
+        # positive set (in playback and live mode the frame before's), which the minimizer does
+        # not depend on: the answer matches a cold start's to rounding (docs/efficiency.md).
+        guess = _guess(frame, start, shear_free=True)
         if mode == DIRECTION:
             # theta alone is periodic with several local optima: start from the best of a scan
             scan = [np.full((K, 1), t) for t in np.linspace(-math.pi, math.pi, 12, endpoint=False)]
@@ -292,7 +297,7 @@ class ContactFit:
             g, residual = g0, residual0
         elif np.any(keep < 1):
             g, residual = self.fit(frame, pairs(p), support=g > 0)
-        return self._choice(frame, pairs(p), g, residual, evidence, keep > 0)
+        return self._choice(frame, pairs(p), g, residual, evidence, keep > 0, shear_free=g0)
 
     def _variance(self, frame, g, residual, parameters, *, unknown=np.inf):
         # misfit variance near each contact (K,): its residual over its degrees of freedom, at
@@ -306,7 +311,7 @@ class ContactFit:
         return np.where(dof > 0, np.maximum(rho / np.maximum(dof, 1), floor),
                         floor if unknown is None else unknown)
 
-    def _choice(self, frame, shear, g, residual, evidence, detected, *, decide=True):
+    def _choice(self, frame, shear, g, residual, evidence, detected, *, decide=True, shear_free=None):
         # the load decision (class notes) when the search was free, then the functional's value
         shear = np.asarray(shear, float)
         load_evidence = np.full(frame.contacts, math.nan)
@@ -315,7 +320,8 @@ class ContactFit:
         norm = float(np.linalg.norm(frame.stress))
         misfit = float(np.linalg.norm(residual))
         efficiency = 1.0 if norm == 0 else 1.0 - misfit / norm
-        return Choice(shear, g, efficiency, evidence, detected, misfit, load_evidence, frame.column_id)
+        return Choice(shear, g, efficiency, evidence, detected, misfit, load_evidence, frame.column_id,
+                      shear_free)
 
     def _load_decision(self, frame, shear, g, residual):
         K = frame.contacts
@@ -338,12 +344,13 @@ class ContactFit:
         return g, residual, load_evidence
 
 
-def _guess(frame, start):
-    # the positive set of an earlier choice's profile on this frame's columns, through the
-    # sub-cells' skin-wide ids; empty without one
+def _guess(frame, start, *, shear_free=False):
+    # the positive set of an earlier choice's profile (or of its shear-free one, when it has
+    # one) on this frame's columns, through the sub-cells' skin-wide ids; empty without one
     guess = np.zeros(frame.column_id.size, bool)
     if start is not None:
-        ids = start.column_id[start.profile > 0]
+        profile = start.shear_free if shear_free and start.shear_free is not None else start.profile
+        ids = start.column_id[profile > 0]
         on = np.zeros(max(ids.max(initial=-1), frame.column_id.max(initial=-1)) + 1, bool)
         on[ids] = True
         guess = on[frame.column_id]

@@ -401,9 +401,10 @@ def test_direction_plus_and_minus_pi_are_the_same(kernel, ten_by_ten):
         np.testing.assert_allclose(plus.forces, minus.forces, rtol=0, atol=1e-9 * np.abs(plus.forces).max())
         # (-pi, pi]: -pi is reported as +pi
         assert plus.shear_direction == minus.shear_direction == math.pi
-    # only the direction given, the ratio searched (and found insignificant here or not): same answer
+    # only the direction given, the ratio searched (and found insignificant here or not): same
+    # answer, up to rounding (the second search starts from the first's shear-free set)
     plus, minus = r.solve(b, shear_direction=math.pi), r.solve(b, shear_direction=-math.pi)
-    np.testing.assert_allclose(plus.forces, minus.forces, rtol=0, atol=1e-12 * np.abs(plus.forces).max())
+    np.testing.assert_allclose(plus.forces, minus.forces, rtol=0, atol=1e-9 * np.abs(plus.forces).max())
     assert plus.shear_direction == minus.shear_direction == pytest.approx(math.pi)
 
 
