@@ -43,9 +43,13 @@ def test_reconstructed_frames_are_the_solver_results(recording, reconstructor):
     table = reconstruct_frames(recording, reconstructor, [3, 1])
     for row, k in enumerate([3, 1]):
         expected = reconstructor.solve(recording.frames[k])
-        np.testing.assert_array_equal(table.forces[row], expected.forces)
-        assert table.shear_ratio[row] == expected.shear_ratio
-        assert table.residual[row] == expected.residual and table.condition[row] == expected.condition
+        # the automatic search starts from the previous frame's answer, so the same frame solved
+        # after another one agrees to rounding, not to the bit
+        peak = np.abs(expected.forces).max()
+        np.testing.assert_allclose(table.forces[row], expected.forces, rtol=0, atol=1e-8 * peak)
+        assert table.shear_ratio[row] == pytest.approx(expected.shear_ratio, rel=1e-8, abs=1e-12)
+        assert table.residual[row] == pytest.approx(expected.residual, rel=1e-8)
+        assert table.condition[row] == expected.condition
     np.testing.assert_array_equal(table.frames, [3, 1])
     np.testing.assert_array_equal(table.t, recording.t[[3, 1]])
     assert table.mode == "auto" and table.kernel == reconstructor.kernel and table.shape == (5, 6)
