@@ -193,11 +193,13 @@ def layer_force_stress(dx, dy, thickness: float, width: float, poisson_ratio: fl
 
 def _spread_offsets(values, out):
     # values[u, v] holds the kernel for sensor - node = (v - nx + 1, u - ny + 1)
-    # pitches; spread it into the (m, m) block-Toeplitz block ``out`` (a view)
-    # with a single copy and no recomputation.
+    # pitches; spread it into the (m, m) block-Toeplitz block ``out`` (a view,
+    # stored by column) with a single copy and no recomputation.
     ny, nx = (values.shape[0] + 1) // 2, (values.shape[1] + 1) // 2
     windows = sliding_window_view(values[::-1, ::-1], (ny, nx))[::-1, ::-1]
-    np.copyto(out.reshape(ny, nx, ny, nx), windows)
+    by_node = out.T.view()
+    by_node.shape = (ny, nx, ny, nx)  # raises rather than reshaping a copy
+    np.copyto(by_node, windows.transpose(2, 3, 0, 1))
 
 
 def taxel_points(grid: SensorGrid):
@@ -239,11 +241,13 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
     Returns
     -------
     C : (m, 3 m s^2) ndarray
-        Pascals per newton; ``C[i, c * m s^2 + q * m + j]`` is the stress at
-        sensor ``i`` from a unit force component ``c`` (x, y, z) on sub-cell
-        ``q`` (row-major within the cell, x fastest) of node ``j``. With
-        ``s = 1``, ``C[i, j]`` is the stress from a unit force component on
-        node ``j mod m``.
+        Stored by column (Fortran order: a node's column is contiguous, as
+        the contact fit and the exact member read them). Pascals per newton;
+        ``C[i, c * m s^2 + q * m + j]`` is the stress at sensor ``i`` from a
+        unit force component ``c`` (x, y, z) on sub-cell ``q`` (row-major
+        within the cell, x fastest) of node ``j``. With ``s = 1``,
+        ``C[i, j]`` is the stress from a unit force component on node
+        ``j mod m``.
     """
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
@@ -272,7 +276,7 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
 
     m = grid.size
     cells = subdivision * subdivision
-    matrix = np.empty((m, 3 * m * cells))
+    matrix = np.empty((3 * m * cells, m)).T
     if grid.is_regular:
         # Translation invariance: evaluate on the (2ny-1, 2nx-1) offsets once per sub-cell.
         ny, nx = grid.shape

@@ -8,6 +8,7 @@ import pytest
 
 from solver import Reconstructor, SensorGrid, loads
 from solver.efficiency import ContactFit
+from solver.inverse import SymmetricInverse
 
 KERNELS = ["cell", "point"]
 
@@ -162,6 +163,37 @@ def test_normal_only_solves_the_square_system(small):
     assert np.all(result.forces[:, :2] == 0)
     assert result.normal_only and not result.regularized
     assert result.condition >= 1
+
+
+@pytest.mark.parametrize("n", [5, 300, 600])  # one block and several (blocks of 256 rows)
+def test_symmetric_inverse_is_the_inverse_damped_to_its_condition_bound(n):
+    rng = np.random.default_rng(n)  # fixed seed per size
+    basis, _ = np.linalg.qr(rng.normal(size=(n, n)))
+    # eigenvalues 1 down to 1e-6: condition 1e6
+    matrix = (basis * np.geomspace(1.0, 1e-6, n)) @ basis.T
+    matrix = (matrix + matrix.T) / 2
+    exact = SymmetricInverse.of(matrix, max_condition=1e8)
+    assert exact.shift == 0 and exact.condition == pytest.approx(exact.condition_undamped)
+    np.testing.assert_allclose(exact.inverse @ matrix, np.eye(n), atol=1e-8)
+    np.testing.assert_array_equal(exact.inverse, exact.inverse.T)
+    with pytest.raises(ValueError, match="read-only"):
+        exact.inverse[0, 0] = 1.0
+    damped = SymmetricInverse.of(matrix, max_condition=100.0)
+    assert damped.shift == pytest.approx(np.linalg.norm(matrix, 1) / 100.0)
+    # lambda = |A|_1 / max_condition >= |A|_2 / max_condition bounds the 2-norm condition
+    assert np.linalg.cond(matrix + damped.shift * np.eye(n)) <= 101 and damped.condition_undamped > 1e5
+    np.testing.assert_allclose(damped.solve(matrix + damped.shift * np.eye(n)), np.eye(n), atol=1e-12)
+    np.testing.assert_array_equal(damped.inverse, damped.inverse.T)
+
+
+def test_symmetric_inverse_of_a_singular_or_zero_matrix():
+    rank_one = np.outer([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])
+    damped = SymmetricInverse.of(rank_one, max_condition=10.0)
+    assert damped.shift > 0 and damped.condition_undamped > 1e10
+    np.testing.assert_allclose(damped.inverse @ (rank_one + damped.shift * np.eye(3)), np.eye(3), atol=1e-12)
+    zero = SymmetricInverse.of(np.zeros((2, 2)), max_condition=10.0)
+    assert zero.shift == 0 and zero.condition == 1
+    np.testing.assert_array_equal(zero.solve(np.array([1.0, -2.0])), [1.0, -2.0])
 
 
 def test_grid_shaped_stress_equals_flat_stress(small):
