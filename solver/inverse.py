@@ -45,7 +45,8 @@ class SymmetricInverse:
     Attributes
     ----------
     inverse : (n, n) ndarray
-        ``(A + lambda I)^-1``, symmetric, read-only.
+        ``(A + lambda I)^-1``, symmetric, read-only (the identity for an
+        all-zero matrix, whose equations say nothing).
     shift : float
         ``lambda`` added to the diagonal before inverting (0 when the matrix
         was well enough conditioned).
@@ -164,7 +165,7 @@ class Reconstruction:
     residual : float
         ``|C x - b| / |b|`` (0 for an all-zero frame).
     condition : float
-        Condition estimate of the matrix factored for this solve
+        Condition estimate of the matrix inverted for this solve
         (``C C^T`` for three components, ``Cz`` for normal only), damping included.
     regularized : bool
         Whether Tikhonov damping entered the answer because the layer is too
@@ -455,7 +456,7 @@ class Reconstructor:
 
     @property
     def condition(self) -> float:
-        """Condition estimate of ``C C^T`` as factored (damping included)."""
+        """Condition estimate of ``C C^T`` as inverted (damping included)."""
         return self._gram.condition
 
     def contact_labels(self, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

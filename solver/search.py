@@ -46,12 +46,15 @@ def warm_up():
     from .inverse import Reconstructor
 
     grid = SensorGrid.regular(6, 6, 1e-3, 1e-3)
-    solver = Reconstructor(grid, kernel="cell")
     x, y = grid.positions.T
-    stress = solver.matrix[:, 2 * grid.size:] @ (0.01 * np.exp(-(x ** 2 + y ** 2) / (2 * 1.5e-3 ** 2)))
-    for parameters in ({}, dict(shear_ratio=0.2, shear_direction=0.3), dict(shear_direction=0.3),
-                       dict(shear_ratio=0.2)):
-        solver.solve(stress, **parameters)
+    # sub-cells (cell kernel), and whole cells read straight from the read-only stress matrix
+    # (point kernel): numba compiles each array kind apart
+    for kernel in ("cell", "point"):
+        solver = Reconstructor(grid, kernel=kernel)
+        stress = solver.matrix[:, 2 * grid.size:] @ (0.01 * np.exp(-(x ** 2 + y ** 2) / (2 * 1.5e-3 ** 2)))
+        for parameters in ({}, dict(shear_ratio=0.2, shear_direction=0.3), dict(shear_direction=0.3),
+                           dict(shear_ratio=0.2)):
+            solver.solve(stress, **parameters)
 
 
 # Columns whose remaining norm after projecting out the set's columns is below this fraction
@@ -392,6 +395,8 @@ def contact_labels(normal, threshold, adjacent, margin, near):
         return labels, np.zeros((m, 0), np.bool_)
     core = np.where(normal > threshold * peak, 0, -1)
     count = _components(core, adjacent[0], adjacent[1], labels)
+    if count == 0:  # a threshold of 1 or more: nothing above it
+        return labels, np.zeros((m, 0), np.bool_)
     mass = np.zeros(count + 1)
     for i in range(m):
         mass[labels[i]] += normal[i] if labels[i] > 0 else 0.0

@@ -59,7 +59,7 @@ def test_contacts_are_the_grown_patches_of_the_normal_solution(reconstructor, sh
             within = distance <= r._rings * grid.pitch * 1.0001
             np.testing.assert_array_equal(
                 near, np.stack([within[:, labels == k].any(axis=1) for k in range(1, labels.max() + 1)], axis=1))
-    assert counts[0] == 2 and max(counts) >= 2  # two contacts apart, and noise that joins or adds
+    assert counts[0] == 2 and len(set(counts)) > 1  # two contacts apart, and noise that joins or adds
 
 
 def test_region_holds_the_contact_and_drops_isolated_spikes(reconstructor, sheared):

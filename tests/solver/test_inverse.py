@@ -173,7 +173,9 @@ def test_symmetric_inverse_is_the_inverse_damped_to_its_condition_bound(n):
     matrix = (basis * np.geomspace(1.0, 1e-6, n)) @ basis.T
     matrix = (matrix + matrix.T) / 2
     exact = SymmetricInverse.of(matrix, max_condition=1e8)
-    assert exact.shift == 0 and exact.condition == pytest.approx(exact.condition_undamped)
+    # LAPACK's estimate is a lower bound of the 1-norm condition, close to it in practice
+    true_condition = np.linalg.cond(matrix, 1)
+    assert exact.shift == 0 and true_condition / 10 <= exact.condition <= 1.0001 * true_condition
     np.testing.assert_allclose(exact.inverse @ matrix, np.eye(n), atol=1e-8)
     np.testing.assert_array_equal(exact.inverse, exact.inverse.T)
     with pytest.raises(ValueError, match="read-only"):

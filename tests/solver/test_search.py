@@ -6,7 +6,8 @@ from scipy import sparse
 from scipy.optimize import nnls
 
 import solver.search as search
-from solver.search import load_patches, nonnegative_fit
+from solver import Reconstructor, SensorGrid
+from solver.search import contact_labels, load_patches, nonnegative_fit
 
 
 def random_problem(seed):
@@ -117,3 +118,13 @@ def test_load_patches_are_connected_pieces_of_one_contacts_load():
     columns = zt + shear[contact, :1] * xt + shear[contact, 1:] * yt   # A's columns, one per row
     for k in range(3):
         np.testing.assert_allclose(explained[k], (g * (column_patch == k)) @ columns, rtol=1e-12)
+
+
+@pytest.mark.parametrize("threshold", [1.0, 2.0])
+def test_no_contact_when_nothing_is_above_the_threshold(threshold):
+    r = Reconstructor(SensorGrid.regular(4, 4, 1e-3, 1e-3), kernel="cell")
+    normal = np.linspace(0.1, 1.0, 16)
+    labels, near = contact_labels(normal, threshold, r._adjacent, r._margin, r._near)
+    assert labels.shape == (16,) and not labels.any() and near.shape == (16, 0)
+    labels, near = contact_labels(normal, 0.95, r._adjacent, r._margin, r._near)  # the peak node alone
+    assert labels.max() == 1 and near.shape == (16, 1) and near[15, 0]
