@@ -19,6 +19,7 @@ them (the exact member spreads every sensor's noise into the totals).
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -453,6 +454,18 @@ class Reconstructor:
             exact=bool(exact))
 
     # -- helpers ------------------------------------------------------------------
+
+    def sibling(self) -> Reconstructor:
+        """A reconstructor sharing this one's matrices, with its own last-frame state.
+
+        :class:`~solver.region.RegionSolver` gives each window of a frame its
+        own: two windows of one shape would otherwise replace each other's
+        last frame, and a slider move or the next frame would start from the
+        other contact's fit.
+        """
+        twin = copy.copy(self)  # every array it holds is read-only
+        twin._recent = None
+        return twin
 
     @property
     def condition(self) -> float:

@@ -132,20 +132,28 @@ class RegionSolver:
         return SensorGrid.regular(columns, rows, g.pitch, g.thickness,
                                   poisson_ratio=g.poisson_ratio, sensor_size=g.sensor_size)
 
-    def reconstructor(self, rows: int, columns: int) -> Reconstructor:
-        """The (cached) reconstructor of a ``rows x columns`` window."""
+    def reconstructor(self, rows: int, columns: int, ordinal: int = 0) -> Reconstructor:
+        """The (cached) reconstructor of a ``rows x columns`` window.
+
+        ``ordinal`` counts the windows of that shape in a frame (in the order
+        of :meth:`windows`): each has its own last-frame state on the shared
+        factorization (:meth:`solver.Reconstructor.sibling`).
+        """
         key = (rows, columns)
         # one lock: the viewer's solve thread and an export may ask at the same time
         with self._lock:
             if key in self._cache:
                 self._cache.move_to_end(key)
-                return self._cache[key]
-            made = Reconstructor(self._window(rows, columns), kernel=self.kernel, **self._options)
-            self.factorizations += 1
-            self._cache[key] = made
-            if len(self._cache) > self._capacity:
-                self._cache.popitem(last=False)
-            return made
+            else:
+                self._cache[key] = [Reconstructor(self._window(rows, columns), kernel=self.kernel,
+                                                  **self._options)]
+                self.factorizations += 1
+                if len(self._cache) > self._capacity:
+                    self._cache.popitem(last=False)
+            made = self._cache[key]
+            while len(made) <= ordinal:
+                made.append(made[0].sibling())
+            return made[ordinal]
 
     def windows(self, stress: np.ndarray) -> list[tuple[slice, slice]]:
         """The contact windows of a frame: one per contact, merged where they overlap."""
@@ -212,9 +220,11 @@ class RegionSolver:
         contacts, results = [], []
         explained = np.zeros(grid.shape, dtype=bool)
         unexplained = 0.0
+        shapes = {}
         for rows, columns in self.windows(image):
             window = image[rows, columns]
-            solver = self.reconstructor(window.shape[0], window.shape[1])
+            ordinal = shapes[window.shape] = shapes.get(window.shape, -1) + 1
+            solver = self.reconstructor(window.shape[0], window.shape[1], ordinal)
             if normal_only:
                 result = solver.solve_normal(window)
             else:

@@ -140,7 +140,7 @@ def test_a_large_skin_never_forms_its_full_matrix():
     frame = loads.simulate(grid, loads.hertz((5e-3, -7e-3), 5e-3, 1.0, shear_ratio=0.3, shear_direction=0.5))
     result = region.solve(frame.stress)
     assert result.forces.shape == (grid.size, 3)
-    assert all(r.grid.size <= 32 * 32 for r in region._cache.values())
+    assert all(r.grid.size <= 32 * 32 for slots in region._cache.values() for r in slots)
     e = metrics.compare(result.forces, frame.forces)
     assert e.normal_total < 0.01 and e.tangential_total < 0.05 and e.direction_deg < 5
 
@@ -262,3 +262,27 @@ def test_close_contacts_get_their_own_parameters():
     direction = [e.direction_deg for e in errors]
     print(f"close contacts: tangential {np.median(tangential):.3f}, direction {np.median(direction):.1f} deg")
     assert np.median(tangential) <= 0.09 and np.median(direction) <= 10.0
+
+
+def test_windows_of_one_shape_keep_their_own_last_frame(monkeypatch):
+    # two like contacts far apart: two windows of one shape, one factorization
+    grid = SensorGrid.regular(32, 32, PITCH, PITCH)
+    region = RegionSolver(grid)
+    contacts = [loads.hertz((-16e-3, -16e-3), 4e-3, 1.0, shear_ratio=0.3, shear_direction=0.5),
+                loads.hertz((14e-3, 14e-3), 4e-3, 0.8, shear_ratio=0.2, shear_direction=-1.0)]
+    rng = np.random.default_rng(5)  # fixed seed
+    stress = loads.simulate(grid, contacts, noise=0.01, rng=rng).stress
+    shapes = {(w[0].stop - w[0].start, w[1].stop - w[1].start) for w in region.windows(stress)}
+    assert len(region.windows(stress)) == 2 and len(shapes) == 1
+    region.solve(stress)
+    assert region.factorizations == 1
+    framed = []
+    original = Reconstructor._frame
+    monkeypatch.setattr(Reconstructor, "_frame", lambda self, b: framed.append(1) or original(self, b))
+    for ratio in (0.25, 0.35, 0.25):  # slider moves on the frame shown: no window is set up again
+        moved = region.solve(stress, shear_ratio=ratio, shear_direction=0.1)
+    assert framed == []
+    # and each answer is the one a fresh solver gives
+    fresh = RegionSolver(grid).solve(stress, shear_ratio=0.25, shear_direction=0.1)
+    np.testing.assert_allclose(moved.forces, fresh.forces, rtol=0, atol=1e-8 * np.abs(fresh.forces).max())
+    assert region.factorizations == 1
