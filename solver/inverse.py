@@ -303,7 +303,7 @@ class Reconstructor:
         # Contact regions: connected patches of the normal-only solution, grown by a margin;
         # the neighbourhoods as (indptr, indices) of their CSR matrices (solver.search).
         tree = cKDTree(grid.positions)
-        self._adjacent = _csr(_within(tree, 1.5 * grid.pitch))
+        self._adjacent = patch_links(grid, tree)
         self._neighbours = _csr(_within(tree, 2.5 * grid.pitch))
         self._margin = _csr(_within(tree, self.region_margin * grid.pitch * 1.0001))
         self._rings = math.ceil(self.reach * grid.thickness / grid.pitch) + 1
@@ -463,7 +463,7 @@ class Reconstructor:
         last frame, and a slider move or the next frame would start from the
         other contact's fit.
         """
-        twin = copy.copy(self)  # every array it holds is read-only
+        twin = copy.copy(self)  # what it shares depends only on the geometry: no solve writes it
         twin._recent = None
         return twin
 
@@ -475,11 +475,8 @@ class Reconstructor:
     def contact_labels(self, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Separate contacts of a normal-only solution, and the sensors near each.
 
-        The core is every node above ``region_threshold`` of the peak; of its
-        connected patches (8 neighbours on a grid) only those holding at least
-        5% of the largest patch's force are kept (isolated noise spikes of the
-        inversion are dropped); they grow by ``region_margin`` pitches, and the
-        connected patches of that region are the contacts.
+        :func:`solver.search.contact_labels` with this reconstructor's
+        ``region_threshold``, ``region_margin`` and reach.
 
         Parameters
         ----------
@@ -592,6 +589,12 @@ def check_stress(stress, grid: SensorGrid) -> np.ndarray:
             f"{np.flatnonzero(bad)[:10].tolist()}"
         )
     return b
+
+
+def patch_links(grid: SensorGrid, tree: cKDTree | None = None):
+    """``(indptr, indices)`` of the CSR matrix linking the nodes of one patch: those within
+    1.5 pitches (the 8 neighbours on a grid), as :func:`solver.search.contact_cores` takes it."""
+    return _csr(_within(cKDTree(grid.positions) if tree is None else tree, 1.5 * grid.pitch))
 
 
 def _csr(matrix):

@@ -27,7 +27,16 @@ from scipy import ndimage
 from .arrays import read_only
 from .checks import real_number, shown, whole_number
 from .geometry import SensorGrid
-from .inverse import Reconstruction, Reconstructor, _direction, check_options, check_parameters, check_stress
+from .inverse import (
+    Reconstruction,
+    Reconstructor,
+    _direction,
+    check_options,
+    check_parameters,
+    check_stress,
+    patch_links,
+)
+from .search import contact_cores
 
 __all__ = ["RegionSolver", "make_solver", "DENSE_LIMIT"]
 
@@ -122,6 +131,7 @@ class RegionSolver:
         self._options = options
         self._cache: OrderedDict = OrderedDict()
         self._lock = threading.Lock()
+        self._links = patch_links(grid)
         self._border = np.zeros(grid.shape, dtype=bool)  # contacts touching it are at the skin's edge
         self._border[[0, -1], :] = self._border[:, [0, -1]] = True
         self._capacity = cache
@@ -157,17 +167,11 @@ class RegionSolver:
 
     def windows(self, stress: np.ndarray) -> list[tuple[slice, slice]]:
         """The contact windows of a frame: one per contact, merged where they overlap."""
-        image = np.asarray(stress, dtype=float).reshape(self.grid.shape)
-        peak = image.max()
-        if not peak > 0:
-            return []
-        labels, count = ndimage.label(image > self.threshold * peak, structure=np.ones((3, 3)))
-        mass = ndimage.sum_labels(image, labels, index=np.arange(1, count + 1))
-        boxes = []
-        for index, box in enumerate(ndimage.find_objects(labels), start=1):
-            # isolated noise spikes carry a sliver of the load: not a contact
-            if mass[index - 1] >= 0.05 * mass.max():
-                boxes.append([box[0].start, box[0].stop, box[1].start, box[1].stop])
+        labels = np.zeros(self.grid.size, np.int64)
+        kept = contact_cores(np.asarray(stress, dtype=float).ravel(), self.threshold, self._links, labels)
+        boxes = [[box[0].start, box[0].stop, box[1].start, box[1].stop]
+                 for index, box in enumerate(ndimage.find_objects(labels.reshape(self.grid.shape)), start=1)
+                 if kept[index]]
         boxes = [self._grown(box) for box in boxes]
         merged = True
         while merged:  # windows that overlap become one: those contacts interact

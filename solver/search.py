@@ -34,8 +34,9 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["warm_up", "contact_labels", "gather", "load_patches", "nonnegative_fit", "scipy_fit", "workspace",
-           "lawson_hanson", "fit_at", "gauss_newton", "pairs_of", "BOTH", "RATIO", "DIRECTION"]
+__all__ = ["warm_up", "contact_cores", "contact_labels", "gather", "load_patches", "nonnegative_fit",
+           "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of", "BOTH", "RATIO",
+           "DIRECTION"]
 
 
 def warm_up():
@@ -360,14 +361,54 @@ def _components(kind, indptr, indices, labels):
 
 
 @numba.njit(cache=True, nogil=True)
+def contact_cores(values, threshold, adjacent, labels):
+    """The patches of a field that may be contacts: the one rule for finding them.
+
+    The core is every node above ``threshold`` of the peak; of its connected
+    patches only those holding at least 5% of the largest patch's sum are
+    kept (isolated noise spikes are dropped).
+
+    Parameters
+    ----------
+    values : (m,) ndarray
+        The field: a normal-only solution (newtons) or the stress itself.
+    threshold : float
+        Fraction of the peak.
+    adjacent : tuple of two (.,) ndarrays of int
+        ``(indptr, indices)`` of the CSR matrix linking nodes of a patch (8
+        neighbours on a grid).
+    labels : (m,) ndarray of int
+        Written: patch 1..K of each core node, 0 elsewhere.
+
+    Returns
+    -------
+    kept : (K + 1,) ndarray of bool
+        Whether each patch is kept (``kept[0]``, outside the core, is False).
+    """
+    m = values.size
+    peak = -np.inf
+    for i in range(m):
+        peak = max(peak, values[i])
+    if not peak > 0:
+        labels[:] = 0
+        return np.zeros(1, np.bool_)
+    count = _components(np.where(values > threshold * peak, 0, -1), adjacent[0], adjacent[1], labels)
+    mass = np.zeros(count + 1)
+    for i in range(m):
+        if labels[i] > 0:
+            mass[labels[i]] += values[i]
+    largest = mass[1:].max() if count > 0 else 0.0
+    kept = mass >= 0.05 * largest
+    kept[0] = False
+    return kept
+
+
+@numba.njit(cache=True, nogil=True)
 def contact_labels(normal, threshold, adjacent, margin, near):
     """The contacts of a normal-only solution and the sensors near each.
 
-    The core is every node above ``threshold`` of the peak; of its connected
-    patches only those holding at least 5% of the largest patch's force are
-    kept (isolated noise spikes of the inversion are dropped); the kept
-    nodes grow by the margin, and the connected patches of that region are
-    the contacts.
+    The kept patches of :func:`contact_cores` grow by the margin, and the
+    connected patches of that region are the contacts.
 
     Parameters
     ----------
@@ -388,22 +429,10 @@ def contact_labels(normal, threshold, adjacent, margin, near):
     """
     m = normal.size
     labels = np.zeros(m, np.int64)
-    peak = -np.inf
-    for i in range(m):
-        peak = max(peak, normal[i])
-    if not peak > 0:
-        return labels, np.zeros((m, 0), np.bool_)
-    core = np.where(normal > threshold * peak, 0, -1)
-    count = _components(core, adjacent[0], adjacent[1], labels)
-    if count == 0:  # a threshold of 1 or more: nothing above it
-        return labels, np.zeros((m, 0), np.bool_)
-    mass = np.zeros(count + 1)
-    for i in range(m):
-        mass[labels[i]] += normal[i] if labels[i] > 0 else 0.0
-    largest = mass[1:].max()
+    kept = contact_cores(normal, threshold, adjacent, labels)
     region = np.zeros(m, np.bool_)
     for i in range(m):
-        if labels[i] > 0 and mass[labels[i]] >= 0.05 * largest:
+        if kept[labels[i]]:
             for e in range(margin[0][i], margin[0][i + 1]):
                 region[margin[1][e]] = True
     count = _components(np.where(region, 0, -1), adjacent[0], adjacent[1], labels)
