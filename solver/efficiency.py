@@ -242,8 +242,9 @@ class ContactFit:
         if shear_ratio is not None and shear_direction is not None:
             # given parameters (a slider move, or playback at fixed sliders): the fit starts from
             # the earlier choice's positive set, which the minimizer does not depend on
-            pair = shear_ratio * np.array([math.cos(shear_direction), math.sin(shear_direction)])
-            shear = np.tile(pair, (K, 1))
+            shear = np.empty((K, 2))
+            shear[:, 0] = shear_ratio * math.cos(shear_direction)
+            shear[:, 1] = shear_ratio * math.sin(shear_direction)
             g, residual = self.fit(frame, shear, support=_guess(frame, start))
             return self._choice(frame, shear, g, residual, np.full(K, math.nan), np.zeros(K, bool),
                                 decide=False)
@@ -319,8 +320,8 @@ class ContactFit:
         load_evidence = np.full(frame.contacts, math.nan)
         if decide:
             g, residual, load_evidence = self._load_decision(frame, shear, g, residual)
-        norm = float(np.linalg.norm(frame.stress))
-        misfit = float(np.linalg.norm(residual))
+        norm = math.sqrt(frame.stress @ frame.stress)
+        misfit = math.sqrt(residual @ residual)
         efficiency = 1.0 if norm == 0 else 1.0 - misfit / norm
         return Choice(shear, g, efficiency, evidence, detected, misfit, load_evidence, frame.column_id,
                       shear_free)
@@ -349,14 +350,15 @@ class ContactFit:
 def _guess(frame, start, *, shear_free=False):
     # the positive set of an earlier choice's profile (or of its shear-free one, when it has
     # one) on this frame's columns, through the sub-cells' skin-wide ids; empty without one
-    guess = np.zeros(frame.column_id.size, bool)
-    if start is not None:
-        profile = start.shear_free if shear_free and start.shear_free is not None else start.profile
-        ids = start.column_id[profile > 0]
-        on = np.zeros(max(ids.max(initial=-1), frame.column_id.max(initial=-1)) + 1, bool)
-        on[ids] = True
-        guess = on[frame.column_id]
-    return guess
+    if start is None:
+        return np.zeros(frame.column_id.size, bool)
+    profile = start.shear_free if shear_free and start.shear_free is not None else start.profile
+    if start.column_id is frame.column_id:  # a slider move: the same frame's columns
+        return profile > 0
+    ids = start.column_id[profile > 0]
+    on = np.zeros(max(ids.max(initial=-1), frame.column_id.max(initial=-1)) + 1, bool)
+    on[ids] = True
+    return on[frame.column_id]
 
 
 class NoShear:

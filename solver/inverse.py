@@ -33,7 +33,7 @@ from .checks import optional_flag, real_number, whole_number
 from .efficiency import ContactFit, Frame
 from .geometry import SensorGrid
 from .kernels import KERNELS, stress_matrix
-from .search import contact_labels, gather
+from .search import contact_labels, gather, template_misfit
 
 __all__ = ["Reconstructor", "Reconstruction", "Contact", "SymmetricInverse", "check_options",
            "check_parameters"]
@@ -206,8 +206,8 @@ class Reconstruction:
 
 def _relative(misfit: np.ndarray, b: np.ndarray) -> float:
     # |C x - b| / |b|, 0 for an all-zero frame
-    norm = np.linalg.norm(b)
-    return 0.0 if norm == 0 else float(np.linalg.norm(misfit) / norm)
+    norm = b @ b
+    return 0.0 if norm == 0 else math.sqrt((misfit @ misfit) / norm)
 
 
 def _direction(x: float, y: float, fallback: float = 0.0) -> float:
@@ -215,6 +215,19 @@ def _direction(x: float, y: float, fallback: float = 0.0) -> float:
         return math.remainder(fallback, 2 * math.pi) if fallback != -math.pi else math.pi
     angle = math.atan2(y, x)
     return math.pi if angle == -math.pi else angle
+
+
+@dataclass(frozen=True, eq=False)
+class _Seen:
+    # A frame as the last solve saw it, kept for slider moves on it: what the contact fit
+    # looks at, and what every result of the frame repeats.
+    key: bytes             # the stress's bytes
+    frame: Frame | None    # the contact fit's view; None without a compressive contact
+    labels: np.ndarray     # (m,) contact 1..K of each node, 0 outside every contact
+    nodes: np.ndarray      # (K, m) bool, read-only: each contact's region (Contact.nodes)
+    weights: np.ndarray    # (K, m) float: the same, to sum each contact's forces in one product
+    at_edge: np.ndarray    # (K,) bool: the region touches the skin's border
+    region: np.ndarray     # (m,) bool, read-only: every contact's nodes
 
 
 class Reconstructor:
@@ -386,32 +399,25 @@ class Reconstructor:
         # the frame before), which changes the answer only by rounding.
         key, parameters = b.tobytes(), (shear_ratio, shear_direction)
         recent = self._recent
-        if recent is not None and recent[0] == key:
-            _, frame, labels, nodes, start, solved_for = recent
+        if recent is not None and recent[0].key == key:
+            seen, start, solved_for = recent
         else:
-            (frame, labels, nodes), solved_for = self._frame(b), None
-            start = None if recent is None else recent[4]
-        if frame is None:  # nothing compressive anywhere: no contact to fit
+            seen, solved_for = self._frame(b), None
+            start = None if recent is None else recent[1]
+        if seen.frame is None:  # nothing compressive anywhere: no contact to fit
             return self._without_contact(b, exact, fallback)
         choice = start if solved_for == parameters else self.efficiency.choose(
-            frame, shear_ratio=shear_ratio, shear_direction=shear_direction, start=start)
+            seen.frame, shear_ratio=shear_ratio, shear_direction=shear_direction, start=start)
         # one tuple, replaced whole: solves on other threads read either the old or the new one
-        self._recent = (key, frame, labels, nodes, choice, parameters)
+        self._recent = (seen, choice, parameters)
         # the answer stays one force per node: the sum of its sub-cells
-        g = np.bincount(nodes, weights=choice.profile, minlength=m)
+        g = np.bincount(seen.frame.column_node, weights=choice.profile, minlength=m)
         # a patch the compressive fit gives no load (tension read through a damped inverse
         # on a thick layer) is not a contact
-        loaded = np.bincount(labels, weights=g, minlength=len(choice.shear) + 1)[1:] > 0
+        loaded = seen.weights @ g > 0
         if not loaded.any():
             return self._without_contact(b, exact, fallback)
-        pair = np.zeros((m, 2))
-        pair[labels > 0] = choice.shear[labels[labels > 0] - 1]
-        template = np.concatenate([pair[:, 0] * g, pair[:, 1] * g, g])
-        # the template lives on the contacts' nodes: C y from their columns only (a third of
-        # the full product's time on one contact of a 16x16 skin)
-        loaded_nodes = np.flatnonzero(g)
-        columns = np.concatenate([loaded_nodes, loaded_nodes + m, loaded_nodes + 2 * m])
-        misfit = b - template[columns] @ self.matrix.T[columns]
+        template, misfit = template_misfit(self.matrix.T, seen.labels, choice.shear, g, b)
         if exact:
             # x = y + C^T w with (C C^T + lambda I) w = b - C y, so C x - b = -lambda w: the
             # residual needs no product with C
@@ -421,16 +427,17 @@ class Reconstructor:
         else:
             x = template
         forces = x.reshape(3, m).T
+        totals = seen.weights @ forces  # (K, 3)
         contacts = []
-        for k in np.flatnonzero(loaded):
+        for k in loaded.nonzero()[0]:
             sx, sy = choice.shear[k]
-            mask = labels == k + 1
             contacts.append(Contact(
-                nodes=read_only(mask, bool), shear_ratio=math.hypot(sx, sy),
+                nodes=seen.nodes[k], shear_ratio=math.hypot(sx, sy),
                 shear_direction=_direction(sx, sy, fallback), evidence=float(choice.evidence[k]),
-                shear_detected=bool(choice.shear_detected[k]), at_edge=bool(np.any(mask & self._border)),
-                total_force=read_only(forces[mask].sum(axis=0))))
-        region = np.concatenate([[False], loaded])[labels]  # the nodes of the contacts kept
+                shear_detected=bool(choice.shear_detected[k]), at_edge=bool(seen.at_edge[k]),
+                total_force=read_only(totals[k])))
+        region = seen.region if loaded.all() else read_only(
+            np.concatenate([[False], loaded])[seen.labels], bool)
         contacts.sort(key=lambda c: -c.total_force[2])
         main = contacts[0]
         return Reconstruction(
@@ -438,7 +445,7 @@ class Reconstructor:
             efficiency=choice.efficiency, residual=_relative(misfit, b),
             condition=self._gram.condition, regularized=exact and self._gram.shift > 0,
             normal_only=False, shear_detected=any(c.shear_detected for c in contacts),
-            region=read_only(region, bool), exact=bool(exact), contacts=tuple(contacts))
+            region=region, exact=bool(exact), contacts=tuple(contacts))
 
     def _without_contact(self, b, exact, fallback):
         # no compressive load anywhere: the exact answer is the normal-only one, the fitted one zero
@@ -493,13 +500,17 @@ class Reconstructor:
         return contact_labels(np.ascontiguousarray(normal, dtype=float), self.region_threshold,
                               self._adjacent, self._margin, self._near)
 
-    def _frame(self, b: np.ndarray):
-        # The contact fit's view of a frame: sub-cell columns of every contact's region
-        # and the sensors near the contacts.
+    def _frame(self, b: np.ndarray) -> _Seen:
+        # The frame's contacts, and the contact fit's view of it: sub-cell columns of every
+        # contact's region and the sensors near the contacts.
         m = self.grid.size
         labels, near = self.contact_labels(self._normal.solve(b))
+        nodes = labels == np.arange(1, near.shape[1] + 1)[:, None]  # (K, m)
+        seen = dict(key=b.tobytes(), labels=labels, nodes=read_only(nodes, bool),
+                    weights=nodes.astype(float), at_edge=(nodes & self._border).any(axis=1),
+                    region=read_only(labels > 0, bool))
         if near.shape[1] == 0:
-            return None, labels, None
+            return _Seen(frame=None, **seen)
         rows = np.flatnonzero(near.any(axis=1))
         index = np.flatnonzero(labels)
         cells = self.subdivision ** 2
@@ -512,7 +523,7 @@ class Reconstructor:
                       column_contact=np.tile(labels[index] - 1, cells).astype(np.intp),
                       row_contact=near[rows], max_shear_ratio=self.max_shear_ratio,
                       column_node=np.tile(index, cells), neighbours=self._neighbours, column_id=columns)
-        return frame, labels, frame.column_node
+        return _Seen(frame=frame, **seen)
 
     def _residual(self, x: np.ndarray, b: np.ndarray) -> float:
         return _relative(self.matrix @ x - b, b)

@@ -34,9 +34,9 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["warm_up", "contact_cores", "contact_labels", "gather", "load_patches", "nonnegative_fit",
-           "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of", "BOTH", "RATIO",
-           "DIRECTION"]
+__all__ = ["warm_up", "contact_cores", "contact_labels", "gather", "template_misfit", "load_patches",
+           "nonnegative_fit", "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
+           "BOTH", "RATIO", "DIRECTION"]
 
 
 def warm_up():
@@ -465,6 +465,48 @@ def gather(matrix, rows, columns):
         for j in range(rows.size):
             out[i, j] = source[rows[j]]
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def template_misfit(matrix, labels, shear, g, b):
+    """A friction-shaped template load and what it leaves of the data.
+
+    The template is ``Fz = g``, ``(Fx, Fy) = s_k g`` on the nodes of contact
+    ``k`` and nothing elsewhere. ``C y`` reads only the columns it loads, in
+    place: on one contact of a 16x16 skin about a seventh of them, without the
+    copy that indexing them in numpy makes.
+
+    Parameters
+    ----------
+    matrix : (3m, m) ndarray
+        Stress matrix stored by column (one row of ``matrix`` per force column).
+    labels : (m,) ndarray of int
+        Contact 1..K of each node, 0 outside every contact.
+    shear : (K, 2) ndarray
+        ``s_k = mu_k (cos theta_k, sin theta_k)`` of every contact.
+    g : (m,) ndarray
+        Normal force of each node, newtons.
+    b : (m,) ndarray
+        Sensor stress, pascals.
+
+    Returns
+    -------
+    template : (3m,) ndarray
+        ``y`` as ``[Fx; Fy; Fz]``, newtons.
+    misfit : (m,) ndarray
+        ``b - C y``, pascals.
+    """
+    m = g.shape[0]
+    template = np.zeros(3 * m)
+    misfit = b.copy()
+    for j in range(m):
+        if g[j] != 0.0 and labels[j] > 0:
+            sx, sy = shear[labels[j] - 1, 0], shear[labels[j] - 1, 1]
+            template[j], template[m + j], template[2 * m + j] = sx * g[j], sy * g[j], g[j]
+            _axpy(-template[j], matrix[j], misfit)
+            _axpy(-template[m + j], matrix[m + j], misfit)
+            _axpy(-g[j], matrix[2 * m + j], misfit)
+    return template, misfit
 
 
 @numba.njit(cache=True, nogil=True)

@@ -81,7 +81,8 @@ def test_frame_columns_are_the_sub_cells_of_the_region(reconstructor, sheared):
     # and to the sub-cells of its region's nodes: built here independently of _frame.
     r, b = reconstructor, np.asarray(sheared.stress)
     assert r.subdivision == 2
-    frame, labels, nodes = r._frame(b)
+    seen = r._frame(b)
+    frame, labels, nodes = seen.frame, seen.labels, seen.frame.column_node
     m, cells = r.grid.size, 4
     region = np.flatnonzero(labels)
     assert frame.contacts == labels.max() == 1
@@ -105,7 +106,7 @@ def test_frame_columns_are_the_sub_cells_of_the_region(reconstructor, sheared):
 
 
 def test_fit_is_the_nonnegative_least_squares_profile(reconstructor, sheared):
-    frame, _, _ = reconstructor._frame(np.asarray(sheared.stress))
+    frame = reconstructor._frame(np.asarray(sheared.stress)).frame
     fit = ContactFit()
     shear = np.array([[0.1, -0.2]])
     g, residual = fit.fit(frame, shear)
@@ -128,7 +129,7 @@ def test_fit_is_the_nonnegative_least_squares_profile(reconstructor, sheared):
 
 def test_a_fit_the_compiled_set_leaves_short_of_the_optimum_is_finished_by_scipy(reconstructor, sheared,
                                                                                    monkeypatch):
-    frame, _, _ = reconstructor._frame(np.asarray(sheared.stress))
+    frame = reconstructor._frame(np.asarray(sheared.stress)).frame
     shear = np.array([[0.1, -0.2]])
     expected, _ = ContactFit().fit(frame, shear)
     compiled = efficiency.fit_at
@@ -300,7 +301,7 @@ def test_noise_alone_is_no_contact(ratio):
 
 
 def test_load_evidence_is_reported_per_contact(reconstructor, sheared):
-    frame, _, _ = reconstructor._frame(np.asarray(sheared.stress))
+    frame = reconstructor._frame(np.asarray(sheared.stress)).frame
     automatic = ContactFit().choose(frame)
     given = ContactFit().choose(frame, shear_ratio=0.3, shear_direction=0.0)
     # a 1 N contact at 1% noise stands far out of it; given parameters do not decide

@@ -422,4 +422,4 @@ def test_found_parameters_do_not_depend_on_the_solves_before(ratio):
         assert result.shear_ratio == pytest.approx(fresh.shear_ratio, abs=1e-10)
         assert result.shear_direction == pytest.approx(fresh.shear_direction, abs=1e-10)
         np.testing.assert_allclose(result.forces, fresh.forces, rtol=0, atol=1e-9 * np.abs(fresh.forces).max())
-        assert used._recent[4].shear_free is not None  # the next frame had a set to start from
+        assert used._recent[1].shear_free is not None  # the next frame had a set to start from

@@ -7,7 +7,7 @@ from scipy.optimize import nnls
 
 import solver.search as search
 from solver import Reconstructor, SensorGrid
-from solver.search import contact_labels, load_patches, nonnegative_fit
+from solver.search import contact_labels, load_patches, nonnegative_fit, template_misfit
 
 
 def random_problem(seed):
@@ -118,6 +118,24 @@ def test_load_patches_are_connected_pieces_of_one_contacts_load():
     columns = zt + shear[contact, :1] * xt + shear[contact, 1:] * yt   # A's columns, one per row
     for k in range(3):
         np.testing.assert_allclose(explained[k], (g * (column_patch == k)) @ columns, rtol=1e-12)
+
+
+def test_template_misfit_is_the_friction_shaped_load_and_what_it_leaves():
+    # 6 nodes: 0 and 1 of contact 1, 3 and 4 of contact 2 (node 4 unloaded), 2 and 5 outside;
+    # a profile value outside every contact is no load of the template
+    m = 6
+    rng = np.random.default_rng(9)  # fixed seed
+    matrix = rng.standard_normal((m, 3 * m))   # C, (m, 3m)
+    labels = np.array([1, 1, 0, 2, 2, 0])
+    shear = np.array([[0.3, -0.1], [0.0, 0.5]])
+    g = np.array([1.0, 2.0, 7.0, 3.0, 0.0, 0.0])
+    b = rng.standard_normal(m)
+    template, misfit = template_misfit(np.ascontiguousarray(matrix.T), labels, shear, g, b)
+    inside = np.where(labels > 0, g, 0.0)
+    pairs = np.vstack([[0.0, 0.0], shear])[labels]
+    expected = np.concatenate([pairs[:, 0] * inside, pairs[:, 1] * inside, inside])
+    np.testing.assert_array_equal(template, expected)
+    np.testing.assert_allclose(misfit, b - matrix @ expected, rtol=0, atol=1e-14 * np.abs(matrix).sum())
 
 
 @pytest.mark.parametrize("threshold", [1.0, 2.0])
