@@ -40,7 +40,9 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
     parameters one step away. ``playback`` is the automatic solve of a
     recording's frames in order (a contact sliding 0.05 mm and turning its
     shear by 0.01 rad per frame, the same noise): each frame after the one
-    before it, as in playback and live mode.
+    before it, as in playback and live mode. ``cold`` is the automatic solve by
+    a solver that has solved nothing before (the first frame after opening a
+    recording): no last frame to start from.
     """
     grid = SensorGrid.regular(n, n, 2e-3, 2e-3)
     rng = np.random.default_rng(0)  # fixed seed: the same frames every run
@@ -57,9 +59,15 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
         step[0] += 1
         return r.solve(b, shear_ratio=0.3 + 0.01 * (step[0] % 2), shear_direction=0.5)
 
+    fresh = [r]
+
+    def forget(b):  # a solver sharing r's matrices that has solved nothing (not timed)
+        fresh[0] = r.sibling()
+
     out = {}
     for label, call, before, sequence in (
             ("auto", lambda b: r.solve(b), None, stress),
+            ("cold", lambda b: fresh[0].solve(b), forget, stress),
             ("playback", lambda b: r.solve(b), None, sliding),
             ("given", lambda b: r.solve(b, shear_ratio=0.3, shear_direction=0.5), None, stress),
             ("slider", slider, slider, stress),
@@ -114,6 +122,7 @@ def main(argv=None):
     for kernel in KERNELS:
         t = per_frame(kernel=kernel)
         print(f"16x16 {kernel:5} solve median wall (CPU) ms: auto {t['auto']:.3f} ({t['auto_cpu']:.3f}), "
+              f"auto cold {t['cold']:.3f} ({t['cold_cpu']:.3f}), "
               f"auto in playback {t['playback']:.3f} ({t['playback_cpu']:.3f}), "
               f"given parameters {t['given']:.3f} ({t['given_cpu']:.3f}), slider move {t['slider']:.3f} "
               f"({t['slider_cpu']:.3f}), normal only {t['normal']:.3f} "
