@@ -59,7 +59,7 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
         step[0] += 1
         return r.solve(b, shear_ratio=0.3 + 0.01 * (step[0] % 2), shear_direction=0.5)
 
-    fresh = [r]
+    fresh = [None]
 
     def forget(b):  # a solver sharing r's matrices that has solved nothing (not timed)
         fresh[0] = r.sibling()

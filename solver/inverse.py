@@ -291,7 +291,7 @@ class Reconstructor:
         self.region_margin = int(region_margin)
         self.reach = float(reach)
         self.efficiency = ContactFit() if efficiency is None else efficiency
-        # (stress bytes, frame, labels, nodes, choice, its parameters) of the last frame fitted
+        # (_Seen, choice, its parameters) of the last frame fitted
         self._recent = None
         # Sub-cells need translation invariance and a kernel that spreads the force over a
         # cell, and a layer thick enough to tell them apart: under a layer thinner than half
@@ -417,7 +417,8 @@ class Reconstructor:
         loaded = seen.weights @ g > 0
         if not loaded.any():
             return self._without_contact(b, exact, fallback)
-        template, misfit = template_misfit(self.matrix.T, seen.labels, choice.shear, g, b)
+        misfit = b.copy()
+        template = template_misfit(self.matrix.T, seen.labels, choice.shear, g, misfit)
         if exact:
             # x = y + C^T w with (C C^T + lambda I) w = b - C y, so C x - b = -lambda w: the
             # residual needs no product with C
@@ -436,7 +437,9 @@ class Reconstructor:
                 shear_direction=_direction(sx, sy, fallback), evidence=float(choice.evidence[k]),
                 shear_detected=bool(choice.shear_detected[k]), at_edge=bool(seen.at_edge[k]),
                 total_force=read_only(totals[k])))
-        region = seen.region if loaded.all() else read_only(
+        # a view: the frame's arrays are shared by its results, and a view of a read-only
+        # array cannot be made writable again
+        region = seen.region.view() if loaded.all() else read_only(
             np.concatenate([[False], loaded])[seen.labels], bool)
         contacts.sort(key=lambda c: -c.total_force[2])
         main = contacts[0]

@@ -14,9 +14,10 @@ the profile. ``scipy.optimize.nnls`` has neither a warm start nor updates,
 and in numpy each fit costs hundreds of calls of a few microseconds, so the
 whole search is compiled here, and with it the per-frame bookkeeping around
 it (the contacts of the normal-only solution, the gather of their columns,
-the patches of the load decision), which in scipy cost about 0.1 ms of
-calls. A fit the updated factor cannot take to its optimum (a full set, or
-a cap on the set changes) is finished by scipy when it is the answer
+the patches of the load decision, the template and what it leaves of the
+data), which in scipy cost about 0.1 ms of calls. A fit the updated factor
+cannot take to its optimum (a full set, or a cap on the set changes) is
+finished by scipy when it is the answer
 (:func:`nonnegative_fit`, ``ContactFit.fit``); inside the search it ends the
 search at the last optimal fit. ``docs/efficiency.md`` has the measurements
 that justify the compiled code.
@@ -468,8 +469,8 @@ def gather(matrix, rows, columns):
 
 
 @numba.njit(cache=True, nogil=True)
-def template_misfit(matrix, labels, shear, g, b):
-    """A friction-shaped template load and what it leaves of the data.
+def template_misfit(matrix, labels, shear, g, misfit):
+    """A friction-shaped template load, and what it leaves of the data.
 
     The template is ``Fz = g``, ``(Fx, Fy) = s_k g`` on the nodes of contact
     ``k`` and nothing elsewhere. ``C y`` reads only the columns it loads, in
@@ -486,27 +487,27 @@ def template_misfit(matrix, labels, shear, g, b):
         ``s_k = mu_k (cos theta_k, sin theta_k)`` of every contact.
     g : (m,) ndarray
         Normal force of each node, newtons.
-    b : (m,) ndarray
-        Sensor stress, pascals.
+    misfit : (m,) ndarray
+        The sensor stress ``b`` on entry (pascals), ``b - C y`` on return.
+        Always a fresh writable copy: a frame read from a recording is
+        read-only, and numba would compile this function again for it.
 
     Returns
     -------
     template : (3m,) ndarray
         ``y`` as ``[Fx; Fy; Fz]``, newtons.
-    misfit : (m,) ndarray
-        ``b - C y``, pascals.
     """
     m = g.shape[0]
     template = np.zeros(3 * m)
-    misfit = b.copy()
     for j in range(m):
+        # (the solver's g is zero outside the contacts; label 0 must not read shear[-1])
         if g[j] != 0.0 and labels[j] > 0:
             sx, sy = shear[labels[j] - 1, 0], shear[labels[j] - 1, 1]
             template[j], template[m + j], template[2 * m + j] = sx * g[j], sy * g[j], g[j]
             _axpy(-template[j], matrix[j], misfit)
             _axpy(-template[m + j], matrix[m + j], misfit)
             _axpy(-g[j], matrix[2 * m + j], misfit)
-    return template, misfit
+    return template
 
 
 @numba.njit(cache=True, nogil=True)

@@ -66,7 +66,8 @@ def check_fit(r, result, b):
         pair = contact.shear_ratio * np.array([math.cos(contact.shear_direction), math.sin(contact.shear_direction)])
         np.testing.assert_allclose(forces[contact.nodes, :2], np.outer(forces[contact.nodes, 2], pair),
                                    rtol=0, atol=1e-14 * max(forces[:, 2].max(), 1e-300))
-    # an exact fit's residual is rounding, which depends on the order of the sums: 1e-15 of |b|
+    # where the fit leaves nothing (1x1 grids) the residual is rounding, which depends on the
+    # order of the sums: 1e-15 of |b|
     assert result.residual == pytest.approx(recomputed_residual(r, result, b), rel=1e-12, abs=1e-15)
 
 

@@ -373,6 +373,20 @@ def test_a_slider_move_on_the_frame_just_solved_gives_a_fresh_solves_answer(monk
         fresh.solve(other)  # so that fresh fits b from scratch
         cold = fresh.solve(b, shear_ratio=mu, shear_direction=theta)
         np.testing.assert_allclose(slid.forces, cold.forces, rtol=0, atol=1e-9 * np.abs(cold.forces).max())
+        # what the kept frame gives every result: the same as a fresh solve's, and read-only
+        np.testing.assert_array_equal(slid.region, cold.region)
+        assert len(slid.contacts) == len(cold.contacts) >= 1
+        for mine, theirs in zip(slid.contacts, cold.contacts, strict=True):
+            np.testing.assert_array_equal(mine.nodes, theirs.nodes)
+            assert mine.at_edge == theirs.at_edge
+            np.testing.assert_allclose(mine.total_force, theirs.total_force, rtol=0,
+                                       atol=1e-9 * np.abs(cold.forces).max())
+        for array in [slid.forces, slid.region] + [c.nodes for c in slid.contacts]:
+            with pytest.raises(ValueError, match="read-only"):
+                array[...] = 0
+        for shared in [slid.region] + [c.nodes for c in slid.contacts]:  # with the next result
+            with pytest.raises(ValueError, match="cannot set WRITEABLE"):
+                shared.setflags(write=True)
     assert not framed  # the frame's contacts were kept
     moved.solve(other, shear_ratio=0.3, shear_direction=0.7)
     assert framed == [1]  # another frame is framed afresh

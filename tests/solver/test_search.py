@@ -130,12 +130,30 @@ def test_template_misfit_is_the_friction_shaped_load_and_what_it_leaves():
     shear = np.array([[0.3, -0.1], [0.0, 0.5]])
     g = np.array([1.0, 2.0, 7.0, 3.0, 0.0, 0.0])
     b = rng.standard_normal(m)
-    template, misfit = template_misfit(np.ascontiguousarray(matrix.T), labels, shear, g, b)
+    misfit = b.copy()
+    template = template_misfit(np.ascontiguousarray(matrix.T), labels, shear, g, misfit)
     inside = np.where(labels > 0, g, 0.0)
     pairs = np.vstack([[0.0, 0.0], shear])[labels]
     expected = np.concatenate([pairs[:, 0] * inside, pairs[:, 1] * inside, inside])
     np.testing.assert_array_equal(template, expected)
     np.testing.assert_allclose(misfit, b - matrix @ expected, rtol=0, atol=1e-14 * np.abs(matrix).sum())
+
+
+def test_after_warm_up_a_recorded_frame_compiles_nothing():
+    # recordings and the live board hand over read-only frames; numba compiles a function again
+    # for each new kind of array, which on the app's first solve cost 0.18 s (found in review)
+    compiled = {name: f for name, f in vars(search).items() if hasattr(f, "signatures")}
+    before = {name: len(f.signatures) for name, f in compiled.items()}
+    grid = SensorGrid.regular(8, 8, 2e-3, 2e-3)
+    x, y = grid.positions.T
+    for kernel in ("layer", "cell", "point"):
+        r = Reconstructor(grid, kernel=kernel)
+        frame = (r.matrix[:, 2 * grid.size:] @ np.exp(-(x ** 2 + y ** 2) / (2 * 3e-3 ** 2))).reshape(grid.shape)
+        frame.setflags(write=False)
+        for parameters in ({}, dict(shear_ratio=0.2, shear_direction=0.3), dict(shear_direction=0.3),
+                           dict(shear_ratio=0.2), dict(shear_ratio=0.2, shear_direction=0.3, exact=False)):
+            assert r.solve(frame, **parameters).contacts, (kernel, parameters)
+    assert {name: len(f.signatures) for name, f in compiled.items()} == before
 
 
 @pytest.mark.parametrize("threshold", [1.0, 2.0])
