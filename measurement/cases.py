@@ -20,11 +20,14 @@ from solver.geometry import SensorGrid
 
 __all__ = ["Case", "SHAPES", "GOLDEN_ANGLE", "LAYER_SEED", "standard_contact", "standard_cases",
            "tuning_cases", "validation_cases", "layer_cases", "default_cases", "load_decision_frames",
-           "LOAD_TUNING_SEEDS", "LOAD_VALIDATION_SEEDS"]
+           "LOAD_TUNING_SEEDS", "LOAD_VALIDATION_SEEDS", "DECISION_SEEDS"]
 
 # The load decision's threshold was chosen on the first seeds and is judged on the second.
 LOAD_TUNING_SEEDS = (1, 2, 3)
 LOAD_VALIDATION_SEEDS = (11, 12, 13)
+# Draws of the tuning set's kind (h/p 0.5, 1, 1.5) for the shear decision's curve: neither the
+# tuning seed (7) nor the validation seed (31), and nothing is chosen on them.
+DECISION_SEEDS = tuple(range(100, 110))
 
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 

@@ -17,17 +17,20 @@ from solver.efficiency import FUNCTIONALS, ContactFit
 from solver.kernels import KERNELS
 
 from .cases import (
+    DECISION_SEEDS,
     LOAD_TUNING_SEEDS,
     LOAD_VALIDATION_SEEDS,
     layer_cases,
     load_decision_frames,
+    standard_cases,
     tuning_cases,
     validation_cases,
 )
 from .tables import DIRECTION, NORMAL, TANGENTIAL, Column, format_table, value
 
 __all__ = ["evaluate", "summarize", "counts", "false_shear", "MISMATCH_MEDIA", "mismatch", "load_decision",
-           "format_cases", "format_mismatch", "format_summary", "format_load_decision", "main"]
+           "decision_curve", "format_cases", "format_mismatch", "format_summary", "format_load_decision",
+           "format_decision_curve", "main"]
 
 
 def evaluate(cases, make_reconstructor, *, solve=None):
@@ -166,6 +169,60 @@ def load_decision(seeds, *, min_load_evidence: float | None = None) -> dict:
     return summary
 
 
+def decision_curve(seeds=DECISION_SEEDS, *, shrinkages=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0),
+                   noise: float = 0.01) -> list[dict]:
+    """How the shear decision trades false shear for missed shear, over draws of the tuning set's kind.
+
+    Each seed draws a set like :func:`~measurement.cases.tuning_cases`
+    (:func:`~measurement.cases.standard_cases`: 12 shear-free loads and 24
+    with shear ratio 0.2 or 0.4). A contact keeps shear exactly when its
+    evidence ``F`` exceeds the shrinkage ``c`` (the factor ``1 - c / F`` is
+    positive), so one solve per case scores every ``c``.
+
+    Returns
+    -------
+    list of dict
+        Per shrinkage: ``false`` and ``missed`` (mean and largest count per
+        draw, of 12 and of 24), and ``missed_by_thickness`` (the share of
+        loads with shear ratio 0.2 missed, per ``h / pitch``) with
+        ``false_by_thickness`` (the share of shear-free loads given shear).
+    """
+    evidence = []  # (draw, h / pitch, true shear ratio, F of the largest contact)
+    solvers = {}
+    for draw, seed in enumerate(seeds):
+        for case in standard_cases(seed=seed, noise=noise):
+            grid = case.frame.grid
+            solver = solvers.setdefault(grid.thickness, Reconstructor(grid))
+            result = solver.solve(case.frame.stress)
+            found = result.contacts[0].evidence if result.contacts else 0.0
+            evidence.append((draw, case.thickness_ratio, case.shear_ratio, found))
+    draw, thickness, ratio, found = (np.array(column) for column in zip(*evidence, strict=True))
+    out = []
+    for c in shrinkages:
+        false = [int(np.sum((found > c) & (ratio == 0) & (draw == d))) for d in range(len(seeds))]
+        missed = [int(np.sum((found <= c) & (ratio >= 0.2) & (draw == d))) for d in range(len(seeds))]
+        out.append(dict(
+            shrinkage=c, false_mean=float(np.mean(false)), false_max=max(false),
+            missed_mean=float(np.mean(missed)), missed_max=max(missed),
+            false_by_thickness={h: float(np.mean(found[(ratio == 0) & (thickness == h)] > c))
+                                for h in np.unique(thickness)},
+            missed_by_thickness={h: float(np.mean(found[(ratio == 0.2) & (thickness == h)] <= c))
+                                 for h in np.unique(thickness)}))
+    return out
+
+
+def format_decision_curve(curve) -> str:
+    thicknesses = list(curve[0]["false_by_thickness"])
+    by = "  ".join(f"h/p {h:g}" for h in thicknesses)
+    lines = [f"   c  false of 12: mean  max  missed of 24: mean  max   false share / missed 0.2 share: {by}"]
+    for row in curve:
+        shares = "  ".join(f"{row['false_by_thickness'][h]:.2f}/{row['missed_by_thickness'][h]:.2f}"
+                           for h in thicknesses)
+        lines.append(f"{row['shrinkage']:4g}  {row['false_mean']:17.1f}  {row['false_max']:3d}  "
+                     f"{row['missed_mean']:18.1f}  {row['missed_max']:3d}   {shares}")
+    return "\n".join(lines)
+
+
 def format_load_decision(summary) -> str:
     lines = ["frames      one contact  none  total error median  worst"]
     for kind, row in summary.items():
@@ -234,7 +291,15 @@ def main(argv=None):
     parser.add_argument("--load-decision", action="store_true",
                         help="load or noise: one Hertz load under 1%%, 10%% and 20%% noise and noise alone, "
                              "16x16 and 32x32, h/p 0.5 to 5")
+    parser.add_argument("--decision-curve", action="store_true",
+                        help="false against missed shear for each shrinkage, over 10 draws of the tuning "
+                             "set's kind (seeds 100-109)")
     args = parser.parse_args(argv)
+    if args.decision_curve:
+        print(f"shear decision, seeds {DECISION_SEEDS[0]}-{DECISION_SEEDS[-1]}: 16x16, h/p 0.5 1 1.5, layer "
+              f"data, noise {args.noise:g}; shear kept when F > c (default c = {ContactFit().shrinkage:g})")
+        print(format_decision_curve(decision_curve(noise=args.noise)))
+        return
     if args.load_decision:
         seeds = LOAD_VALIDATION_SEEDS if args.set == "validation" else LOAD_TUNING_SEEDS
         print(f"load decision, {args.set} seeds {seeds}: 16x16 and 32x32, h/p 0.5 1 2 3 5, layer data")

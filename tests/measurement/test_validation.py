@@ -7,11 +7,13 @@ import re
 import numpy as np
 import pytest
 
-from measurement.cases import LOAD_VALIDATION_SEEDS, layer_cases, validation_cases
+from measurement.cases import LOAD_VALIDATION_SEEDS, layer_cases, standard_cases, validation_cases
 from measurement.validation import (
     counts,
+    decision_curve,
     evaluate,
     format_cases,
+    format_decision_curve,
     format_load_decision,
     format_mismatch,
     load_decision,
@@ -19,6 +21,7 @@ from measurement.validation import (
     summarize,
 )
 from solver import Reconstructor, SensorGrid, loads
+from solver.efficiency import ContactFit
 
 # standard_set (the standard set on half-space data) and layer_noisy (the physics set, 1% noise)
 # are session fixtures of conftest.py
@@ -152,6 +155,25 @@ def test_the_load_decision_tells_load_from_noise_on_its_validation_seeds(capsys)
     assert summary["1%"]["one"] == 30 and summary["1%"]["worst"] <= 0.02
     for kind in ("snr10", "snr5"):
         assert summary[kind]["none"] == 0 and summary[kind]["one"] >= 28, kind
+
+
+def test_the_decision_curve_counts_what_solvers_with_each_shrinkage_decide():
+    # one solve per case scores every shrinkage c (shear kept exactly when F > c): the counts must
+    # be those of solvers built with that shrinkage
+    curve = decision_curve((100,), shrinkages=(1.0, 3.0))
+    cases = standard_cases(seed=100)
+    for row in curve:
+        c = row["shrinkage"]
+        rows = evaluate(cases, lambda grid, c=c: Reconstructor(grid, efficiency=ContactFit(shrinkage=c)))
+        decided = counts(rows)
+        assert (row["false_mean"], row["missed_mean"]) == (decided["false"], decided["missed"]), c
+        assert row["false_max"] == decided["false"] and row["missed_max"] == decided["missed"]
+        missed = [r for r in rows if r["true_ratio"] == 0.2 and r["thickness_ratio"] == 0.5]
+        assert row["missed_by_thickness"][0.5] == sum(r["ratio"] == 0 for r in missed) / len(missed)
+    # measured on this draw: c = 1 gives shear to more shear-free loads than c = 3, and misses fewer
+    assert curve[0]["false_mean"] > curve[1]["false_mean"] and curve[0]["missed_mean"] < curve[1]["missed_mean"]
+    table = format_decision_curve(curve).splitlines()
+    assert len(table) == 3 and table[0].split()[:2] == ["c", "false"] and table[1].split()[0] == "1"
 
 
 @pytest.mark.parametrize("direction", [0.0, math.pi / 2, math.pi], ids=["inward", "along", "outward"])
