@@ -286,6 +286,8 @@ def main(argv=None):
                         help="validation: nothing was tuned on it (default); tuning: the constants "
                              "were chosen on it")
     parser.add_argument("--cases", action="store_true", help="print the per-case table too")
+    parser.add_argument("--by-thickness", action="store_true",
+                        help="below each functional's line, the same medians and counts per h/p")
     parser.add_argument("--mismatch", action="store_true",
                         help="every kernel on half-space and layer data (the physics set, h/p 0.5 to 2)")
     parser.add_argument("--load-decision", action="store_true",
@@ -320,6 +322,12 @@ def main(argv=None):
         if args.cases:
             print(format_cases(rows))
         print(format_summary([dict(functional=name, **summarize(rows), **counts(rows))], header=False))
+        if args.by_thickness:
+            # the medians pool the thicknesses; a thin layer is where the sub-cell model errs most
+            for ratio in sorted({r["thickness_ratio"] for r in rows}):
+                part = [r for r in rows if r["thickness_ratio"] == ratio]
+                print(format_summary([dict(functional=f"  h/p {ratio:g}", **summarize(part), **counts(part))],
+                                     header=False))
 
 
 if __name__ == "__main__":

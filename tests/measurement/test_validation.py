@@ -203,6 +203,19 @@ def test_contacts_on_the_edge_do_not_over_read_their_shear(direction):
 # -- the command line: python -m measurement.validation ---------------------------------------------
 
 
+def test_the_command_prints_the_medians_per_thickness(capsys):
+    from measurement.validation import main
+
+    main(["--functional", "contact_fit", "--by-thickness", "--noise", "0"])
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == 6 and lines[2].startswith("contact_fit")
+    # 12 cases per thickness: 4 shear-free, 8 sheared; measured noise-free: tangential 0.7%, 0.1%, 0.1%
+    for line, ratio in zip(lines[3:], ("0.6", "1", "1.4"), strict=True):
+        assert re.fullmatch(rf"  h/p {ratio} +\d+\.\d\d% +\d+\.\d% +\d+\.\dd +\d+/4 +\d+/8 +\d+\.\d\d", line)
+    tangential = [float(line.split()[3].rstrip("%")) for line in lines[3:]]
+    assert tangential[0] > tangential[2]  # the thin layer errs most
+
+
 def test_the_command_prints_the_summary_and_the_cases(capsys):
     from measurement.validation import main
 
