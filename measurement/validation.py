@@ -192,8 +192,9 @@ def decision_curve(seeds=DECISION_SEEDS, *, shrinkages=(0.5, 1.0, 1.5, 2.0, 3.0,
     for draw, seed in enumerate(seeds):
         for case in standard_cases(seed=seed, noise=noise):
             grid = case.frame.grid
-            solver = solvers.setdefault(grid.thickness, Reconstructor(grid))
-            result = solver.solve(case.frame.stress)
+            if grid.key not in solvers:
+                solvers[grid.key] = Reconstructor(grid)
+            result = solvers[grid.key].solve(case.frame.stress)
             found = result.contacts[0].evidence if result.contacts else 0.0
             evidence.append((draw, case.thickness_ratio, case.shear_ratio, found))
     draw, thickness, ratio, found = (np.array(column) for column in zip(*evidence, strict=True))

@@ -117,7 +117,9 @@ def validation_solvers():
     made = {}
 
     def make(grid):
-        return made.setdefault(grid.thickness, Reconstructor(grid))
+        if grid.thickness not in made:  # one solver per thickness, shared by the noise levels
+            made[grid.thickness] = Reconstructor(grid)
+        return made[grid.thickness]
     return make
 
 
