@@ -173,6 +173,17 @@ class SensorGrid:
         offset = self.positions[0] - reference[0]
         return np.allclose(self.positions, reference + offset, rtol=0, atol=1e-9 * self.pitch)
 
+    @functools.cached_property
+    def border(self) -> np.ndarray:
+        """(m,) ndarray of bool, read-only: the nodes of a regular grid's outer rows and columns,
+        where a contact's stress field is partly off the skin (none on other layouts)."""
+        edge = np.zeros(self.shape if self.is_regular else self.size, dtype=bool)
+        if self.is_regular:
+            edge[[0, -1], :] = edge[:, [0, -1]] = True
+        edge = edge.ravel()
+        edge.setflags(write=False)
+        return edge
+
     @property
     def key(self) -> tuple:
         """Everything a solver for this grid depends on, hashable: two grids with equal keys

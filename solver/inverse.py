@@ -325,11 +325,6 @@ class Reconstructor:
         self._margin = _csr(_within(tree, self.region_margin * grid.pitch * 1.0001))
         self._rings = math.ceil(self.reach * grid.thickness / grid.pitch) + 1
         self._near = _csr(_within(tree, self._rings * grid.pitch * 1.0001))
-        self._border = np.zeros(m, dtype=bool)
-        if grid.is_regular:
-            edge = np.zeros(grid.shape, dtype=bool)
-            edge[[0, -1], :] = edge[:, [0, -1]] = True
-            self._border = edge.ravel()
 
     # -- linear algebra of the solution family ---------------------------------
 
@@ -514,7 +509,7 @@ class Reconstructor:
         labels, near = self.contact_labels(self._normal.solve(b))
         nodes = labels == np.arange(1, near.shape[1] + 1)[:, None]  # (K, m)
         seen = dict(key=b.tobytes(), labels=labels, nodes=read_only(nodes, bool),
-                    weights=nodes.astype(float), at_edge=(nodes & self._border).any(axis=1),
+                    weights=nodes.astype(float), at_edge=(nodes & self.grid.border).any(axis=1),
                     region=read_only(labels > 0, bool))
         if near.shape[1] == 0:
             return _Seen(frame=None, **seen)

@@ -132,8 +132,6 @@ class RegionSolver:
         self._cache: OrderedDict = OrderedDict()
         self._lock = threading.Lock()
         self._links = patch_links(grid)
-        self._border = np.zeros(grid.shape, dtype=bool)  # contacts touching it are at the skin's edge
-        self._border[[0, -1], :] = self._border[:, [0, -1]] = True
         self._capacity = cache
         self.factorizations = 0  # windows factored so far (the rest were reused)
 
@@ -242,8 +240,9 @@ class RegionSolver:
             for contact in result.contacts:
                 nodes = np.zeros(grid.shape, dtype=bool)
                 nodes[rows, columns] = contact.nodes.reshape(window.shape)
-                contacts.append(replace(contact, nodes=read_only(nodes.ravel(), bool),
-                                        at_edge=bool(np.any(nodes & self._border))))
+                nodes = nodes.ravel()
+                contacts.append(replace(contact, nodes=read_only(nodes, bool),
+                                        at_edge=bool(np.any(nodes & grid.border))))
         norm = float(np.linalg.norm(image))
         unexplained += float(np.sum(image[~explained] ** 2))
         contacts.sort(key=lambda c: -c.total_force[2])

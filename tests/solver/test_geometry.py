@@ -247,3 +247,15 @@ def test_invalid_layouts_are_rejected(kwargs, message):
 def test_impossible_shapes_are_rejected(shape):
     with pytest.raises(ValueError, match=r"shape entries must be whole numbers >= 1, got \("):
         SensorGrid(np.zeros((4, 2)), 1e-3, 1e-3, shape)
+
+
+def test_border_is_the_outer_rows_and_columns_of_a_regular_grid():
+    grid = SensorGrid.regular(5, 4, 1e-3, 1e-3)
+    edge = grid.border.reshape(grid.shape)
+    assert edge[[0, -1], :].all() and edge[:, [0, -1]].all() and not edge[1:-1, 1:-1].any()
+    assert grid.border.sum() == 2 * 5 + 2 * 4 - 4
+    with pytest.raises(ValueError, match="read-only"):
+        grid.border[0] = False
+    # an irregular layout has no rows and columns to be outer
+    scattered = grid.replace(positions=grid.positions[:7], shape=(7,))
+    assert scattered.border.shape == (7,) and not scattered.border.any()
