@@ -45,6 +45,7 @@ def test_contacts_are_the_grown_patches_of_the_normal_solution(reconstructor, sh
     irregular = Reconstructor(SensorGrid(grid.positions, grid.thickness, grid.pitch, (grid.size,)))
     rng = np.random.default_rng(8)  # fixed seed
     second = loads.simulate(grid, loads.hertz((-9e-3, 8e-3), 2e-3, 0.5)).stress
+    distance = np.linalg.norm(grid.positions[:, None] - grid.positions[None], axis=2)
     counts = []
     for noise in (0.0, 0.02, 0.1, 0.3):
         b = sheared.stress + second + rng.normal(0, noise * sheared.stress.max(), grid.size)
@@ -55,7 +56,6 @@ def test_contacts_are_the_grown_patches_of_the_normal_solution(reconstructor, sh
             labels, near = r.contact_labels(normal)
             np.testing.assert_array_equal(labels, expected)
             # near: the sensors within the fit's reach of each contact's nodes
-            distance = np.linalg.norm(grid.positions[:, None] - grid.positions[None], axis=2)
             within = distance <= r._rings * grid.pitch * 1.0001
             np.testing.assert_array_equal(
                 near, np.stack([within[:, labels == k].any(axis=1) for k in range(1, labels.max() + 1)], axis=1))
