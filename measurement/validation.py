@@ -16,6 +16,7 @@ from solver import Reconstructor, loads, metrics
 from solver.efficiency import FUNCTIONALS, ContactFit
 from solver.kernels import KERNELS
 
+from .bounds import decision_bound, format_decision_bound
 from .cases import (
     DECISION_SEEDS,
     LOAD_TUNING_SEEDS,
@@ -296,12 +297,15 @@ def main(argv=None):
                              "16x16 and 32x32, h/p 0.5 to 5")
     parser.add_argument("--decision-curve", action="store_true",
                         help="false against missed shear for each shrinkage, over 10 draws of the tuning "
-                             "set's kind (seeds 100-109)")
+                             "set's kind (seeds 100-109), then an ideal test's counts on the same loads")
     args = parser.parse_args(argv)
     if args.decision_curve:
         print(f"shear decision, seeds {DECISION_SEEDS[0]}-{DECISION_SEEDS[-1]}: 16x16, h/p 0.5 1 1.5, layer "
               f"data, noise {args.noise:g}; shear kept when F > c (default c = {ContactFit().shrinkage:g})")
-        print(format_decision_curve(decision_curve(noise=args.noise)))
+        print(format_decision_curve(decision_curve(DECISION_SEEDS, noise=args.noise)))
+        print("\nan ideal test on the same loads: Cramer-Rao bound of an unbiased shear with one free force "
+              "per node, support known, the model's own physics (measurement.bounds)")
+        print(format_decision_bound(decision_bound(DECISION_SEEDS, noise=args.noise)))
         return
     if args.load_decision:
         seeds = LOAD_VALIDATION_SEEDS if args.set == "validation" else LOAD_TUNING_SEEDS

@@ -229,3 +229,19 @@ def test_the_command_prints_the_summary_and_the_cases(capsys):
     assert len(lines) == 41
     # the summary line: the medians, then the counts of 12 shear-free and 24 sheared loads
     assert re.fullmatch(r"contact_fit +\d+\.\d\d% +\d+\.\d% +\d+\.\dd +\d+/12 +\d+/24 +\d+\.\d\d", lines[40])
+
+
+def test_the_command_prints_the_decision_curve_beside_the_ideal_tests_bound(capsys, monkeypatch):
+    from measurement import validation
+
+    monkeypatch.setattr(validation, "DECISION_SEEDS", (100,))  # one draw: the layout, not the figures
+    validation.main(["--decision-curve"])
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("shear decision, seeds 100-100: 16x16")
+    assert len(lines) == 2 + 8 + 2 + 4
+    assert lines[11].startswith("an ideal test on the same loads: Cramer-Rao bound")
+    assert lines[12].split()[:6] == ["false", "of", "12", "missed", "of", "24"]
+    # the ideal test at 1, 2 and 4 false of 12: fewer missed as it allows more false
+    missed = [float(line.split()[1]) for line in lines[13:]]
+    assert [line.split()[0] for line in lines[13:]] == ["1.0", "2.0", "4.0"]
+    assert missed[0] > missed[1] > missed[2]

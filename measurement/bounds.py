@@ -1,0 +1,234 @@
+"""What the data allow: the Cramér-Rao bound of a contact's shear, and the shear decision it permits.
+
+The contact fit estimates a profile of normal forces and a shear ``(s_x, s_y)``
+(tangential over normal traction, the same everywhere in the contact). Any
+unbiased estimator of the shear from one frame has a covariance at least the
+inverse of the Fisher information, where the profile is a nuisance: whatever
+part of the shear's signature a change of the profile can also explain is
+lost. The bound depends on how freely the profile may vary; here it is one
+force per sub-cell (``subdivision`` per pitch along each axis), on the sub-cells
+the true contact loads, with the model's own layer kernel.
+
+The best decision that bound permits: the Wald test on ``s^T I s``, which is
+chi-square with 2 degrees of freedom on shear-free loads and non-central with
+``lambda = s^T I s`` on loads with shear ``s``. Its threshold fixes the share of
+shear-free loads given shear; the share of sheared loads it misses follows.
+These are the figures of an ideal unbiased estimate, with the model's own
+physics, no model error and the support known. A decision that shrinks the
+estimate (as the contact fit's does) or whose profile is more constrained (the
+fit's non-negative profile is sparse) is not bound by them; they say what one
+free force per node leaves to decide on.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2, ncx2
+
+from solver.arrays import read_only
+from solver.checks import whole_number
+from solver.kernels import stress_matrix
+
+from .cases import standard_cases
+from .tables import Column, format_table, value
+
+__all__ = ["ShearBound", "shear_bounds", "miss_probability", "decision_bound",
+           "format_decision_bound"]
+
+_SAMPLES = 8        # profile samples per sub-cell along each axis when integrating the true load
+
+
+@dataclass(frozen=True)
+class ShearBound:
+    """The Cramér-Rao bound of one contact's shear.
+
+    Attributes
+    ----------
+    information : (2, 2) ndarray
+        Fisher information of ``(s_x, s_y)`` with the profile as a nuisance, read-only.
+    shear : (2,) ndarray
+        The contact's true ``(s_x, s_y)``, read-only.
+    profile : (m s^2,) ndarray
+        The contact's true normal force on each sub-cell, newtons, in the
+        order of :func:`solver.kernels.stress_matrix`'s columns, read-only;
+        the loaded ones are the free forces.
+    """
+
+    information: np.ndarray
+    shear: np.ndarray
+    profile: np.ndarray
+
+    @property
+    def profile_size(self) -> int:
+        """Free profile forces (loaded sub-cells)."""
+        return int(np.count_nonzero(self.profile))
+
+    @property
+    def ratio_sd(self) -> float:
+        """The bound's standard deviation of the shear ratio along its worst direction (inf when the
+        data do not determine the shear at all)."""
+        smallest = float(np.linalg.eigvalsh(self.information)[0])
+        return 1.0 / math.sqrt(smallest) if smallest > 0 else math.inf
+
+    def miss(self, ratio: float | None = None, *, false_rate: float) -> float:
+        """:func:`miss_probability` of a shear along the true direction with ``ratio`` (default
+        the true ratio)."""
+        norm = float(np.hypot(*self.shear))
+        direction = self.shear / norm if norm > 0 else np.array([1.0, 0.0])
+        size = norm if ratio is None else ratio
+        return miss_probability(self.information, size * direction, false_rate=false_rate)
+
+
+def shear_bounds(frames, *, subdivision: int = 1) -> list[ShearBound]:
+    """The bound of each one-contact frame's shear.
+
+    Parameters
+    ----------
+    frames : sequence of solver.loads.SimulatedFrame
+        Frames of one contact each, with their noise (relative to the peak
+        clean stress, as :func:`solver.loads.simulate` adds it).
+    subdivision : int, optional
+        Profile sub-cells per pitch along each axis: 1 is one force per node,
+        2 the contact fit's profile. Default 1.
+
+    Returns
+    -------
+    list of ShearBound
+    """
+    subdivision = whole_number("subdivision", subdivision, low=1)
+    frames = list(frames)
+    for k, frame in enumerate(frames):
+        if len(frame.contacts) != 1:
+            raise ValueError(f"frames must have one contact each, frame {k} has {len(frame.contacts)}")
+        if not frame.noise > 0:
+            raise ValueError(f"frames must have noise > 0 (the bound scales with it), frame {k} has "
+                             f"{frame.noise!r}")
+    matrices = {}
+    out = []
+    for frame in frames:
+        grid = frame.grid
+        if grid.key not in matrices:
+            matrices[grid.key] = stress_matrix(grid, "layer", subdivision=subdivision)
+        out.append(_bound(frame, matrices[grid.key], subdivision))
+    return out
+
+
+def _bound(frame, matrix, subdivision):
+    grid, contact = frame.grid, frame.contacts[0]
+    m, cells = grid.size, subdivision * subdivision
+    width = grid.pitch / subdivision
+    # sub-cell centres in the matrix's column order (q * m + j)
+    centres = (np.arange(subdivision) + 0.5) * width - 0.5 * grid.pitch
+    q = np.arange(cells)
+    x = (grid.positions[None, :, 0] + centres[q % subdivision, None]).ravel()
+    y = (grid.positions[None, :, 1] + centres[q // subdivision, None]).ravel()
+    offsets = ((np.arange(_SAMPLES) + 0.5) / _SAMPLES - 0.5) * width
+    profile = sum(contact.profile(x + u, y + v) for u in offsets for v in offsets)
+    profile = profile / profile.sum() * contact.force
+    loaded = profile > 0
+    shear = contact.shear_ratio * np.array([math.cos(contact.shear_direction),
+                                            math.sin(contact.shear_direction)])
+    fx, fy, fz = (matrix[:, c * m * cells:(c + 1) * m * cells] for c in range(3))
+    # stress = (Cz + s_x Cx + s_y Cy) p: derivatives in the free profile forces and in the shear
+    nuisance = fz[:, loaded] + shear[0] * fx[:, loaded] + shear[1] * fy[:, loaded]
+    signature = np.column_stack([fx @ profile, fy @ profile])
+    # Information of the shear with the profile profiled out: the part of its signature no change
+    # of the profile explains (the Schur complement, through an orthonormal basis of the profile's
+    # columns rather than the inverse of an ill-conditioned Gram matrix).
+    basis, singular, _ = np.linalg.svd(nuisance, full_matrices=False)
+    basis = basis[:, singular > singular[0] * 1e-12]
+    unexplained = signature - basis @ (basis.T @ signature)
+    sigma = frame.noise * np.abs(frame.clean_stress).max()
+    information = unexplained.T @ unexplained / sigma**2
+    return ShearBound(read_only(information), read_only(shear), read_only(profile))
+
+
+def miss_probability(information, shear, *, false_rate: float) -> float:
+    """The share of loads with ``shear`` that the best test at ``false_rate`` calls shear-free.
+
+    Parameters
+    ----------
+    information : (2, 2) ndarray
+        Fisher information of the shear (:attr:`ShearBound.information`).
+    shear : (2,) ndarray
+        ``(s_x, s_y)`` of the loads.
+    false_rate : float
+        Share of shear-free loads the test gives shear, in (0, 1).
+
+    Returns
+    -------
+    float
+        ``P(chi2_2(lambda) <= t)``, ``lambda = s^T I s`` and ``t`` the ``1 - false_rate``
+        quantile of ``chi2_2``.
+    """
+    if not 0 < false_rate < 1:
+        raise ValueError(f"false_rate must be in (0, 1), got {false_rate!r}")
+    shear = np.asarray(shear, dtype=float)
+    if shear.shape != (2,) or not np.isfinite(shear).all():
+        raise ValueError(f"shear must be 2 finite numbers, got {shear!r}")
+    threshold = chi2.ppf(1.0 - false_rate, 2)
+    noncentrality = float(shear @ np.asarray(information) @ shear)
+    if noncentrality <= 0:
+        return 1.0 - false_rate
+    return float(ncx2.cdf(threshold, 2, noncentrality))
+
+
+def decision_bound(seeds, *, false_rates=(1 / 12, 2 / 12, 4 / 12), noise: float = 0.01,
+                   subdivision: int = 1) -> list[dict]:
+    """The best shear decision's counts over the draws of :func:`~measurement.validation.decision_curve`.
+
+    Parameters
+    ----------
+    seeds : sequence of int
+        Seeds of :func:`~measurement.cases.standard_cases` (12 shear-free
+        loads and 24 with shear ratio 0.2 or 0.4 each).
+    false_rates : sequence of float, optional
+        Shares of shear-free loads the test gives shear.
+    noise : float, optional
+        Sensor noise relative to the peak clean stress. Default 0.01.
+    subdivision : int, optional
+        The profile's sub-cells per pitch (:func:`shear_bounds`). Default 1.
+
+    Returns
+    -------
+    list of dict
+        Per false rate: ``false`` (expected count of 12 per draw), ``missed``
+        (expected count of 24 per draw), ``none_missed`` (the chance that a
+        draw misses none, mean over the draws) and ``missed_by_thickness``
+        (the expected share of the loads with shear ratio 0.2 missed, per
+        ``h / pitch``).
+    """
+    cases, draw = [], []
+    for d, seed in enumerate(seeds):
+        drawn = standard_cases(seed=seed, noise=noise)
+        cases += drawn
+        draw += [d] * len(drawn)
+    draw = np.array(draw)
+    bounds = shear_bounds([case.frame for case in cases], subdivision=subdivision)
+    out = []
+    for rate in false_rates:
+        miss = np.array([b.miss(false_rate=rate) if c.shear_ratio > 0 else np.nan
+                         for b, c in zip(bounds, cases, strict=True)])
+        ratio = np.array([c.shear_ratio for c in cases])
+        thickness = np.array([c.thickness_ratio for c in cases])
+        out.append(dict(
+            false_rate=rate, false=12 * rate, missed=float(np.nansum(miss)) / len(seeds),
+            none_missed=float(np.mean([np.prod(1.0 - miss[(draw == d) & (ratio > 0)])
+                                       for d in range(len(seeds))])),
+            missed_by_thickness={h: float(np.mean(miss[(ratio == 0.2) & (thickness == h)]))
+                                 for h in np.unique(thickness)}))
+    return out
+
+
+def format_decision_bound(rows) -> str:
+    """The rows of :func:`decision_bound`, one line per false rate."""
+    columns = [Column("false of 12", 11, value("false", ".1f")),
+               Column("missed of 24", 12, value("missed", ".2f"), gap=3),
+               Column("none missed", 11, value("none_missed", ".2f"), gap=3)]
+    columns += [Column(f"missed 0.2 h/p {h:g}", 18,
+                       lambda r, h=h: f"{r['missed_by_thickness'][h]:.2f}", gap=3)
+                for h in rows[0]["missed_by_thickness"]]
+    return format_table(rows, columns)

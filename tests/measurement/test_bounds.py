@@ -1,0 +1,121 @@
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+from scipy.stats import chi2
+
+from measurement.bounds import decision_bound, format_decision_bound, miss_probability, shear_bounds
+from solver import loads
+from solver.geometry import SensorGrid
+from solver.kernels import stress_matrix
+
+PITCH = 2e-3
+
+
+def _frame(thickness_ratio, *, shear_ratio=0.3, noise=0.01, n=8):
+    grid = SensorGrid.regular(n, n, PITCH, thickness_ratio * PITCH)
+    contact = loads.hertz((0.3 * PITCH, -0.2 * PITCH), 1.6 * PITCH, 1.0, shear_ratio=shear_ratio,
+                          shear_direction=0.7)
+    return loads.simulate(grid, contact, noise=noise, rng=5)
+
+
+def test_the_bound_is_the_spread_of_the_maximum_likelihood_shear_on_the_models_own_data():
+    # Data from the bound's model (one force per node, layer kernel) with the frame's noise; the
+    # shear and every loaded node's force fitted by nonlinear least squares (scipy's own Jacobian).
+    # The fits' spread is the inverse of the information within the Monte-Carlo error.
+    frame = _frame(1.0)
+    bound = shear_bounds([frame])[0]
+    m = frame.grid.size
+    matrix = stress_matrix(frame.grid, "layer")
+    fx, fy, fz = matrix[:, :m], matrix[:, m:2 * m], matrix[:, 2 * m:]
+    # the bound's true profile: the simulator's nodal forces, integrated apart
+    np.testing.assert_allclose(bound.profile, frame.forces[:, 2], rtol=0, atol=1e-3)
+    profile = bound.profile
+    loaded = profile > 0
+
+    def stress(theta):
+        p = np.zeros(m)
+        p[loaded] = theta[:-2]
+        return fz @ p + theta[-2] * (fx @ p) + theta[-1] * (fy @ p)
+
+    truth = np.concatenate([profile[loaded], bound.shear])
+    clean = stress(truth)
+    sigma = frame.noise * np.abs(frame.clean_stress).max()
+    rng = np.random.default_rng(3)  # noise draws, fixed
+    shears = []
+    for _ in range(300):
+        data = clean + rng.normal(0.0, sigma, m)
+        fit = least_squares(lambda t, d=data: (stress(t) - d) / sigma, truth, method="lm")
+        shears.append(fit.x[-2:])
+    spread = np.cov(np.array(shears).T)
+    expected = np.linalg.inv(bound.information)
+    # along both principal directions of the bound: standard deviations within 12% (300 draws)
+    values, vectors = np.linalg.eigh(expected)
+    for value, vector in zip(values, vectors.T, strict=True):
+        assert math.sqrt(vector @ spread @ vector) == pytest.approx(math.sqrt(value), rel=0.12)
+    assert bound.ratio_sd == pytest.approx(math.sqrt(values[-1]))
+
+
+def test_a_free_sub_cell_profile_under_a_thin_layer_leaves_the_shear_undetermined():
+    # Under h/p 0.6 the profile's 2x2 sub-cells outnumber what the sensors near the contact see: a
+    # profile change explains almost any shear. One force per node leaves it to a few percent.
+    frame = _frame(0.6)
+    per_node, = shear_bounds([frame])
+    per_sub_cell, = shear_bounds([frame], subdivision=2)
+    assert per_sub_cell.profile_size > 3 * per_node.profile_size
+    assert per_node.ratio_sd < 0.1
+    assert per_sub_cell.ratio_sd > 10 * per_node.ratio_sd
+
+
+def test_the_bound_scales_with_the_noise():
+    quiet, = shear_bounds([_frame(1.0, noise=0.005)])
+    loud, = shear_bounds([_frame(1.0, noise=0.02)])
+    assert loud.ratio_sd == pytest.approx(4 * quiet.ratio_sd, rel=1e-9)
+
+
+def test_the_miss_probability_is_that_of_the_wald_test_on_gaussian_estimates():
+    information = np.array([[900.0, 200.0], [200.0, 400.0]])
+    shear = np.array([0.08, -0.05])
+    rng = np.random.default_rng(8)  # estimates drawn around the shear, fixed
+    estimates = rng.multivariate_normal(shear, np.linalg.inv(information), size=40000)
+    statistic = np.einsum("ni,ij,nj->n", estimates, information, estimates)
+    for rate in (0.05, 1 / 6, 0.4):
+        missed = np.mean(statistic <= chi2.ppf(1 - rate, 2))
+        assert miss_probability(information, shear, false_rate=rate) == pytest.approx(missed, abs=0.01)
+    # no shear: the test misses what it does not give shear, all but the false rate
+    assert miss_probability(information, [0.0, 0.0], false_rate=0.2) == pytest.approx(0.8)
+
+
+def test_a_shear_decision_misses_less_where_the_layer_is_thicker_and_when_it_allows_more_false():
+    rows = decision_bound((100,), false_rates=(1 / 12, 4 / 12))
+    assert [r["false"] for r in rows] == pytest.approx([1.0, 4.0])
+    assert rows[0]["missed"] > rows[1]["missed"] > 0
+    assert rows[0]["none_missed"] < rows[1]["none_missed"] < 1
+    for row in rows:
+        shares = list(row["missed_by_thickness"].values())
+        assert list(row["missed_by_thickness"]) == [0.5, 1.0, 1.5]
+        assert shares[0] > shares[1] > shares[2]
+    lines = format_decision_bound(rows).splitlines()
+    assert lines[0].split()[:3] == ["false", "of", "12"]
+    assert len(lines) == 3 and lines[1].split()[0] == "1.0"
+
+
+def test_bad_input_is_refused_with_the_rule_and_the_value():
+    frame = _frame(1.0)
+    grid = frame.grid
+    two = loads.simulate(grid, [loads.hertz((-4 * PITCH, 0.0), PITCH, 1.0),
+                                loads.hertz((4 * PITCH, 0.0), PITCH, 1.0)], noise=0.01, rng=1)
+    with pytest.raises(ValueError, match="frames must have one contact each, frame 1 has 2"):
+        shear_bounds([frame, two])
+    with pytest.raises(ValueError, match=r"frames must have noise > 0 .*frame 0 has 0.0"):
+        shear_bounds([_frame(1.0, noise=0.0)])
+    with pytest.raises(ValueError, match="subdivision"):
+        shear_bounds([frame], subdivision=0)
+    for rate in (0.0, 1.0, math.nan):
+        with pytest.raises(ValueError, match=r"false_rate must be in \(0, 1\), got"):
+            miss_probability(np.eye(2), [0.1, 0.0], false_rate=rate)
+    with pytest.raises(ValueError, match="shear must be 2 finite numbers"):
+        miss_probability(np.eye(2), [0.1, 0.0, 0.0], false_rate=0.1)
+    with pytest.raises(ValueError, match="shear must be 2 finite numbers"):
+        miss_probability(np.eye(2), [math.nan, 0.0], false_rate=0.1)
