@@ -82,6 +82,39 @@ class ShearBound:
         return miss_probability(self.information, size * direction, false_rate=false_rate)
 
 
+    def ideal_errors(self, *, samples: int = 4000, rng=0) -> tuple[float, float]:
+        """The median errors of an unbiased shear estimate at the bound.
+
+        Parameters
+        ----------
+        samples : int, optional
+            Gaussian draws of the estimate. Default 4000.
+        rng : int or numpy.random.Generator, optional
+            Seed or generator of the draws. Default 0 (every call the same).
+
+        Returns
+        -------
+        tangential : float
+            Median of the total tangential force's error over ``|F|``, as
+            :func:`solver.metrics.tangential_total_error` measures it.
+        direction : float
+            Median error of the shear's direction, degrees (nan without shear).
+        """
+        samples = whole_number("samples", samples, low=1)
+        if not np.isfinite(self.ratio_sd):
+            return math.inf, 180.0
+        errors = np.random.default_rng(rng).multivariate_normal(
+            np.zeros(2), np.linalg.inv(self.information), size=samples)
+        # |F_t - F_t*| / |F*| = |ds| F_z / (F_z sqrt(1 + mu^2)) for one contact of uniform ratio
+        ratio = float(np.hypot(*self.shear))
+        tangential = float(np.median(np.hypot(*errors.T))) / math.sqrt(1.0 + ratio * ratio)
+        if ratio == 0:
+            return tangential, math.nan
+        estimate = self.shear + errors
+        turn = np.arctan2(estimate[:, 1], estimate[:, 0]) - math.atan2(self.shear[1], self.shear[0])
+        return tangential, math.degrees(float(np.median(np.abs(np.angle(np.exp(1j * turn))))))
+
+
 def shear_bounds(frames, *, subdivision: int = 1) -> list[ShearBound]:
     """The bound of each one-contact frame's shear.
 

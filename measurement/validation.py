@@ -16,7 +16,7 @@ from solver import Reconstructor, loads, metrics
 from solver.efficiency import FUNCTIONALS, ContactFit
 from solver.kernels import KERNELS
 
-from .bounds import decision_bound, format_decision_bound
+from .bounds import decision_bound, format_decision_bound, shear_bounds
 from .cases import (
     DECISION_SEEDS,
     LOAD_TUNING_SEEDS,
@@ -30,8 +30,8 @@ from .cases import (
 from .tables import DIRECTION, NORMAL, TANGENTIAL, Column, format_table, value
 
 __all__ = ["evaluate", "summarize", "counts", "false_shear", "MISMATCH_MEDIA", "mismatch", "load_decision",
-           "decision_curve", "format_cases", "format_mismatch", "format_summary", "format_load_decision",
-           "format_decision_curve", "main"]
+           "decision_curve", "against_bound", "format_against_bound", "format_cases", "format_mismatch",
+           "format_summary", "format_load_decision", "format_decision_curve", "main"]
 
 
 def evaluate(cases, make_reconstructor, *, solve=None):
@@ -213,6 +213,52 @@ def decision_curve(seeds=DECISION_SEEDS, *, shrinkages=(0.5, 1.0, 1.5, 2.0, 3.0,
     return out
 
 
+def against_bound(cases, rows) -> list[dict]:
+    """Measured errors against what the data allow, per ``h / pitch``.
+
+    Parameters
+    ----------
+    cases : list of measurement.cases.Case
+        One contact each.
+    rows : list of dict
+        :func:`evaluate`'s rows of ``cases``, in the same order.
+
+    Returns
+    -------
+    list of dict
+        Per ``h / pitch``, over the loads with shear ratio >= 0.2: the
+        medians of the tangential and direction errors measured
+        (``tangential``, ``direction``) and of an unbiased estimate at the
+        Cramér-Rao bound with one free force per node (``bound_tangential``,
+        ``bound_direction``; :meth:`measurement.bounds.ShearBound.ideal_errors`).
+    """
+    if len(cases) != len(rows):
+        raise ValueError(f"rows must score every case, got {len(rows)} rows for {len(cases)} cases")
+    sheared = [(case, row) for case, row in zip(cases, rows, strict=True) if case.shear_ratio >= 0.2]
+    ideal = [bound.ideal_errors() for bound in shear_bounds([case.frame for case, _ in sheared])]
+    out = []
+    for ratio in sorted({case.thickness_ratio for case, _ in sheared}):
+        part = [k for k, (case, _) in enumerate(sheared) if case.thickness_ratio == ratio]
+        out.append(dict(
+            thickness_ratio=ratio, loads=len(part),
+            tangential=float(np.median([sheared[k][1]["tangential_total"] for k in part])),
+            direction=float(np.median([sheared[k][1]["direction_deg"] for k in part])),
+            bound_tangential=float(np.median([ideal[k][0] for k in part])),
+            bound_direction=float(np.median([ideal[k][1] for k in part]))))
+    return out
+
+
+def format_against_bound(rows) -> str:
+    return format_table(rows, (
+        Column("h/p", 5, value("thickness_ratio", "g")),
+        Column("loads", 5, value("loads")),
+        Column("tangential", 10, value("tangential", ".1f", scale=100, unit="%")),
+        Column("bound", 6, value("bound_tangential", ".1f", scale=100, unit="%")),
+        Column("direction", 9, value("direction", ".1f", unit="d"), gap=3),
+        Column("bound", 6, value("bound_direction", ".1f", unit="d")),
+    ))
+
+
 def format_decision_curve(curve) -> str:
     thicknesses = list(curve[0]["false_by_thickness"])
     by = "  ".join(f"h/p {h:g}" for h in thicknesses)
@@ -290,6 +336,9 @@ def main(argv=None):
     parser.add_argument("--cases", action="store_true", help="print the per-case table too")
     parser.add_argument("--by-thickness", action="store_true",
                         help="below each functional's line, the same medians and counts per h/p")
+    parser.add_argument("--against-bound", action="store_true",
+                        help="per h/p, the sheared loads' tangential and direction medians beside those of "
+                             "an unbiased estimate at the Cramer-Rao bound (one free force per node)")
     parser.add_argument("--mismatch", action="store_true",
                         help="every kernel on half-space and layer data (the physics set, h/p 0.5 to 2)")
     parser.add_argument("--load-decision", action="store_true",
@@ -327,6 +376,11 @@ def main(argv=None):
         if args.cases:
             print(format_cases(rows))
         print(format_summary([dict(functional=name, **summarize(rows), **counts(rows))], header=False))
+        if args.against_bound:
+            print(f"  loads with shear ratio >= 0.2, medians: {name} against an unbiased estimate at the "
+                  "Cramer-Rao bound (one free force per node, support known, no model error)")
+            table = format_against_bound(against_bound(cases, rows))
+            print("\n".join("  " + line for line in table.splitlines()))
         if args.by_thickness:
             # the medians pool the thicknesses; a thin layer is where the sub-cell model errs most
             for ratio in sorted({r["thickness_ratio"] for r in rows}):

@@ -5,7 +5,13 @@ import pytest
 from scipy.optimize import least_squares
 from scipy.stats import chi2
 
-from measurement.bounds import decision_bound, format_decision_bound, miss_probability, shear_bounds
+from measurement.bounds import (
+    ShearBound,
+    decision_bound,
+    format_decision_bound,
+    miss_probability,
+    shear_bounds,
+)
 from solver import loads
 from solver.geometry import SensorGrid
 from solver.kernels import stress_matrix
@@ -119,3 +125,24 @@ def test_bad_input_is_refused_with_the_rule_and_the_value():
         miss_probability(np.eye(2), [0.1, 0.0, 0.0], false_rate=0.1)
     with pytest.raises(ValueError, match="shear must be 2 finite numbers"):
         miss_probability(np.eye(2), [math.nan, 0.0], false_rate=0.1)
+
+
+def test_the_ideal_errors_are_those_of_a_gaussian_estimate():
+    sigma = 0.02
+    # no shear: |ds| is Rayleigh, median sigma sqrt(2 ln 2); no direction to miss
+    still = ShearBound(np.eye(2) / sigma**2, np.zeros(2), np.ones(3))
+    tangential, direction = still.ideal_errors(samples=40000)
+    assert tangential == pytest.approx(sigma * math.sqrt(2 * math.log(2)), rel=0.02)
+    assert math.isnan(direction)
+    # shear 0.4 at 30 deg, far above the noise: the turn is sigma / mu radians normal, median 0.674 of it;
+    # the tangential error is relative to |F| = F_z sqrt(1 + mu^2)
+    mu = 0.4
+    sheared = ShearBound(np.eye(2) / sigma**2, mu * np.array([math.cos(0.5), math.sin(0.5)]), np.ones(3))
+    tangential, direction = sheared.ideal_errors(samples=40000)
+    assert tangential == pytest.approx(sigma * math.sqrt(2 * math.log(2)) / math.sqrt(1 + mu**2), rel=0.02)
+    assert direction == pytest.approx(math.degrees(0.6745 * sigma / mu), rel=0.03)
+    # the same draws every call unless told otherwise
+    assert sheared.ideal_errors() == sheared.ideal_errors()
+    assert sheared.ideal_errors(rng=1) != sheared.ideal_errors(rng=2)
+    # shear the data do not determine
+    assert ShearBound(np.zeros((2, 2)), np.zeros(2), np.ones(3)).ideal_errors() == (math.inf, 180.0)

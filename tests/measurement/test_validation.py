@@ -245,3 +245,26 @@ def test_the_command_prints_the_decision_curve_beside_the_ideal_tests_bound(caps
     missed = [float(line.split()[1]) for line in lines[13:]]
     assert [line.split()[0] for line in lines[13:]] == ["1.0", "2.0", "4.0"]
     assert missed[0] > missed[1] > missed[2]
+
+
+def test_the_command_prints_the_sheared_loads_medians_beside_the_bounds(capsys):
+    from measurement.validation import against_bound, main
+
+    main(["--functional", "contact_fit", "--against-bound", "--noise", "0.003"])
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[3].startswith("  loads with shear ratio >= 0.2, medians: contact_fit against an unbiased")
+    assert lines[4].split() == ["h/p", "loads", "tangential", "bound", "direction", "bound"]
+    assert len(lines) == 8
+    for line, ratio in zip(lines[5:], ("0.6", "1", "1.4"), strict=True):
+        assert re.fullmatch(rf" +{ratio} +8 +\d+\.\d% +\d+\.\d% +\d+\.\dd +\d+\.\dd", line)
+    # the medians are of each thickness's sheared loads, the measured ones from the scored rows
+    cases = [c for c in validation_cases(noise=0.003) if c.thickness_ratio == 1.4]
+    rows = evaluate(cases, lambda g: Reconstructor(g))
+    table, = against_bound(cases, rows)
+    sheared = [r for r in rows if r["true_ratio"] >= 0.2]
+    assert table["loads"] == 8
+    assert table["tangential"] == np.median([r["tangential_total"] for r in sheared])
+    assert table["direction"] == np.median([r["direction_deg"] for r in sheared])
+    assert 0 < table["bound_tangential"] < 0.05 and 0 < table["bound_direction"] < 5
+    with pytest.raises(ValueError, match="rows must score every case, got 11 rows for 12 cases"):
+        against_bound(cases, rows[:-1])
