@@ -9,15 +9,17 @@ lost. The bound depends on how freely the profile may vary; here it is one
 force per sub-cell (``subdivision`` per pitch along each axis), on the sub-cells
 the true contact loads, with the model's own layer kernel.
 
-The best decision that bound permits: the Wald test on ``s^T I s``, which is
-chi-square with 2 degrees of freedom on shear-free loads and non-central with
-``lambda = s^T I s`` on loads with shear ``s``. Its threshold fixes the share of
-shear-free loads given shear; the share of sheared loads it misses follows.
-These are the figures of an ideal unbiased estimate, with the model's own
-physics, no model error and the support known. A decision that shrinks the
-estimate (as the contact fit's does) or whose profile is more constrained (the
-fit's non-negative profile is sparse) is not bound by them; they say what one
-free force per node leaves to decide on.
+The decision at that bound: the Wald test on ``s^T I s`` (the most powerful test
+that treats every shear direction alike), which is chi-square with 2 degrees of
+freedom on shear-free loads and non-central with ``lambda = s^T I s`` on loads
+with shear ``s``. Its threshold fixes the share of shear-free loads given shear;
+the share of sheared loads it misses follows.
+
+These are the figures of an unbiased estimate with the model's own physics,
+no model error and the support known. A decision that shrinks the estimate
+(as the contact fit's does), a prior on the shear's size, or a profile more
+constrained than the bound's (the fit's non-negative profile is sparse) is not
+bound by them: they say what a free profile leaves to decide on.
 """
 
 from __future__ import annotations
@@ -28,11 +30,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2, ncx2
 
+from solver import loads
 from solver.arrays import read_only
-from solver.checks import whole_number
+from solver.checks import real_number, whole_number
 from solver.kernels import stress_matrix
 
-from .cases import standard_cases
 from .tables import Column, format_table, value
 
 __all__ = ["ShearBound", "shear_bounds", "miss_probability", "decision_bound",
@@ -61,6 +63,13 @@ class ShearBound:
     shear: np.ndarray
     profile: np.ndarray
 
+    def __post_init__(self):
+        for name in ("information", "shear", "profile"):
+            object.__setattr__(self, name, read_only(getattr(self, name)))
+        if self.information.shape != (2, 2) or self.shear.shape != (2,):
+            raise ValueError(f"information must be (2, 2) and shear (2,), got {self.information.shape} "
+                             f"and {self.shear.shape}")
+
     @property
     def profile_size(self) -> int:
         """Free profile forces (loaded sub-cells)."""
@@ -74,8 +83,20 @@ class ShearBound:
         return 1.0 / math.sqrt(smallest) if smallest > 0 else math.inf
 
     def miss(self, ratio: float | None = None, *, false_rate: float) -> float:
-        """:func:`miss_probability` of a shear along the true direction with ``ratio`` (default
-        the true ratio)."""
+        """The share of loads the Wald test at ``false_rate`` misses (:func:`miss_probability`).
+
+        Parameters
+        ----------
+        ratio : float, optional
+            Shear ratio of the loads, along the true direction (along +x when
+            the contact has no shear). Default: the true ratio.
+        false_rate : float
+            Share of shear-free loads the test gives shear, in (0, 1).
+
+        Returns
+        -------
+        float
+        """
         norm = float(np.hypot(*self.shear))
         direction = self.shear / norm if norm > 0 else np.array([1.0, 0.0])
         size = norm if ratio is None else ratio
@@ -98,15 +119,18 @@ class ShearBound:
             Median of the total tangential force's error over ``|F|``, as
             :func:`solver.metrics.tangential_total_error` measures it.
         direction : float
-            Median error of the shear's direction, degrees (nan without shear).
+            Median error of the shear's direction, degrees (nan without shear;
+            90, that of a direction drawn at random, when the data do not
+            determine the shear).
         """
         samples = whole_number("samples", samples, low=1)
+        ratio = float(np.hypot(*self.shear))
         if not np.isfinite(self.ratio_sd):
-            return math.inf, 180.0
+            return math.inf, math.nan if ratio == 0 else 90.0
         errors = np.random.default_rng(rng).multivariate_normal(
             np.zeros(2), np.linalg.inv(self.information), size=samples)
-        # |F_t - F_t*| / |F*| = |ds| F_z / (F_z sqrt(1 + mu^2)) for one contact of uniform ratio
-        ratio = float(np.hypot(*self.shear))
+        # |F_t - F_t*| / |F*| = |ds| F_z / (F_z sqrt(1 + mu^2)) for one contact of uniform ratio; the
+        # estimate's own error in F_z (s F_z's other factor) moves this by under 1% at these noises
         tangential = float(np.median(np.hypot(*errors.T))) / math.sqrt(1.0 + ratio * ratio)
         if ratio == 0:
             return tangential, math.nan
@@ -158,9 +182,9 @@ def _bound(frame, matrix, subdivision):
     q = np.arange(cells)
     x = (grid.positions[None, :, 0] + centres[q % subdivision, None]).ravel()
     y = (grid.positions[None, :, 1] + centres[q // subdivision, None]).ravel()
-    offsets = ((np.arange(_SAMPLES) + 0.5) / _SAMPLES - 0.5) * width
-    profile = sum(contact.profile(x + u, y + v) for u in offsets for v in offsets)
-    profile = profile / profile.sum() * contact.force
+    profile = loads.cell_forces(contact, x, y, width, _SAMPLES)
+    # the load on the skin as the simulator put it there (a contact over the edge loses the rest)
+    profile *= frame.forces[:, 2].sum() / profile.sum()
     loaded = profile > 0
     shear = contact.shear_ratio * np.array([math.cos(contact.shear_direction),
                                             math.sin(contact.shear_direction)])
@@ -176,11 +200,11 @@ def _bound(frame, matrix, subdivision):
     unexplained = signature - basis @ (basis.T @ signature)
     sigma = frame.noise * np.abs(frame.clean_stress).max()
     information = unexplained.T @ unexplained / sigma**2
-    return ShearBound(read_only(information), read_only(shear), read_only(profile))
+    return ShearBound(information, shear, profile)
 
 
 def miss_probability(information, shear, *, false_rate: float) -> float:
-    """The share of loads with ``shear`` that the best test at ``false_rate`` calls shear-free.
+    """The share of loads with ``shear`` that the Wald test at ``false_rate`` calls shear-free.
 
     Parameters
     ----------
@@ -197,31 +221,31 @@ def miss_probability(information, shear, *, false_rate: float) -> float:
         ``P(chi2_2(lambda) <= t)``, ``lambda = s^T I s`` and ``t`` the ``1 - false_rate``
         quantile of ``chi2_2``.
     """
-    if not 0 < false_rate < 1:
-        raise ValueError(f"false_rate must be in (0, 1), got {false_rate!r}")
+    false_rate = real_number("false_rate", false_rate, rule="in (0, 1)", valid=lambda r: 0 < r < 1)
+    information = np.asarray(information, dtype=float)
+    if information.shape != (2, 2) or not np.isfinite(information).all():
+        raise ValueError(f"information must be a finite (2, 2) array, got {information!r}")
     shear = np.asarray(shear, dtype=float)
     if shear.shape != (2,) or not np.isfinite(shear).all():
         raise ValueError(f"shear must be 2 finite numbers, got {shear!r}")
     threshold = chi2.ppf(1.0 - false_rate, 2)
-    noncentrality = float(shear @ np.asarray(information) @ shear)
+    noncentrality = float(shear @ information @ shear)
     if noncentrality <= 0:
         return 1.0 - false_rate
     return float(ncx2.cdf(threshold, 2, noncentrality))
 
 
-def decision_bound(seeds, *, false_rates=(1 / 12, 2 / 12, 4 / 12), noise: float = 0.01,
-                   subdivision: int = 1) -> list[dict]:
-    """The best shear decision's counts over the draws of :func:`~measurement.validation.decision_curve`.
+def decision_bound(draws, *, false_rates=(1 / 12, 2 / 12, 4 / 12), subdivision: int = 1) -> list[dict]:
+    """The Wald test's counts at the bound, over the draws of a shear decision curve.
 
     Parameters
     ----------
-    seeds : sequence of int
-        Seeds of :func:`~measurement.cases.standard_cases` (12 shear-free
-        loads and 24 with shear ratio 0.2 or 0.4 each).
+    draws : sequence of list of measurement.cases.Case
+        Draws of :func:`~measurement.cases.standard_cases` (12 shear-free
+        loads and 24 with shear ratio 0.2 or 0.4 each), as
+        :func:`measurement.validation.decision_draws` makes them.
     false_rates : sequence of float, optional
         Shares of shear-free loads the test gives shear.
-    noise : float, optional
-        Sensor noise relative to the peak clean stress. Default 0.01.
     subdivision : int, optional
         The profile's sub-cells per pitch (:func:`shear_bounds`). Default 1.
 
@@ -234,23 +258,22 @@ def decision_bound(seeds, *, false_rates=(1 / 12, 2 / 12, 4 / 12), noise: float 
         (the expected share of the loads with shear ratio 0.2 missed, per
         ``h / pitch``).
     """
-    cases, draw = [], []
-    for d, seed in enumerate(seeds):
-        drawn = standard_cases(seed=seed, noise=noise)
-        cases += drawn
-        draw += [d] * len(drawn)
-    draw = np.array(draw)
+    if not draws:
+        raise ValueError("draws must hold at least one draw, got none")
+    cases = [case for cases in draws for case in cases]
+    draw = np.repeat(np.arange(len(draws)), [len(cases) for cases in draws])
     bounds = shear_bounds([case.frame for case in cases], subdivision=subdivision)
+    ratio = np.array([c.shear_ratio for c in cases])
+    thickness = np.array([c.thickness_ratio for c in cases])
     out = []
     for rate in false_rates:
         miss = np.array([b.miss(false_rate=rate) if c.shear_ratio > 0 else np.nan
                          for b, c in zip(bounds, cases, strict=True)])
-        ratio = np.array([c.shear_ratio for c in cases])
-        thickness = np.array([c.thickness_ratio for c in cases])
         out.append(dict(
-            false_rate=rate, false=12 * rate, missed=float(np.nansum(miss)) / len(seeds),
+            false_rate=rate, false=float(np.sum(ratio == 0)) * rate / len(draws),
+            missed=float(np.nansum(miss)) / len(draws),
             none_missed=float(np.mean([np.prod(1.0 - miss[(draw == d) & (ratio > 0)])
-                                       for d in range(len(seeds))])),
+                                       for d in range(len(draws))])),
             missed_by_thickness={h: float(np.mean(miss[(ratio == 0.2) & (thickness == h)]))
                                  for h in np.unique(thickness)}))
     return out
@@ -258,6 +281,8 @@ def decision_bound(seeds, *, false_rates=(1 / 12, 2 / 12, 4 / 12), noise: float 
 
 def format_decision_bound(rows) -> str:
     """The rows of :func:`decision_bound`, one line per false rate."""
+    if not rows:
+        raise ValueError("rows must hold at least one false rate, got none")
     columns = [Column("false of 12", 11, value("false", ".1f")),
                Column("missed of 24", 12, value("missed", ".2f"), gap=3),
                Column("none missed", 11, value("none_missed", ".2f"), gap=3)]

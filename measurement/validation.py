@@ -30,8 +30,8 @@ from .cases import (
 from .tables import DIRECTION, NORMAL, TANGENTIAL, Column, format_table, value
 
 __all__ = ["evaluate", "summarize", "counts", "false_shear", "MISMATCH_MEDIA", "mismatch", "load_decision",
-           "decision_curve", "against_bound", "format_against_bound", "format_cases", "format_mismatch",
-           "format_summary", "format_load_decision", "format_decision_curve", "main"]
+           "decision_draws", "decision_curve", "against_bound", "format_against_bound", "format_cases",
+           "format_mismatch", "format_summary", "format_load_decision", "format_decision_curve", "main"]
 
 
 def evaluate(cases, make_reconstructor, *, solve=None):
@@ -170,15 +170,25 @@ def load_decision(seeds, *, min_load_evidence: float | None = None) -> dict:
     return summary
 
 
-def decision_curve(seeds=DECISION_SEEDS, *, shrinkages=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0),
-                   noise: float = 0.01) -> list[dict]:
+def decision_draws(seeds=DECISION_SEEDS, *, noise: float = 0.01) -> list[list]:
+    """Draws of the tuning set's kind: :func:`~measurement.cases.standard_cases` of each seed
+    (12 shear-free loads and 24 with shear ratio 0.2 or 0.4, ``h / pitch`` 0.5, 1, 1.5)."""
+    return [standard_cases(seed=seed, noise=noise) for seed in seeds]
+
+
+def decision_curve(draws, *, shrinkages=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)) -> list[dict]:
     """How the shear decision trades false shear for missed shear, over draws of the tuning set's kind.
 
-    Each seed draws a set like :func:`~measurement.cases.tuning_cases`
-    (:func:`~measurement.cases.standard_cases`: 12 shear-free loads and 24
-    with shear ratio 0.2 or 0.4). A contact keeps shear exactly when its
-    evidence ``F`` exceeds the shrinkage ``c`` (the factor ``1 - c / F`` is
-    positive), so one solve per case scores every ``c``.
+    A contact keeps shear exactly when its evidence ``F`` exceeds the
+    shrinkage ``c`` (the factor ``1 - c / F`` is positive), so one solve per
+    case scores every ``c``.
+
+    Parameters
+    ----------
+    draws : sequence of list of measurement.cases.Case
+        The draws (:func:`decision_draws`), each scored apart.
+    shrinkages : sequence of float, optional
+        The shrinkages ``c`` scored.
 
     Returns
     -------
@@ -188,10 +198,12 @@ def decision_curve(seeds=DECISION_SEEDS, *, shrinkages=(0.5, 1.0, 1.5, 2.0, 3.0,
         loads with shear ratio 0.2 missed, per ``h / pitch``) with
         ``false_by_thickness`` (the share of shear-free loads given shear).
     """
+    if not draws:
+        raise ValueError("draws must hold at least one draw, got none")
     evidence = []  # (draw, h / pitch, true shear ratio, F of the largest contact)
     solvers = {}
-    for draw, seed in enumerate(seeds):
-        for case in standard_cases(seed=seed, noise=noise):
+    for draw, cases in enumerate(draws):
+        for case in cases:
             grid = case.frame.grid
             if grid.key not in solvers:
                 solvers[grid.key] = Reconstructor(grid)
@@ -201,8 +213,8 @@ def decision_curve(seeds=DECISION_SEEDS, *, shrinkages=(0.5, 1.0, 1.5, 2.0, 3.0,
     draw, thickness, ratio, found = (np.array(column) for column in zip(*evidence, strict=True))
     out = []
     for c in shrinkages:
-        false = [int(np.sum((found > c) & (ratio == 0) & (draw == d))) for d in range(len(seeds))]
-        missed = [int(np.sum((found <= c) & (ratio >= 0.2) & (draw == d))) for d in range(len(seeds))]
+        false = [int(np.sum((found > c) & (ratio == 0) & (draw == d))) for d in range(len(draws))]
+        missed = [int(np.sum((found <= c) & (ratio >= 0.2) & (draw == d))) for d in range(len(draws))]
         out.append(dict(
             shrinkage=c, false_mean=float(np.mean(false)), false_max=max(false),
             missed_mean=float(np.mean(missed)), missed_max=max(missed),
@@ -249,6 +261,7 @@ def against_bound(cases, rows) -> list[dict]:
 
 
 def format_against_bound(rows) -> str:
+    """The rows of :func:`against_bound`, one line per ``h / pitch``."""
     return format_table(rows, (
         Column("h/p", 5, value("thickness_ratio", "g")),
         Column("loads", 5, value("loads")),
@@ -346,15 +359,17 @@ def main(argv=None):
                              "16x16 and 32x32, h/p 0.5 to 5")
     parser.add_argument("--decision-curve", action="store_true",
                         help="false against missed shear for each shrinkage, over 10 draws of the tuning "
-                             "set's kind (seeds 100-109), then an ideal test's counts on the same loads")
+                             "set's kind (seeds 100-109), then the Wald test's counts at the Cramer-Rao "
+                             "bound")
     args = parser.parse_args(argv)
     if args.decision_curve:
         print(f"shear decision, seeds {DECISION_SEEDS[0]}-{DECISION_SEEDS[-1]}: 16x16, h/p 0.5 1 1.5, layer "
               f"data, noise {args.noise:g}; shear kept when F > c (default c = {ContactFit().shrinkage:g})")
-        print(format_decision_curve(decision_curve(DECISION_SEEDS, noise=args.noise)))
-        print("\nan ideal test on the same loads: Cramer-Rao bound of an unbiased shear with one free force "
-              "per node, support known, the model's own physics (measurement.bounds)")
-        print(format_decision_bound(decision_bound(DECISION_SEEDS, noise=args.noise)))
+        draws = decision_draws(DECISION_SEEDS, noise=args.noise)
+        print(format_decision_curve(decision_curve(draws)))
+        print("\nthe Wald test at the Cramer-Rao bound on the same loads: an unbiased shear with one free "
+              "force per node, support known, the model's own physics, no model error (measurement.bounds)")
+        print(format_decision_bound(decision_bound(draws)))
         return
     if args.load_decision:
         seeds = LOAD_VALIDATION_SEEDS if args.set == "validation" else LOAD_TUNING_SEEDS

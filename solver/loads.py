@@ -47,7 +47,7 @@ from .kernels import point_force_stress, taxel_points
 
 __all__ = [
     "Contact", "SimulatedFrame", "hertz", "cone", "flat_punch", "ellipse", "ring",
-    "simulate", "SHAPES", "MEDIA",
+    "simulate", "cell_forces", "SHAPES", "MEDIA",
 ]
 
 SHAPES = ("hertz", "cone", "flat_punch", "ellipse", "ring")
@@ -219,8 +219,25 @@ class SimulatedFrame:
     medium: str = "layer"
 
 
-def _subcell_forces(contact: Contact, x, y, step, supersample):
-    # Mean of the profile over each sub-cell by supersampling, times the area.
+def cell_forces(contact: Contact, x, y, step: float, supersample: int):
+    """The contact's unnormalised normal force on square cells, by supersampling its profile.
+
+    Parameters
+    ----------
+    contact : Contact
+    x, y : ndarray
+        Cell centres, metres.
+    step : float
+        Cell side, metres.
+    supersample : int
+        Profile samples per cell along each axis.
+
+    Returns
+    -------
+    ndarray
+        The profile's mean over each cell times its area (shape of ``x``);
+        scale by ``force / total`` to newtons.
+    """
     offsets = ((np.arange(supersample) + 0.5) / supersample - 0.5) * step
     ox, oy = np.meshgrid(offsets, offsets)
     total = np.zeros_like(x)
@@ -239,7 +256,7 @@ def _normalisation(contact: Contact, step, supersample, anchor):
         high = math.ceil((contact.center[k] + contact.extent - anchor[k]) / step) + 1
         axes.append(anchor[k] + (np.arange(low, high) + 0.5) * step)
     gx, gy = np.meshgrid(*axes)
-    weights = _subcell_forces(contact, gx, gy, step, supersample)
+    weights = cell_forces(contact, gx, gy, step, supersample)
     r2 = (gx - contact.center[0]) ** 2 + (gy - contact.center[1]) ** 2
     return weights.sum(), (weights * r2).sum()
 
@@ -310,7 +327,7 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
         x = (grid.positions[near, 0, None] + ox.ravel()[None, :]).ravel()
         y = (grid.positions[near, 1, None] + oy.ravel()[None, :]).ravel()
         owner = np.repeat(near, subdivisions * subdivisions)
-        fz = _subcell_forces(contact, x, y, step, supersample)
+        fz = cell_forces(contact, x, y, step, supersample)
         loaded = fz > 0
         x, y, fz, owner = x[loaded], y[loaded], fz[loaded], owner[loaded]
         if fz.size == 0:

@@ -12,6 +12,7 @@ from measurement.bounds import (
     miss_probability,
     shear_bounds,
 )
+from measurement.cases import standard_cases
 from solver import loads
 from solver.geometry import SensorGrid
 from solver.kernels import stress_matrix
@@ -74,10 +75,42 @@ def test_a_free_sub_cell_profile_under_a_thin_layer_leaves_the_shear_undetermine
     assert per_sub_cell.ratio_sd > 10 * per_node.ratio_sd
 
 
-def test_the_bound_scales_with_the_noise():
-    quiet, = shear_bounds([_frame(1.0, noise=0.005)])
-    loud, = shear_bounds([_frame(1.0, noise=0.02)])
-    assert loud.ratio_sd == pytest.approx(4 * quiet.ratio_sd, rel=1e-9)
+def test_the_bound_is_the_shear_block_of_the_inverse_information_of_every_parameter():
+    # Exact: invert the information of (profile, s_x, s_y) together, the profile's derivative
+    # carrying the shear's terms, and read the shear's block of the covariance.
+    frame = _frame(1.0)
+    bound, = shear_bounds([frame])
+    m = frame.grid.size
+    matrix = stress_matrix(frame.grid, "layer")
+    fx, fy, fz = matrix[:, :m], matrix[:, m:2 * m], matrix[:, 2 * m:]
+    sx, sy = bound.shear
+    loaded = bound.profile > 0
+    jacobian = np.column_stack([fz[:, loaded] + sx * fx[:, loaded] + sy * fy[:, loaded],
+                                fx @ bound.profile, fy @ bound.profile])
+    sigma = frame.noise * np.abs(frame.clean_stress).max()
+    covariance = np.linalg.inv(jacobian.T @ jacobian / sigma**2)[-2:, -2:]
+    np.testing.assert_allclose(np.linalg.inv(bound.information), covariance, rtol=1e-6)
+
+
+def test_the_sub_cell_profile_is_the_load_on_the_kernels_sub_cells():
+    # The bound's own model on its true profile and shear gives the simulator's stress (integrated
+    # apart, on a finer lattice); the profile's centroid is the contact's centre along x and y.
+    frame = _frame(1.0)
+    bound, = shear_bounds([frame], subdivision=2)
+    m = frame.grid.size
+    matrix = stress_matrix(frame.grid, "layer", subdivision=2)
+    cx, cy, cz = (matrix[:, c * 4 * m:(c + 1) * 4 * m] for c in range(3))
+    sx, sy = bound.shear
+    model = (cz + sx * cx + sy * cy) @ bound.profile
+    peak = np.abs(frame.clean_stress).max()
+    # measured 3.0% of the peak (the 2x2 profile's own error; the sub-cells' x and y swapped: 10%)
+    assert np.abs(model - frame.clean_stress).max() < 0.05 * peak
+    # sub-cell q of node j: column q * m + j, x fastest within the cell
+    offset = np.array([-0.25, 0.25]) * PITCH
+    x = (frame.grid.positions[:, 0][None, :] + offset[np.arange(4) % 2, None]).ravel()
+    y = (frame.grid.positions[:, 1][None, :] + offset[np.arange(4) // 2, None]).ravel()
+    centroid = np.array([x @ bound.profile, y @ bound.profile]) / bound.profile.sum()
+    np.testing.assert_allclose(centroid, frame.contacts[0].center, atol=0.002 * PITCH)
 
 
 def test_the_miss_probability_is_that_of_the_wald_test_on_gaussian_estimates():
@@ -91,10 +124,18 @@ def test_the_miss_probability_is_that_of_the_wald_test_on_gaussian_estimates():
         assert miss_probability(information, shear, false_rate=rate) == pytest.approx(missed, abs=0.01)
     # no shear: the test misses what it does not give shear, all but the false rate
     assert miss_probability(information, [0.0, 0.0], false_rate=0.2) == pytest.approx(0.8)
+    # a bound's miss: along its true direction, at its own ratio or the one asked for
+    bound = ShearBound(information, 2 * shear, np.ones(3))
+    assert bound.miss(false_rate=0.1) == miss_probability(information, 2 * shear, false_rate=0.1)
+    assert bound.miss(np.hypot(*shear), false_rate=0.1) == pytest.approx(
+        miss_probability(information, shear, false_rate=0.1))
+    still = ShearBound(information, np.zeros(2), np.ones(3))
+    assert still.miss(false_rate=0.1) == pytest.approx(0.9)
+    assert still.miss(0.1, false_rate=0.1) == miss_probability(information, [0.1, 0.0], false_rate=0.1)
 
 
 def test_a_shear_decision_misses_less_where_the_layer_is_thicker_and_when_it_allows_more_false():
-    rows = decision_bound((100,), false_rates=(1 / 12, 4 / 12))
+    rows = decision_bound([standard_cases(seed=100)], false_rates=(1 / 12, 4 / 12))
     assert [r["false"] for r in rows] == pytest.approx([1.0, 4.0])
     assert rows[0]["missed"] > rows[1]["missed"] > 0
     assert rows[0]["none_missed"] < rows[1]["none_missed"] < 1
@@ -119,12 +160,20 @@ def test_bad_input_is_refused_with_the_rule_and_the_value():
     with pytest.raises(ValueError, match="subdivision"):
         shear_bounds([frame], subdivision=0)
     for rate in (0.0, 1.0, math.nan):
-        with pytest.raises(ValueError, match=r"false_rate must be in \(0, 1\), got"):
+        with pytest.raises(ValueError, match=rf"false_rate must be in \(0, 1\), got {rate!r}"):
             miss_probability(np.eye(2), [0.1, 0.0], false_rate=rate)
     with pytest.raises(ValueError, match="shear must be 2 finite numbers"):
         miss_probability(np.eye(2), [0.1, 0.0, 0.0], false_rate=0.1)
     with pytest.raises(ValueError, match="shear must be 2 finite numbers"):
         miss_probability(np.eye(2), [math.nan, 0.0], false_rate=0.1)
+    with pytest.raises(ValueError, match=r"information must be a finite \(2, 2\) array"):
+        miss_probability(np.eye(3), [0.1, 0.0], false_rate=0.1)
+    with pytest.raises(ValueError, match=r"information must be \(2, 2\) and shear \(2,\), got \(3, 3\)"):
+        ShearBound(np.eye(3), np.zeros(2), np.ones(3))
+    with pytest.raises(ValueError, match="draws must hold at least one draw, got none"):
+        decision_bound([])
+    with pytest.raises(ValueError, match="rows must hold at least one false rate, got none"):
+        format_decision_bound([])
 
 
 def test_the_ideal_errors_are_those_of_a_gaussian_estimate():
@@ -145,4 +194,9 @@ def test_the_ideal_errors_are_those_of_a_gaussian_estimate():
     assert sheared.ideal_errors() == sheared.ideal_errors()
     assert sheared.ideal_errors(rng=1) != sheared.ideal_errors(rng=2)
     # shear the data do not determine
-    assert ShearBound(np.zeros((2, 2)), np.zeros(2), np.ones(3)).ideal_errors() == (math.inf, 180.0)
+    # shear the data do not determine: a direction at random errs by 90 deg in the median
+    undetermined = ShearBound(np.zeros((2, 2)), [0.3, 0.0], np.ones(3))
+    assert undetermined.ideal_errors() == (math.inf, 90.0)
+    assert undetermined.information.flags.writeable is False and undetermined.shear.flags.writeable is False
+    with pytest.raises(ValueError, match="samples must be a whole number >= 1, got 0"):
+        sheared.ideal_errors(samples=0)

@@ -162,8 +162,8 @@ def test_the_load_decision_tells_load_from_noise_on_its_validation_seeds(capsys)
 def test_the_decision_curve_counts_what_solvers_with_each_shrinkage_decide():
     # one solve per case scores every shrinkage c (shear kept exactly when F > c): the counts must
     # be those of solvers built with that shrinkage
-    curve = decision_curve((100,), shrinkages=(1.0, 3.0))
     cases = standard_cases(seed=100)
+    curve = decision_curve([cases], shrinkages=(1.0, 3.0))
     for row in curve:
         c = row["shrinkage"]
         rows = evaluate(cases, lambda grid, c=c: Reconstructor(grid, efficiency=ContactFit(shrinkage=c)))
@@ -176,6 +176,8 @@ def test_the_decision_curve_counts_what_solvers_with_each_shrinkage_decide():
     assert curve[0]["false_mean"] > curve[1]["false_mean"] and curve[0]["missed_mean"] < curve[1]["missed_mean"]
     table = format_decision_curve(curve).splitlines()
     assert len(table) == 3 and table[0].split()[:2] == ["c", "false"] and table[1].split()[0] == "1"
+    with pytest.raises(ValueError, match="draws must hold at least one draw, got none"):
+        decision_curve([])
 
 
 @pytest.mark.parametrize("direction", [0.0, math.pi / 2, math.pi], ids=["inward", "along", "outward"])
@@ -239,9 +241,9 @@ def test_the_command_prints_the_decision_curve_beside_the_ideal_tests_bound(caps
     lines = capsys.readouterr().out.splitlines()
     assert lines[0].startswith("shear decision, seeds 100-100: 16x16")
     assert len(lines) == 2 + 8 + 2 + 4
-    assert lines[11].startswith("an ideal test on the same loads: Cramer-Rao bound")
+    assert lines[11].startswith("the Wald test at the Cramer-Rao bound on the same loads")
     assert lines[12].split()[:6] == ["false", "of", "12", "missed", "of", "24"]
-    # the ideal test at 1, 2 and 4 false of 12: fewer missed as it allows more false
+    # the Wald test at 1, 2 and 4 false of 12: fewer missed as it allows more false
     missed = [float(line.split()[1]) for line in lines[13:]]
     assert [line.split()[0] for line in lines[13:]] == ["1.0", "2.0", "4.0"]
     assert missed[0] > missed[1] > missed[2]
