@@ -102,7 +102,6 @@ class ShearBound:
         size = norm if ratio is None else ratio
         return miss_probability(self.information, size * direction, false_rate=false_rate)
 
-
     def ideal_errors(self, *, samples: int = 4000, rng=0) -> tuple[float, float]:
         """The median errors of an unbiased shear estimate at the bound.
 
