@@ -33,7 +33,7 @@ from scipy.stats import chi2, ncx2
 from solver import loads
 from solver.arrays import read_only
 from solver.checks import real_number, whole_number
-from solver.kernels import stress_matrix
+from solver.kernels import stress_matrix, subcell_offsets
 
 from .tables import Column, format_table, value
 
@@ -177,10 +177,9 @@ def _bound(frame, matrix, subdivision):
     m, cells = grid.size, subdivision * subdivision
     width = grid.pitch / subdivision
     # sub-cell centres in the matrix's column order (q * m + j)
-    centres = (np.arange(subdivision) + 0.5) * width - 0.5 * grid.pitch
-    q = np.arange(cells)
-    x = (grid.positions[None, :, 0] + centres[q % subdivision, None]).ravel()
-    y = (grid.positions[None, :, 1] + centres[q // subdivision, None]).ravel()
+    offsets = subcell_offsets(grid.pitch, subdivision)
+    x = (grid.positions[None, :, 0] + offsets[:, 0, None]).ravel()
+    y = (grid.positions[None, :, 1] + offsets[:, 1, None]).ravel()
     profile = loads.cell_forces(contact, x, y, width, _SAMPLES)
     # the load on the skin as the simulator put it there (a contact over the edge loses the rest)
     profile *= frame.forces[:, 2].sum() / profile.sum()

@@ -40,7 +40,7 @@ from .checks import whole_number
 from .geometry import SensorGrid, check_poisson_ratio
 
 __all__ = ["KERNELS", "point_force_stress", "cell_force_stress", "layer_force_stress", "taxel_points",
-           "stress_matrix"]
+           "subcell_offsets", "stress_matrix"]
 
 KERNELS = ("layer", "cell", "point")
 
@@ -222,6 +222,27 @@ def taxel_points(grid: SensorGrid):
     return np.column_stack([u.ravel(), v.ravel()]), np.outer(weights, weights).ravel() / 4.0
 
 
+def subcell_offsets(pitch: float, subdivision: int) -> np.ndarray:
+    """Where the sub-cells of :func:`stress_matrix` sit in their node's cell.
+
+    Parameters
+    ----------
+    pitch : float
+        Node spacing, metres.
+    subdivision : int
+        Sub-cells per pitch along each axis.
+
+    Returns
+    -------
+    (subdivision**2, 2) ndarray
+        Row ``q``: sub-cell ``q``'s centre ``(x, y)`` from the node, metres
+        (row-major within the cell, x fastest, as the matrix's columns).
+    """
+    centres = (np.arange(subdivision) + 0.5) * (pitch / subdivision) - 0.5 * pitch
+    q = np.arange(subdivision * subdivision)
+    return np.column_stack([centres[q % subdivision], centres[q // subdivision]])
+
+
 def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int = 1) -> np.ndarray:
     """The forward matrix ``C = [Cx | Cy | Cz]`` of a sensor grid.
 
@@ -282,9 +303,7 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
         ny, nx = grid.shape
         oy, ox = np.meshgrid(np.arange(-(ny - 1), ny) * pitch, np.arange(-(nx - 1), nx) * pitch,
                              indexing="ij")
-        centres = (np.arange(subdivision) + 0.5) * width - 0.5 * pitch
-        for q in range(cells):
-            cy, cx = centres[q // subdivision], centres[q % subdivision]
+        for q, (cx, cy) in enumerate(subcell_offsets(pitch, subdivision)):
             for i, values in enumerate(evaluate(ox - cx, oy - cy)):
                 start = (i * cells + q) * m
                 _spread_offsets(values, matrix[:, start:start + m])

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from solver import SensorGrid, loads
-from solver.kernels import cell_force_stress, point_force_stress, stress_matrix
+from solver.kernels import cell_force_stress, point_force_stress, stress_matrix, subcell_offsets
 
 
 def love_rectangle(q, L, B, z):
@@ -86,6 +86,20 @@ def test_regular_and_general_assembly_agree():
         np.testing.assert_allclose(regular, general, rtol=1e-5, atol=1e-9)
         # stored by column on both paths: the solver reads a node's column without a copy
         assert regular.flags.f_contiguous and general.flags.f_contiguous
+
+
+def test_a_sub_cell_column_is_the_cell_kernel_at_that_sub_cells_centre():
+    pitch = 2e-3
+    offsets = subcell_offsets(pitch, 2)
+    # row-major within the cell, x fastest
+    np.testing.assert_allclose(offsets / pitch, [[-0.25, -0.25], [0.25, -0.25], [-0.25, 0.25], [0.25, 0.25]])
+    grid = SensorGrid.regular(4, 4, pitch, pitch)
+    matrix = stress_matrix(grid, "cell", subdivision=2)
+    m, x, y = grid.size, grid.positions[:, 0], grid.positions[:, 1]
+    for q, j in ((1, 5), (2, 10)):
+        source = grid.positions[j] + offsets[q]
+        expected = cell_force_stress(x - source[0], y - source[1], grid.thickness, pitch / 2)[2]
+        np.testing.assert_allclose(matrix[:, (2 * 4 + q) * m + j], expected, rtol=1e-12)
 
 
 def test_cell_kernel_keeps_the_total_force_where_the_point_kernel_loses_it():
