@@ -225,7 +225,7 @@ def decision_curve(draws, *, shrinkages=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0)
     return out
 
 
-def against_bound(cases, rows) -> list[dict]:
+def against_bound(cases, rows, bounds) -> list[dict]:
     """Measured errors against what the data allow, per ``h / pitch``.
 
     Parameters
@@ -234,6 +234,10 @@ def against_bound(cases, rows) -> list[dict]:
         One contact each.
     rows : list of dict
         :func:`evaluate`'s rows of ``cases``, in the same order.
+    bounds : list of measurement.bounds.ShearBound
+        :func:`measurement.bounds.shear_bounds` of ``cases``' frames, in the
+        same order (they do not depend on the solver: one list serves every
+        functional scored on the cases).
 
     Returns
     -------
@@ -244,13 +248,15 @@ def against_bound(cases, rows) -> list[dict]:
         Cramér-Rao bound with one free force per node (``bound_tangential``,
         ``bound_direction``; :meth:`measurement.bounds.ShearBound.ideal_errors`).
     """
-    if len(cases) != len(rows):
-        raise ValueError(f"rows must score every case, got {len(rows)} rows for {len(cases)} cases")
-    sheared = [(case, row) for case, row in zip(cases, rows, strict=True) if case.shear_ratio >= 0.2]
-    ideal = [bound.ideal_errors() for bound in shear_bounds([case.frame for case, _ in sheared])]
+    if not len(cases) == len(rows) == len(bounds):
+        raise ValueError(f"rows and bounds must cover every case, got {len(rows)} rows and {len(bounds)} "
+                         f"bounds for {len(cases)} cases")
+    sheared = [(case, row, bound) for case, row, bound in zip(cases, rows, bounds, strict=True)
+               if case.shear_ratio >= 0.2]
+    ideal = [bound.ideal_errors() for _, _, bound in sheared]
     out = []
-    for ratio in sorted({case.thickness_ratio for case, _ in sheared}):
-        part = [k for k, (case, _) in enumerate(sheared) if case.thickness_ratio == ratio]
+    for ratio in sorted({case.thickness_ratio for case, _, _ in sheared}):
+        part = [k for k, (case, _, _) in enumerate(sheared) if case.thickness_ratio == ratio]
         out.append(dict(
             thickness_ratio=ratio, loads=len(part),
             tangential=float(np.median([sheared[k][1]["tangential_total"] for k in part])),
@@ -273,15 +279,17 @@ def format_against_bound(rows) -> str:
 
 
 def format_decision_curve(curve) -> str:
-    thicknesses = list(curve[0]["false_by_thickness"])
-    by = "  ".join(f"h/p {h:g}" for h in thicknesses)
-    lines = [f"   c  false of 12: mean  max  missed of 24: mean  max   false share / missed 0.2 share: {by}"]
-    for row in curve:
-        shares = "  ".join(f"{row['false_by_thickness'][h]:.2f}/{row['missed_by_thickness'][h]:.2f}"
-                           for h in thicknesses)
-        lines.append(f"{row['shrinkage']:4g}  {row['false_mean']:17.1f}  {row['false_max']:3d}  "
-                     f"{row['missed_mean']:18.1f}  {row['missed_max']:3d}   {shares}")
-    return "\n".join(lines)
+    """The rows of :func:`decision_curve`, one line per shrinkage."""
+    columns = [Column("c", 4, value("shrinkage", "g")),
+               Column("false of 12: mean", 17, value("false_mean", ".1f"), gap=2),
+               Column("max", 3, value("false_max")),
+               Column("missed of 24: mean", 18, value("missed_mean", ".1f"), gap=2),
+               Column("max", 3, value("missed_max"))]
+    columns += [Column(f"false/missed 0.2 h/p {h:g}", 23,
+                       lambda r, h=h: f"{r['false_by_thickness'][h]:.2f}/{r['missed_by_thickness'][h]:.2f}",
+                       gap=3)
+                for h in curve[0]["false_by_thickness"]]
+    return format_table(curve, columns)
 
 
 def format_load_decision(summary) -> str:
@@ -385,6 +393,7 @@ def main(argv=None):
     print(f"{args.set} set: {len(cases)} cases, 16x16, {args.medium} data, noise {args.noise:g}, "
           f"kernel {args.kernel}")
     print(format_summary([]))
+    bounds = shear_bounds([case.frame for case in cases]) if args.against_bound else None
     for name in args.functional or sorted(FUNCTIONALS):
         functional = FUNCTIONALS[name]
         rows = evaluate(cases, lambda g, f=functional: Reconstructor(g, kernel=args.kernel, efficiency=f()))
@@ -394,7 +403,7 @@ def main(argv=None):
         if args.against_bound:
             print(f"  loads with shear ratio >= 0.2, medians: {name} against an unbiased estimate at the "
                   "Cramer-Rao bound (one free force per node, support known, no model error)")
-            table = format_against_bound(against_bound(cases, rows))
+            table = format_against_bound(against_bound(cases, rows, bounds))
             print("\n".join("  " + line for line in table.splitlines()))
         if args.by_thickness:
             # the medians pool the thicknesses; a thin layer is where the sub-cell model errs most

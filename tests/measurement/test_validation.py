@@ -250,6 +250,7 @@ def test_the_command_prints_the_decision_curve_beside_the_ideal_tests_bound(caps
 
 
 def test_the_command_prints_the_sheared_loads_medians_beside_the_bounds(capsys):
+    from measurement.bounds import shear_bounds
     from measurement.validation import against_bound, main
 
     main(["--functional", "contact_fit", "--against-bound", "--noise", "0.003"])
@@ -262,11 +263,12 @@ def test_the_command_prints_the_sheared_loads_medians_beside_the_bounds(capsys):
     # the medians are of each thickness's sheared loads, the measured ones from the scored rows
     cases = [c for c in validation_cases(noise=0.003) if c.thickness_ratio == 1.4]
     rows = evaluate(cases, lambda g: Reconstructor(g))
-    table, = against_bound(cases, rows)
+    table, = against_bound(cases, rows, shear_bounds([c.frame for c in cases]))
     sheared = [r for r in rows if r["true_ratio"] >= 0.2]
     assert table["loads"] == 8
     assert table["tangential"] == np.median([r["tangential_total"] for r in sheared])
     assert table["direction"] == np.median([r["direction_deg"] for r in sheared])
     assert 0 < table["bound_tangential"] < 0.05 and 0 < table["bound_direction"] < 5
-    with pytest.raises(ValueError, match="rows must score every case, got 11 rows for 12 cases"):
-        against_bound(cases, rows[:-1])
+    with pytest.raises(ValueError, match="rows and bounds must cover every case, got 11 rows and 12 bounds "
+                                         "for 12 cases"):
+        against_bound(cases, rows[:-1], shear_bounds([c.frame for c in cases]))
