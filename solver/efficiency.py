@@ -260,12 +260,6 @@ class ContactFit:
             s = np.empty((K, 2))
             pairs_of(p, mode, direction, ratio, frame.max_shear_ratio, s)
             return s
-        # The search's first fit has no shear; it starts from the earlier choice's shear-free
-        # positive set (in playback and live mode the frame before's). The minimizer does not
-        # depend on it where it is unique: the answer matches a cold start's to rounding, and on
-        # a contact with more sub-cells than sensors near it to about 2e-9 of the peak force
-        # (docs/efficiency.md).
-        guess = _guess(frame, start, shear_free=True)
         if mode == DIRECTION:
             # theta alone is periodic with several local optima: start from the best of a scan
             scan = [np.full((K, 1), t) for t in np.linspace(-math.pi, math.pi, 12, endpoint=False)]
@@ -273,7 +267,13 @@ class ContactFit:
             best = min(range(len(scan)), key=lambda i: float(np.sum(fits[i][1] ** 2)))
             first, guess = scan[best], fits[best][0] > 0
         else:
+            # With the ratio free the search's first fit has no shear; it starts from the earlier
+            # choice's shear-free positive set (in playback and live mode the frame before's). The
+            # minimizer does not depend on it where it is unique: the answer matches a cold
+            # start's to rounding, and on a contact with more sub-cells than sensors near it to
+            # about 2e-9 of the peak force (docs/efficiency.md).
             first = np.zeros((K, 2 if mode == BOTH else 1))
+            guess = _guess(frame, start, shear_free=True)
         p, g, residual, g0, residual0, _ = gauss_newton(
             frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact, frame.stress, mode, direction,
             ratio, frame.max_shear_ratio, first, guess, self.max_iterations, self.tolerance)

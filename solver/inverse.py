@@ -167,8 +167,7 @@ class Reconstruction:
         ``|C x - b| / |b|`` (0 for an all-zero frame). The exact member
         reports ``lambda |w| / |b|`` (``lambda`` the damping, 0 undamped), its
         value in exact arithmetic: the inverse's rounding, up to about
-        ``max_condition^2`` times 1e-16, is not in it (1e-12 at the default;
-        a review measured 1e-7 to 9e-5 at ``max_condition`` 1e6 to 1e8).
+        ``max_condition^2`` times 1e-16, is not in it (1e-12 at the default).
     condition : float
         Condition estimate of the matrix inverted for this solve
         (``C C^T`` for three components, ``Cz`` for normal only), damping included.
@@ -308,10 +307,11 @@ class Reconstructor:
         self.matrix = stress_matrix(grid, kernel)
         self.matrix.setflags(write=False)
         # the columns as contiguous rows (3 s^2 m, m), without a copy (stress_matrix stores by
-        # column): the contact fit and the exact member's template read whole columns
-        self._fit_columns = np.ascontiguousarray(
-            (self.matrix if self.subdivision == 1
-             else stress_matrix(grid, kernel, subdivision=self.subdivision)).T)
+        # column): the contact fit and the exact member's template read whole columns. Read-only
+        # whichever matrix they come from: numba compiles a function once per kind of array.
+        self._fit_columns = (self.matrix if self.subdivision == 1
+                             else stress_matrix(grid, kernel, subdivision=self.subdivision)).T
+        self._fit_columns.setflags(write=False)
         # Cz = cz^T is symmetric positive definite (every kernel is even in the offset): one
         # inverse serves the normal-only path.
         self._normal = SymmetricInverse.of(self.matrix[:, 2 * m:], max_condition=self.max_condition)
@@ -393,9 +393,11 @@ class Reconstructor:
         fallback = 0.0 if shear_direction is None else float(shear_direction)
         # A slider moves the parameters on the frame shown: its contacts and fit matrices are
         # kept from the last solve of that frame, and the fit starts from the last profile (the
-        # same parameters again give the same choice, not one equal up to rounding). With given
-        # parameters another frame starts its fit from the last one's (playback and live mode:
-        # the frame before), which changes the answer only by rounding.
+        # same parameters again give the same choice, not one equal up to rounding). Another
+        # frame starts its fit from the last one's set (playback and live mode: the frame
+        # before), with given parameters and in the automatic search alike: that changes the
+        # answer by rounding, or by about 2e-9 of the peak force where the profile is not
+        # unique (ContactFit.choose).
         key, parameters = b.tobytes(), (shear_ratio, shear_direction)
         recent = self._recent
         if recent is not None and recent[0].key == key:

@@ -105,9 +105,9 @@ class RegionSolver:
         rings. Default 2.
     step : int, optional
         Window sides are rounded up to a multiple of ``step`` nodes so that a
-        moving contact reuses a few factorizations. Default 4.
+        moving contact reuses a few window set-ups. Default 4.
     cache : int, optional
-        Window factorizations kept (least recently used dropped). Default 8.
+        Window set-ups (each a window's inverses) kept, least recently used dropped. Default 8.
     **options
         Passed to each window's :class:`~solver.Reconstructor`
         (``max_condition``, ``max_shear_ratio``, ``efficiency`` ...).
@@ -133,7 +133,7 @@ class RegionSolver:
         self._lock = threading.Lock()
         self._links = patch_links(grid)
         self._capacity = cache
-        self.factorizations = 0  # windows factored so far (the rest were reused)
+        self.factorizations = 0  # windows set up so far, each inverting its matrices (the rest were reused)
 
     def _window(self, rows: int, columns: int) -> SensorGrid:
         g = self.grid
@@ -145,7 +145,7 @@ class RegionSolver:
 
         ``ordinal`` counts the windows of that shape in a frame (in the order
         of :meth:`windows`): each has its own last-frame state on the shared
-        factorization (:meth:`solver.Reconstructor.sibling`).
+        inverses (:meth:`solver.Reconstructor.sibling`).
         """
         key = (rows, columns)
         # one lock: the viewer's solve thread and an export may ask at the same time
@@ -166,7 +166,8 @@ class RegionSolver:
     def windows(self, stress: np.ndarray) -> list[tuple[slice, slice]]:
         """The contact windows of a frame: one per contact, merged where they overlap."""
         labels = np.zeros(self.grid.size, np.int64)
-        kept = contact_cores(np.asarray(stress, dtype=float).ravel(), self.threshold, self._links, labels)
+        # a writable copy: a recording's frame is read-only, and numba would compile again for it
+        kept = contact_cores(np.array(stress, dtype=float).ravel(), self.threshold, self._links, labels)
         boxes = [[box[0].start, box[0].stop, box[1].start, box[1].stop]
                  for index, box in enumerate(ndimage.find_objects(labels.reshape(self.grid.shape)), start=1)
                  if kept[index]]
@@ -193,7 +194,7 @@ class RegionSolver:
         out = []
         for (start, stop), size in (((box[0], box[1]), ny), ((box[2], box[3]), nx)):
             start, stop = start - rings, stop + rings
-            # round the side up to a multiple of step (fewer window shapes to factor)
+            # round the side up to a multiple of step (fewer window shapes to set up)
             side = min(size, -(-(stop - start) // self.step) * self.step)
             centre = (start + stop) // 2
             start = min(max(centre - side // 2, 0), size - side)

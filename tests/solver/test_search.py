@@ -6,7 +6,7 @@ from scipy import sparse
 from scipy.optimize import nnls
 
 import solver.search as search
-from solver import Reconstructor, SensorGrid
+from solver import Reconstructor, RegionSolver, SensorGrid, loads
 from solver.search import contact_labels, load_patches, nonnegative_fit, template_misfit
 
 
@@ -153,6 +153,11 @@ def test_after_warm_up_a_recorded_frame_compiles_nothing():
         for parameters in ({}, dict(shear_ratio=0.2, shear_direction=0.3), dict(shear_direction=0.3),
                            dict(shear_ratio=0.2), dict(shear_ratio=0.2, shear_direction=0.3, exact=False)):
             assert r.solve(frame, **parameters).contacts, (kernel, parameters)
+    # the large-skin path finds its windows on the frame itself
+    large = SensorGrid.regular(32, 32, 2e-3, 2e-3)
+    frame = loads.simulate(large, loads.hertz((1e-3, -2e-3), 4e-3, 1.0, shear_ratio=0.2)).stress
+    assert not frame.flags.writeable
+    assert RegionSolver(large).solve(frame).contacts
     assert {name: len(f.signatures) for name, f in compiled.items()} == before
 
 
