@@ -14,7 +14,7 @@ import numpy as np
 
 from solver import Reconstructor, loads, metrics
 from solver.efficiency import FUNCTIONALS, ContactFit
-from solver.kernels import KERNELS
+from solver.kernels import KERNELS, PROFILES
 
 from .bounds import decision_bound, format_decision_bound, shear_bounds
 from .cases import (
@@ -348,6 +348,8 @@ def main(argv=None):
     parser.add_argument("--noise", type=float, default=0.01)
     parser.add_argument("--kernel", choices=KERNELS, default=KERNELS[0],
                         help="layer: elastomer bonded to a rigid hull (default); cell, point: half-space")
+    parser.add_argument("--profile", choices=PROFILES, default="bilinear",
+                        help="the contact fit's load on each sub-cell: bilinear hats (default) or uniform")
     parser.add_argument("--medium", choices=loads.MEDIA, default="layer",
                         help="physics of the simulated data (default layer)")
     parser.add_argument("--functional", choices=sorted(FUNCTIONALS), action="append")
@@ -391,12 +393,13 @@ def main(argv=None):
     cases = (validation_cases if args.set == "validation" else tuning_cases)(noise=args.noise,
                                                                              medium=args.medium)
     print(f"{args.set} set: {len(cases)} cases, 16x16, {args.medium} data, noise {args.noise:g}, "
-          f"kernel {args.kernel}")
+          f"kernel {args.kernel}, {args.profile} sub-cells")
     print(format_summary([]))
     bounds = shear_bounds([case.frame for case in cases]) if args.against_bound else None
     for name in args.functional or sorted(FUNCTIONALS):
         functional = FUNCTIONALS[name]
-        rows = evaluate(cases, lambda g, f=functional: Reconstructor(g, kernel=args.kernel, efficiency=f()))
+        rows = evaluate(cases, lambda g, f=functional: Reconstructor(
+            g, kernel=args.kernel, profile=args.profile, efficiency=f()))
         if args.cases:
             print(format_cases(rows))
         print(format_summary([dict(functional=name, **summarize(rows), **counts(rows))], header=False))

@@ -32,7 +32,7 @@ from .arrays import read_only
 from .checks import optional_flag, real_number, whole_number
 from .efficiency import ContactFit, Frame
 from .geometry import SensorGrid
-from .kernels import KERNELS, stress_matrix
+from .kernels import KERNELS, PROFILES, stress_matrix
 from .search import contact_labels, gather, template_misfit
 
 __all__ = ["Reconstructor", "Reconstruction", "Contact", "SymmetricInverse", "check_options",
@@ -270,6 +270,11 @@ class Reconstructor:
         Default 2 (3 and 4 measured worse: the extra freedom absorbs the
         shear signature). The answer stays one force per node (the sum of
         its sub-cells).
+    profile : {"bilinear", "uniform"}, optional
+        The load over each sub-cell in the contact fit
+        (:func:`solver.kernels.stress_matrix`): a bilinear hat reaching the
+        neighbouring sub-cells' centres, so the fitted load is continuous
+        (default), or uniform over the sub-cell. Ignored with whole cells.
     reach : float, optional
         The contact fit and its statistics use the sensors within ``reach``
         layer thicknesses plus one pitch of a contact. Default 2 (the layer
@@ -281,11 +286,11 @@ class Reconstructor:
 
     def __init__(self, grid: SensorGrid, *, kernel: str = "layer", max_condition: float = 100.0,
                  max_shear_ratio: float = 1.5, region_threshold: float = 0.2,
-                 region_margin: int = 1, subdivision: int = 2, reach: float = 2.0,
-                 efficiency=None):
+                 region_margin: int = 1, subdivision: int = 2, profile: str = "bilinear",
+                 reach: float = 2.0, efficiency=None):
         check_options(grid, kernel=kernel, max_condition=max_condition, max_shear_ratio=max_shear_ratio,
                       region_threshold=region_threshold, region_margin=region_margin,
-                      subdivision=subdivision, reach=reach)
+                      subdivision=subdivision, profile=profile, reach=reach)
         self.grid = grid
         self.kernel = kernel
         self.max_condition = float(max_condition)
@@ -309,8 +314,9 @@ class Reconstructor:
         # the columns as contiguous rows (3 s^2 m, m), without a copy (stress_matrix stores by
         # column): the contact fit and the exact member's template read whole columns. Read-only
         # whichever matrix they come from: numba compiles a function once per kind of array.
-        self._fit_columns = (self.matrix if self.subdivision == 1
-                             else stress_matrix(grid, kernel, subdivision=self.subdivision)).T
+        self.profile = profile
+        self._fit_columns = (self.matrix if self.subdivision == 1 else
+                             stress_matrix(grid, kernel, subdivision=self.subdivision, profile=profile)).T
         self._fit_columns.setflags(write=False)
         # Cz = cz^T is symmetric positive definite (every kernel is even in the offset): one
         # inverse serves the normal-only path.
@@ -534,7 +540,7 @@ class Reconstructor:
 
 
 def check_options(grid, *, kernel="layer", max_condition=100.0, max_shear_ratio=1.5, region_threshold=0.2,
-                  region_margin=1, subdivision=2, reach=2.0):
+                  region_margin=1, subdivision=2, profile="bilinear", reach=2.0):
     """Check every tuning argument of :class:`Reconstructor` before any matrix is built.
 
     Raises
@@ -553,6 +559,8 @@ def check_options(grid, *, kernel="layer", max_condition=100.0, max_shear_ratio=
     real_number("region_threshold", region_threshold, rule="in (0, 1)", valid=lambda v: 0 < v < 1)
     whole_number("region_margin", region_margin, low=0, unit="of pitches ")
     whole_number("subdivision", subdivision, low=1, high=4)
+    if profile not in PROFILES:
+        raise ValueError(f"profile must be one of {PROFILES}, got {profile!r}")
     real_number("reach", reach, rule="finite and >= 0 thicknesses",
                 valid=lambda v: math.isfinite(v) and v >= 0)
 

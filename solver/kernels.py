@@ -40,9 +40,10 @@ from .checks import whole_number
 from .geometry import SensorGrid, check_poisson_ratio
 
 __all__ = ["KERNELS", "point_force_stress", "cell_force_stress", "layer_force_stress", "taxel_points",
-           "subcell_offsets", "stress_matrix"]
+           "subcell_offsets", "stress_matrix", "PROFILES"]
 
 KERNELS = ("layer", "cell", "point")
+PROFILES = ("uniform", "bilinear")
 
 
 def point_force_stress(dx, dy, depth):
@@ -243,7 +244,8 @@ def subcell_offsets(pitch: float, subdivision: int) -> np.ndarray:
     return np.column_stack([centres[q % subdivision], centres[q // subdivision]])
 
 
-def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int = 1) -> np.ndarray:
+def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int = 1,
+                  profile: str = "uniform") -> np.ndarray:
     """The forward matrix ``C = [Cx | Cy | Cz]`` of a sensor grid.
 
     Parameters
@@ -258,6 +260,13 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
         ``s``: split every cell into ``s x s`` sub-cells, each its own source
         (the contact fit's finer load profile). Default 1. Not defined for
         the point kernel, and only on regular grids when ``s > 1``.
+    profile : {"uniform", "bilinear"}, optional
+        How a sub-cell's force is spread when ``s > 1``: uniformly over the
+        sub-cell (default), or as the bilinear hat centred on it that reaches
+        the neighbouring sub-cells' centres (half-width ``pitch / s``). Hats on
+        the sub-cell lattice add up to a continuous, piecewise bilinear load,
+        so a smooth contact is no staircase of sub-cells; a hat's force acts
+        at its centre, like the uniform sub-cell's. Ignored when ``s = 1``.
 
     Returns
     -------
@@ -273,6 +282,8 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
     if kernel not in KERNELS:
         raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
     subdivision = whole_number("subdivision", subdivision, low=1)
+    if profile not in PROFILES:
+        raise ValueError(f"profile must be one of {PROFILES}, got {profile!r}")
     if subdivision > 1 and (kernel == "point" or not grid.is_regular):
         raise ValueError("subdivision > 1 needs a regular grid and a cell or layer kernel, got "
                          f"{'an irregular grid' if not grid.is_regular else 'the point kernel'}")
@@ -286,11 +297,24 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
             return cell_force_stress(dx, dy, h, width)
         return layer_force_stress(dx, dy, h, width, grid.poisson_ratio)
 
+    points, weights = taxel_points(grid)
+    if subdivision > 1 and profile == "bilinear":
+        # The hat of half-width w is the uniform w x w square smeared uniformly over a w x w
+        # square of shifts (a triangle is a box convolved with a box), so its kernel is the
+        # sub-cell kernel averaged over those shifts: Gauss-Legendre points, exact to the
+        # kernel's smoothness on the scale of h (more points when h is small against w).
+        count = int(min(8, max(4, math.ceil(4.0 * width / h))))
+        nodes, shift_weights = np.polynomial.legendre.leggauss(count)
+        u, v = np.meshgrid(0.5 * width * nodes, 0.5 * width * nodes)
+        shifts = np.column_stack([u.ravel(), v.ravel()])
+        points = (points[:, None, :] + shifts[None, :, :]).reshape(-1, 2)
+        weights = np.outer(weights, np.outer(shift_weights, shift_weights).ravel() / 4.0).ravel()
+
     def evaluate(dx, dy):
-        if grid.sensor_size == 0:
+        if points.shape[0] == 1 and not points.any():
             return at_point(dx, dy)
         total = [np.zeros(np.shape(dx)) for _ in range(3)]
-        for (u, v), weight in zip(*taxel_points(grid), strict=True):
+        for (u, v), weight in zip(points, weights, strict=True):
             for acc, part in zip(total, at_point(dx + u, dy + v), strict=True):
                 acc += weight * part
         return total

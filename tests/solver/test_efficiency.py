@@ -77,7 +77,7 @@ def test_region_holds_the_contact_and_drops_isolated_spikes(reconstructor, shear
 # -- what the contact fit sees and fits ----------------------------------------------------------
 
 def test_frame_columns_are_the_sub_cells_of_the_region(reconstructor, sheared):
-    # The frame is the sub-cell stress matrix restricted to the sensors near the contact
+    # The frame is the sub-cell (bilinear hat) stress matrix restricted to the sensors near the contact
     # and to the sub-cells of its region's nodes: built here independently of _frame.
     r, b = reconstructor, np.asarray(sheared.stress)
     assert r.subdivision == 2
@@ -89,7 +89,7 @@ def test_frame_columns_are_the_sub_cells_of_the_region(reconstructor, sheared):
     distance = np.linalg.norm(r.grid.positions[:, None] - r.grid.positions[None, region], axis=2).min(axis=1)
     rows = np.flatnonzero(distance <= r._rings * r.grid.pitch * 1.0001)
     columns = (np.arange(cells)[:, None] * m + region).ravel()  # sub-cell q of node j: q m + j
-    full = stress_matrix(r.grid, r.kernel, subdivision=2)
+    full = stress_matrix(r.grid, r.kernel, subdivision=2, profile=r.profile)
     width = cells * m
     np.testing.assert_array_equal(frame.stress, b[rows])
     for k, part in enumerate((frame.fit_x, frame.fit_y, frame.fit_z)):
