@@ -191,7 +191,7 @@ class ContactFit:
         Default 1e-3.
     min_load_evidence : float, optional
         Smallest load evidence ``L_P`` of a reported patch of load, in
-        deviations of ``chi2``. Default 8 (chosen on seeds 1 to 3 of the
+        deviations of ``chi2``. Default 10 (chosen on seeds 1 to 3 of the
         load-decision frames, :func:`measurement.cases.load_decision_frames`;
         judged on seeds 11 to 13). ``-inf`` keeps every patch (0 still drops
         those that explain less than noise would).
@@ -200,7 +200,7 @@ class ContactFit:
     name = "contact_fit"
 
     def __init__(self, *, shrinkage: float = 2.0, model_error: float = 0.002,
-                 max_iterations: int = 12, tolerance: float = 1e-3, min_load_evidence: float = 8.0):
+                 max_iterations: int = 12, tolerance: float = 1e-3, min_load_evidence: float = 10.0):
         self.shrinkage = real_number("shrinkage", shrinkage, rule="finite and >= 0",
                                      valid=lambda v: math.isfinite(v) and v >= 0)
         self.model_error = real_number("model_error", model_error, rule="finite and >= 0",
