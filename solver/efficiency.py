@@ -38,8 +38,9 @@ class Frame:
     The contact fit works on the sensors near the contacts (``rows``) and on
     the sub-cells of the contact region's nodes (the columns): each node's
     cell is split into ``s x s`` sub-cells (:func:`solver.kernels.stress_matrix`
-    with ``subdivision``), so a contact edge inside a cell is not mistaken
-    for shear.
+    with ``subdivision``), each carrying a bilinear hat by default
+    (``profile``), so neither a contact edge inside a cell nor a smooth
+    contact's slope is mistaken for shear.
 
     Attributes
     ----------

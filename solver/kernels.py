@@ -31,6 +31,8 @@ The stress matrix is ``C = [Cx | Cy | Cz]`` of shape ``(m, 3m)`` so that
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -244,6 +246,83 @@ def subcell_offsets(pitch: float, subdivision: int) -> np.ndarray:
     return np.column_stack([centres[q % subdivision], centres[q // subdivision]])
 
 
+def _evaluator(grid, kernel, width):
+    # (dx, dy, points, weights) -> (kx, ky, kz): the kernel of a uniform width x width source
+    # averaged over sample points (a taxel's, and a hat's shifts) with their weights
+    h = grid.thickness
+
+    def at_point(dx, dy):
+        if kernel == "point":
+            return point_force_stress(dx, dy, h)
+        if kernel == "cell":
+            return cell_force_stress(dx, dy, h, width)
+        return layer_force_stress(dx, dy, h, width, grid.poisson_ratio)
+
+    def evaluate(dx, dy, points, weights):
+        if points.shape[0] == 1 and not points.any():
+            return at_point(dx, dy)
+        total = [np.zeros(np.shape(dx)) for _ in range(3)]
+        for (u, v), weight in zip(points, weights, strict=True):
+            for acc, part in zip(total, at_point(dx + u, dy + v), strict=True):
+                acc += weight * part
+        return total
+    return evaluate
+
+
+# Offset tables of recent geometries, the largest grid computed so far for each: a region
+# solver's windows are sub-grids of one skin, so a window's tables are the centre of a larger
+# window's (a hat costs its kernel at 16 to 64 shifts).
+_TABLES: OrderedDict = OrderedDict()
+_TABLES_KEPT = 4
+_TABLES_LOCK = threading.Lock()
+
+
+def _offset_tables(grid, kernel, subdivision, profile, q):
+    # (kx, ky, kz) of sub-cell q's source on the offsets (2ny-1, 2nx-1) of a regular grid,
+    # sensor minus node
+    ny, nx = grid.shape
+    hats = subdivision > 1 and profile == "bilinear"
+    key = (kernel, grid.pitch, grid.thickness, grid.poisson_ratio, grid.sensor_size, subdivision, hats)
+    with _TABLES_LOCK:
+        kept = _TABLES.get(key)
+        if kept is not None:
+            _TABLES.move_to_end(key)
+    if kept is None or kept[0] < ny or kept[1] < nx:
+        size = (ny, nx) if kept is None else (max(ny, kept[0]), max(nx, kept[1]))
+        kept = (*size, _compute_tables(grid, kernel, subdivision, hats, *size))
+        with _TABLES_LOCK:
+            _TABLES[key] = kept
+            if len(_TABLES) > _TABLES_KEPT:
+                _TABLES.popitem(last=False)
+    big_y, big_x, tables = kept
+    rows, columns = slice(big_y - ny, big_y + ny - 1), slice(big_x - nx, big_x + nx - 1)
+    return [table[rows, columns] for table in tables[q]]
+
+
+def _compute_tables(grid, kernel, subdivision, hats, ny, nx):
+    pitch, h = grid.pitch, grid.thickness
+    width = pitch / subdivision
+    evaluate = _evaluator(grid, kernel, width)
+    taxel = taxel_points(grid)
+    smeared = taxel
+    if hats:
+        # The hat of half-width w is the uniform w x w square smeared uniformly over a w x w
+        # square of shifts (a triangle is a box convolved with a box), so its kernel is the
+        # sub-cell kernel averaged over those shifts: Gauss-Legendre points, exact to the
+        # kernel's smoothness on the scale of h (more points when h is small against w).
+        count = int(min(8, max(4, math.ceil(4.0 * width / h))))
+        nodes, shift_weights = np.polynomial.legendre.leggauss(count)
+        u, v = np.meshgrid(0.5 * width * nodes, 0.5 * width * nodes)
+        shifts = np.column_stack([u.ravel(), v.ravel()])
+        smeared = ((taxel[0][:, None, :] + shifts[None, :, :]).reshape(-1, 2),
+                   np.outer(taxel[1], np.outer(shift_weights, shift_weights).ravel() / 4.0).ravel())
+    oy, ox = np.meshgrid(np.arange(-(ny - 1), ny) * pitch, np.arange(-(nx - 1), nx) * pitch, indexing="ij")
+    tables = [evaluate(ox - cx, oy - cy, *smeared) for cx, cy in subcell_offsets(pitch, subdivision)]
+    for table in (table for part in tables for table in part):
+        table.setflags(write=False)  # shared by every grid of this geometry
+    return tables
+
+
 def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int = 1,
                   profile: str = "uniform") -> np.ndarray:
     """The forward matrix ``C = [Cx | Cy | Cz]`` of a sensor grid.
@@ -266,7 +345,8 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
         the neighbouring sub-cells' centres (half-width ``pitch / s``). Hats on
         the sub-cell lattice add up to a continuous, piecewise bilinear load,
         so a smooth contact is no staircase of sub-cells; a hat's force acts
-        at its centre, like the uniform sub-cell's. Ignored when ``s = 1``.
+        at its centre, like the uniform sub-cell's; on the skin's border nodes
+        it reaches a quarter pitch past the last cell. Ignored when ``s = 1``.
 
     Returns
     -------
@@ -287,54 +367,20 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
     if subdivision > 1 and (kernel == "point" or not grid.is_regular):
         raise ValueError("subdivision > 1 needs a regular grid and a cell or layer kernel, got "
                          f"{'an irregular grid' if not grid.is_regular else 'the point kernel'}")
-    h, pitch = grid.thickness, grid.pitch
-    width = pitch / subdivision
-
-    def at_point(dx, dy):
-        if kernel == "point":
-            return point_force_stress(dx, dy, h)
-        if kernel == "cell":
-            return cell_force_stress(dx, dy, h, width)
-        return layer_force_stress(dx, dy, h, width, grid.poisson_ratio)
-
-    points, weights = taxel_points(grid)
-    if subdivision > 1 and profile == "bilinear":
-        # The hat of half-width w is the uniform w x w square smeared uniformly over a w x w
-        # square of shifts (a triangle is a box convolved with a box), so its kernel is the
-        # sub-cell kernel averaged over those shifts: Gauss-Legendre points, exact to the
-        # kernel's smoothness on the scale of h (more points when h is small against w).
-        count = int(min(8, max(4, math.ceil(4.0 * width / h))))
-        nodes, shift_weights = np.polynomial.legendre.leggauss(count)
-        u, v = np.meshgrid(0.5 * width * nodes, 0.5 * width * nodes)
-        shifts = np.column_stack([u.ravel(), v.ravel()])
-        points = (points[:, None, :] + shifts[None, :, :]).reshape(-1, 2)
-        weights = np.outer(weights, np.outer(shift_weights, shift_weights).ravel() / 4.0).ravel()
-
-    def evaluate(dx, dy):
-        if points.shape[0] == 1 and not points.any():
-            return at_point(dx, dy)
-        total = [np.zeros(np.shape(dx)) for _ in range(3)]
-        for (u, v), weight in zip(points, weights, strict=True):
-            for acc, part in zip(total, at_point(dx + u, dy + v), strict=True):
-                acc += weight * part
-        return total
-
     m = grid.size
     cells = subdivision * subdivision
     matrix = np.empty((3 * m * cells, m)).T
     if grid.is_regular:
-        # Translation invariance: evaluate on the (2ny-1, 2nx-1) offsets once per sub-cell.
+        # Translation invariance: the kernel on the (2ny-1, 2nx-1) offsets, once per sub-cell.
         ny, nx = grid.shape
-        oy, ox = np.meshgrid(np.arange(-(ny - 1), ny) * pitch, np.arange(-(nx - 1), nx) * pitch,
-                             indexing="ij")
-        for q, (cx, cy) in enumerate(subcell_offsets(pitch, subdivision)):
-            for i, values in enumerate(evaluate(ox - cx, oy - cy)):
+        for q in range(cells):
+            for i, values in enumerate(_offset_tables(grid, kernel, subdivision, profile, q)):
                 start = (i * cells + q) * m
                 _spread_offsets(values, matrix[:, start:start + m])
     else:
         p = grid.positions
         dx = p[:, 0, None] - p[None, :, 0]
         dy = p[:, 1, None] - p[None, :, 1]
-        for i, block in enumerate(evaluate(dx, dy)):
+        for i, block in enumerate(_evaluator(grid, kernel, grid.pitch)(dx, dy, *taxel_points(grid))):
             matrix[:, i * m:(i + 1) * m] = block
     return matrix

@@ -140,17 +140,18 @@ def test_found_ratio_is_shrunk_by_its_evidence(kernel, mu, theta):
     F = c.contacts[0].evidence
     assert F == pytest.approx(a.contacts[0].evidence, rel=1e-12)
     assert c.shear_ratio == pytest.approx(a.shear_ratio * max(0.0, 1 - 2 / F) if F > 0 else 0.0, rel=1e-9, abs=1e-15)
-    # on the default sub-cells too the unshrunk search lands on the template's parameters
-    # (measured within 7e-4 in ratio and 5e-3 rad in direction)
-    assert a.shear_ratio == pytest.approx(mu, abs=2e-3)
+    # on the default sub-cells too the unshrunk search lands near the template's parameters
+    # (measured within 1.8e-3 in ratio and 5e-3 rad in direction; 5e-4 in ratio with uniform
+    # sub-cells: the hats do not reproduce a whole cell's uniform load exactly)
+    assert a.shear_ratio == pytest.approx(mu, abs=4e-3)
     if mu > 0:
-        # noise-free template data is strong evidence (measured F 41 to 1124); it still costs
-        # the ratio 2/F of itself (measured 5% at F 41)
+        # noise-free template data is strong evidence (measured F 42 to 1124); it still costs
+        # the ratio 2/F of itself (measured 5% at F 42)
         assert F > 20 and c.shear_detected and c.shear_ratio < a.shear_ratio
         assert c.shear_direction == pytest.approx(a.shear_direction, abs=1e-12)
         assert math.remainder(a.shear_direction - theta, 2 * math.pi) == pytest.approx(0, abs=0.01)
     else:
-        # no evidence: at most the rounding-level gain of a ratio near 0 (measured F 2e-4)
+        # no evidence: at most the tiny gain of a ratio near 0 (measured F 2e-3)
         assert F < 1e-2 and c.shear_ratio == 0 and not c.shear_detected
 
 
@@ -331,13 +332,13 @@ def test_automatic_answer_is_the_fitted_compressive_load():
     b = frame.stress
     fitted = r.solve(b)
     automatic_fit_invariants(r, fitted, b)
-    # measured: ratio 0.414 towards 0.78 rad, evidence F 27.5
+    # measured: ratio 0.414 towards 0.79 rad, evidence F 28.9
     assert fitted.shear_detected and fitted.shear_ratio == pytest.approx(0.4, abs=0.05)
     assert fitted.shear_direction == pytest.approx(0.7, abs=0.15)
-    # totals against the finely integrated truth (measured (0.292, 0.290, 0.994) N against (0.306, 0.258, 1))
+    # totals against the finely integrated truth (measured (0.292, 0.292, 0.996) N against (0.306, 0.258, 1))
     np.testing.assert_allclose(fitted.total_force, frame.forces.sum(axis=0), rtol=0, atol=0.05)
     # it explains the data only approximately (noise, kernel misfit, sub-cells summed per node):
-    # reported, not hidden (measured 0.135)
+    # reported, not hidden (measured 0.163)
     assert 1e-3 < fitted.residual < 0.3
     # exact=True: the same parameters, moved onto C x = b by C+
     exact = r.solve(b, exact=True)
@@ -409,7 +410,7 @@ def test_given_parameters_do_not_depend_on_the_solves_before(radius, ratio):
     used.solve(frames[0], shear_ratio=0.8, shear_direction=0.5)  # a slider there and back
     round_trip = used.solve(frames[0], shear_ratio=0.3, shear_direction=0.5)
     fresh = Reconstructor(grid).solve(frames[0], shear_ratio=0.3, shear_direction=0.5)
-    for result in (after_another, round_trip):  # measured at most 1.2e-8 of the peak
+    for result in (after_another, round_trip):  # measured at most 4e-11 of the peak
         np.testing.assert_allclose(result.forces, fresh.forces, rtol=0, atol=1e-7 * np.abs(fresh.forces).max())
 
 
@@ -433,7 +434,7 @@ def test_found_parameters_do_not_depend_on_the_solves_before(ratio):
     for b in before:
         used.solve(b)
         result = used.solve(shown)
-        # measured: ratio and direction within 1e-12, forces within 7e-11 of the peak
+        # measured: ratio and direction within 1e-12, forces within 2e-10 of the peak
         assert result.shear_ratio == pytest.approx(fresh.shear_ratio, abs=1e-10)
         assert result.shear_direction == pytest.approx(fresh.shear_direction, abs=1e-10)
         np.testing.assert_allclose(result.forces, fresh.forces, rtol=0, atol=1e-9 * np.abs(fresh.forces).max())

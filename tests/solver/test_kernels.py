@@ -141,6 +141,29 @@ def test_a_bilinear_column_is_the_finely_integrated_hat_load(kernel, thickness_r
     assert uniform_off >= 0.05
 
 
+def test_a_smaller_grid_reads_the_offset_tables_of_a_larger_one(monkeypatch):
+    # The region solver's windows are sub-grids of one skin: a window after a larger one of the
+    # same geometry takes the centre of its kernel tables instead of evaluating them again.
+    from collections import OrderedDict
+
+    import solver.kernels as kernels
+
+    monkeypatch.setattr(kernels, "_TABLES", OrderedDict())
+    small, large = SensorGrid.regular(6, 5, 2e-3, 2e-3), SensorGrid.regular(9, 9, 2e-3, 2e-3)
+    alone = stress_matrix(small, "layer", subdivision=2, profile="bilinear")
+    stress_matrix(large, "layer", subdivision=2, profile="bilinear")
+    computed = []
+    original = kernels._compute_tables
+    monkeypatch.setattr(kernels, "_compute_tables", lambda *args: computed.append(args) or original(*args))
+    again = stress_matrix(small, "layer", subdivision=2, profile="bilinear")
+    assert computed == []
+    # the same kernel values, evaluated in other blocks: equal up to rounding
+    np.testing.assert_allclose(again, alone, rtol=0, atol=1e-14 * np.abs(alone).max())
+    # another geometry (here the uniform profile) has tables of its own
+    stress_matrix(small, "layer", subdivision=2)
+    assert len(computed) == 1
+
+
 def test_unknown_profile_is_rejected():
     with pytest.raises(ValueError, match="profile must be one of .* got 'spline'"):
         stress_matrix(SensorGrid.regular(2, 2, 1e-3, 1e-3), "cell", subdivision=2, profile="spline")

@@ -234,7 +234,7 @@ def test_totals_do_not_drift_with_skin_size():
 def test_thick_layers_keep_the_normal_total_and_add_no_tension(ratio, n):
     # a smooth load about as wide as the layer is thick; at h/p 10 it is wider than a 16x16
     # skin (measured 0.89 there: the load off the skin is not sensed), so that case is 32x32.
-    # Measured over seeds 40-42: totals within 0.8% (16x16) and 0.5% (32x32); before the load
+    # Measured over seeds 40-42: totals within 0.8% (16x16) and 0.7% (32x32); before the load
     # decision noise patches added up to 8% at h/p 2-3 on 32x32.
     grid = SensorGrid.regular(n, n, PITCH, ratio * PITCH)
     contact = loads.hertz((0.5e-3, -0.3e-3), max(2.5, ratio) * PITCH, 1.0)
