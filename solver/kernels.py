@@ -271,7 +271,7 @@ def _evaluator(grid, kernel, width):
 
 # Offset tables of recent geometries, the largest grid computed so far for each: a region
 # solver's windows are sub-grids of one skin, so a window's tables are the centre of a larger
-# window's (a hat costs its kernel at 16 to 64 shifts).
+# window's (a hat costs its kernel at 9 to 64 shifts).
 _TABLES: OrderedDict = OrderedDict()
 _TABLES_KEPT = 4
 _TABLES_LOCK = threading.Lock()
@@ -310,17 +310,33 @@ def _compute_tables(grid, kernel, subdivision, hats, ny, nx):
         # square of shifts (a triangle is a box convolved with a box), so its kernel is the
         # sub-cell kernel averaged over those shifts: Gauss-Legendre points, exact to the
         # kernel's smoothness on the scale of h (more points when h is small against w).
-        count = int(min(8, max(4, math.ceil(4.0 * width / h))))
+        count = int(min(8, max(3, math.ceil(4.0 * width / h))))
         nodes, shift_weights = np.polynomial.legendre.leggauss(count)
         u, v = np.meshgrid(0.5 * width * nodes, 0.5 * width * nodes)
         shifts = np.column_stack([u.ravel(), v.ravel()])
         smeared = ((taxel[0][:, None, :] + shifts[None, :, :]).reshape(-1, 2),
                    np.outer(taxel[1], np.outer(shift_weights, shift_weights).ravel() / 4.0).ravel())
     oy, ox = np.meshgrid(np.arange(-(ny - 1), ny) * pitch, np.arange(-(nx - 1), nx) * pitch, indexing="ij")
-    tables = [evaluate(ox - cx, oy - cy, *smeared) for cx, cy in subcell_offsets(pitch, subdivision)]
-    for table in (table for part in tables for table in part):
+    # Every kernel is odd in the offset along its force and even across it, and the sub-cells
+    # lie mirrored about the node: those right of (above) the node read the tables of their
+    # mirror images reversed along x (y), the x (y) component negated. The offsets are
+    # symmetric, so only the lower-left quarter of the sub-cells is evaluated.
+    tables = {}
+    for q, (cx, cy) in enumerate(subcell_offsets(pitch, subdivision)):
+        if cx <= 0 and cy <= 0:
+            tables[q] = evaluate(ox - cx, oy - cy, *smeared)
+    for q, (cx, cy) in enumerate(subcell_offsets(pitch, subdivision)):
+        column, row = q % subdivision, q // subdivision
+        mirror = min(column, subdivision - 1 - column) + subdivision * min(row, subdivision - 1 - row)
+        kx, ky, kz = tables[mirror]
+        if cx > 0:
+            kx, ky, kz = -kx[:, ::-1], ky[:, ::-1], kz[:, ::-1]
+        if cy > 0:
+            kx, ky, kz = kx[::-1], -ky[::-1], kz[::-1]
+        tables[q] = [np.ascontiguousarray(part) for part in (kx, ky, kz)]
+    for table in (table for part in tables.values() for table in part):
         table.setflags(write=False)  # shared by every grid of this geometry
-    return tables
+    return [tables[q] for q in range(subdivision * subdivision)]
 
 
 def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int = 1,

@@ -111,10 +111,11 @@ def test_a_sub_cell_column_is_the_cell_kernel_at_that_sub_cells_centre():
 @pytest.mark.parametrize("kernel", ["cell", "layer"])
 @pytest.mark.parametrize("thickness_ratio", [0.25, 0.5, 1.0])
 def test_a_bilinear_column_is_the_finely_integrated_hat_load(kernel, thickness_ratio):
-    # The hat of sub-cell q = 0 of an inner node, half-width pitch / 2, built here as 48 x 48
-    # uniform squares weighted by the hat's height: not the shifted-sub-cell quadrature the
-    # matrix uses. Measured agreement 0.09% of the column's peak or better; a uniform sub-cell's
-    # columns are 7% to 57% off in their worst component (the test tells the two apart).
+    # The hats of sub-cells 0 (evaluated) and 3 (read from 0's mirror image) of an inner node,
+    # half-width pitch / 2, built here as 48 x 48 uniform squares weighted by the hat's height:
+    # not the shifted-sub-cell quadrature the matrix uses. Measured agreement 0.09% of the
+    # column's peak or better; a uniform sub-cell's columns are 7% to 57% off in their worst
+    # component (the test tells the two apart).
     pitch = 2e-3
     grid = SensorGrid.regular(6, 6, pitch, thickness_ratio * pitch)
     m, node, half = grid.size, 14, pitch / 2
@@ -125,20 +126,21 @@ def test_a_bilinear_column_is_the_finely_integrated_hat_load(kernel, thickness_r
     ux, uy = (a.ravel() for a in np.meshgrid(u, u))
     height = (1 - np.abs(ux) / half) * (1 - np.abs(uy) / half)
     height /= height.sum()
-    centre = grid.positions[node] + subcell_offsets(pitch, 2)[0]
-    dx = grid.positions[:, :1] - (centre[0] + ux)
-    dy = grid.positions[:, 1:] - (centre[1] + uy)
-    width = 2 * half / fine
-    parts = (cell_force_stress(dx, dy, grid.thickness, width) if kernel == "cell"
-             else layer_force_stress(dx, dy, grid.thickness, width, grid.poisson_ratio))
-    uniform_off = 0.0
-    for component, part in enumerate(parts):
-        expected = part @ height
-        column = (component * 4) * m + node
-        scale = np.abs(expected).max()
-        assert np.abs(matrix[:, column] - expected).max() <= 1e-3 * scale
-        uniform_off = max(uniform_off, np.abs(uniform[:, column] - expected).max() / scale)
-    assert uniform_off >= 0.05
+    for q in (0, 3):
+        centre = grid.positions[node] + subcell_offsets(pitch, 2)[q]
+        dx = grid.positions[:, :1] - (centre[0] + ux)
+        dy = grid.positions[:, 1:] - (centre[1] + uy)
+        width = 2 * half / fine
+        parts = (cell_force_stress(dx, dy, grid.thickness, width) if kernel == "cell"
+                 else layer_force_stress(dx, dy, grid.thickness, width, grid.poisson_ratio))
+        uniform_off = 0.0
+        for component, part in enumerate(parts):
+            expected = part @ height
+            column = (component * 4 + q) * m + node
+            scale = np.abs(expected).max()
+            assert np.abs(matrix[:, column] - expected).max() <= 1e-3 * scale
+            uniform_off = max(uniform_off, np.abs(uniform[:, column] - expected).max() / scale)
+        assert uniform_off >= 0.05
 
 
 def test_a_smaller_grid_reads_the_offset_tables_of_a_larger_one(monkeypatch):
