@@ -147,8 +147,9 @@ def shear_bounds(frames, *, subdivision: int = 1) -> list[ShearBound]:
         Frames of one contact each, with their noise (relative to the peak
         clean stress, as :func:`solver.loads.simulate` adds it).
     subdivision : int, optional
-        Profile sub-cells per pitch along each axis: 1 is one force per node,
-        2 the contact fit's profile. Default 1.
+        Profile sub-cells per pitch along each axis, each a uniform load: 1 is
+        one force per node, 2 the contact fit's sub-cells without its hats.
+        Default 1.
 
     Returns
     -------

@@ -348,8 +348,9 @@ def main(argv=None):
     parser.add_argument("--noise", type=float, default=0.01)
     parser.add_argument("--kernel", choices=KERNELS, default=KERNELS[0],
                         help="layer: elastomer bonded to a rigid hull (default); cell, point: half-space")
-    parser.add_argument("--profile", choices=PROFILES, default="bilinear",
-                        help="the contact fit's load on each sub-cell: bilinear hats (default) or uniform")
+    parser.add_argument("--profile", choices=PROFILES,
+                        help="the contact fit's load on each sub-cell: bilinear hats (default) or uniform; "
+                             "for the validation and tuning sets")
     parser.add_argument("--medium", choices=loads.MEDIA, default="layer",
                         help="physics of the simulated data (default layer)")
     parser.add_argument("--functional", choices=sorted(FUNCTIONALS), action="append")
@@ -372,6 +373,10 @@ def main(argv=None):
                              "set's kind (seeds 100-109), then the Wald test's counts at the Cramer-Rao "
                              "bound")
     args = parser.parse_args(argv)
+    if args.profile is not None and (args.decision_curve or args.load_decision or args.mismatch):
+        parser.error("--profile applies to the validation and tuning sets, not to --decision-curve, "
+                     "--load-decision or --mismatch (they use the default bilinear profile)")
+    profile = args.profile or "bilinear"
     if args.decision_curve:
         print(f"shear decision, seeds {DECISION_SEEDS[0]}-{DECISION_SEEDS[-1]}: 16x16, h/p 0.5 1 1.5, layer "
               f"data, noise {args.noise:g}; shear kept when F > c (default c = {ContactFit().shrinkage:g})")
@@ -393,13 +398,13 @@ def main(argv=None):
     cases = (validation_cases if args.set == "validation" else tuning_cases)(noise=args.noise,
                                                                              medium=args.medium)
     print(f"{args.set} set: {len(cases)} cases, 16x16, {args.medium} data, noise {args.noise:g}, "
-          f"kernel {args.kernel}, {args.profile} sub-cells")
+          f"kernel {args.kernel}, {profile} sub-cells")
     print(format_summary([]))
     bounds = shear_bounds([case.frame for case in cases]) if args.against_bound else None
     for name in args.functional or sorted(FUNCTIONALS):
         functional = FUNCTIONALS[name]
         rows = evaluate(cases, lambda g, f=functional: Reconstructor(
-            g, kernel=args.kernel, profile=args.profile, efficiency=f()))
+            g, kernel=args.kernel, profile=profile, efficiency=f()))
         if args.cases:
             print(format_cases(rows))
         print(format_summary([dict(functional=name, **summarize(rows), **counts(rows))], header=False))

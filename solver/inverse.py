@@ -267,9 +267,9 @@ class Reconstructor:
         The contact fit splits each node's cell into ``s x s`` sub-cells so
         that a contact edge inside a cell is not read as shear (regular grids
         with the layer or cell kernel and ``pitch / s <= 2 h``; 1 otherwise).
-        Default 2 (3 and 4 measured worse: the extra freedom absorbs the
-        shear signature). The answer stays one force per node (the sum of
-        its sub-cells).
+        Default 2 (3 and 4 uniform sub-cells measured worse: the extra
+        freedom absorbs the shear signature). The answer stays one force per
+        node (the sum of its sub-cells).
     profile : {"bilinear", "uniform"}, optional
         The load over each sub-cell in the contact fit
         (:func:`solver.kernels.stress_matrix`): a bilinear hat reaching the

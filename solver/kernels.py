@@ -273,7 +273,7 @@ def _evaluator(grid, kernel, width):
 # solver's windows are sub-grids of one skin, so a window's tables are the centre of a larger
 # window's (a hat costs its kernel at 9 to 64 shifts).
 _TABLES: OrderedDict = OrderedDict()
-_TABLES_KEPT = 4
+_TABLES_KEPT = 8  # one round of the trade-off tool's configurations uses 5
 _TABLES_LOCK = threading.Lock()
 
 
@@ -291,7 +291,10 @@ def _offset_tables(grid, kernel, subdivision, profile, q):
         size = (ny, nx) if kept is None else (max(ny, kept[0]), max(nx, kept[1]))
         kept = (*size, _compute_tables(grid, kernel, subdivision, hats, *size))
         with _TABLES_LOCK:
-            _TABLES[key] = kept
+            # another thread may have stored a larger table meanwhile: keep the larger
+            stored = _TABLES.get(key)
+            if stored is None or stored[0] < kept[0] or stored[1] < kept[1]:
+                _TABLES[key] = kept
             if len(_TABLES) > _TABLES_KEPT:
                 _TABLES.popitem(last=False)
     big_y, big_x, tables = kept
@@ -308,8 +311,9 @@ def _compute_tables(grid, kernel, subdivision, hats, ny, nx):
     if hats:
         # The hat of half-width w is the uniform w x w square smeared uniformly over a w x w
         # square of shifts (a triangle is a box convolved with a box), so its kernel is the
-        # sub-cell kernel averaged over those shifts: Gauss-Legendre points, exact to the
-        # kernel's smoothness on the scale of h (more points when h is small against w).
+        # sub-cell kernel averaged over those shifts: Gauss-Legendre points, more when h is
+        # small against w (within 0.1% of a fine integration of the hat down to h = w / 2,
+        # the thinnest layer the contact fit gives sub-cells; at most 8 per axis).
         count = int(min(8, max(3, math.ceil(4.0 * width / h))))
         nodes, shift_weights = np.polynomial.legendre.leggauss(count)
         u, v = np.meshgrid(0.5 * width * nodes, 0.5 * width * nodes)
@@ -320,23 +324,25 @@ def _compute_tables(grid, kernel, subdivision, hats, ny, nx):
     # Every kernel is odd in the offset along its force and even across it, and the sub-cells
     # lie mirrored about the node: those right of (above) the node read the tables of their
     # mirror images reversed along x (y), the x (y) component negated. The offsets are
-    # symmetric, so only the lower-left quarter of the sub-cells is evaluated.
-    tables = {}
+    # symmetric, so only the lower-left quarter of the sub-cells is evaluated. (By index: a
+    # middle sub-cell's centre may round to a hair off zero.)
+    lower = {}
     for q, (cx, cy) in enumerate(subcell_offsets(pitch, subdivision)):
-        if cx <= 0 and cy <= 0:
-            tables[q] = evaluate(ox - cx, oy - cy, *smeared)
-    for q, (cx, cy) in enumerate(subcell_offsets(pitch, subdivision)):
+        if 2 * (q % subdivision) < subdivision and 2 * (q // subdivision) < subdivision:
+            lower[q] = evaluate(ox - cx, oy - cy, *smeared)
+    tables = []
+    for q in range(subdivision * subdivision):
         column, row = q % subdivision, q // subdivision
         mirror = min(column, subdivision - 1 - column) + subdivision * min(row, subdivision - 1 - row)
-        kx, ky, kz = tables[mirror]
-        if cx > 0:
+        kx, ky, kz = lower[mirror]
+        if 2 * column >= subdivision:
             kx, ky, kz = -kx[:, ::-1], ky[:, ::-1], kz[:, ::-1]
-        if cy > 0:
+        if 2 * row >= subdivision:
             kx, ky, kz = kx[::-1], -ky[::-1], kz[::-1]
-        tables[q] = [np.ascontiguousarray(part) for part in (kx, ky, kz)]
-    for table in (table for part in tables.values() for table in part):
-        table.setflags(write=False)  # shared by every grid of this geometry
-    return [tables[q] for q in range(subdivision * subdivision)]
+        tables.append([np.ascontiguousarray(part) for part in (kx, ky, kz)])
+        for table in tables[-1]:
+            table.setflags(write=False)  # shared by every grid of this geometry
+    return tables
 
 
 def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int = 1,
@@ -362,7 +368,7 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
         the sub-cell lattice add up to a continuous, piecewise bilinear load,
         so a smooth contact is no staircase of sub-cells; a hat's force acts
         at its centre, like the uniform sub-cell's; on the skin's border nodes
-        it reaches a quarter pitch past the last cell. Ignored when ``s = 1``.
+        it reaches half a sub-cell past the last cell. Ignored when ``s = 1``.
 
     Returns
     -------

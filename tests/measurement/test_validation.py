@@ -278,3 +278,12 @@ def test_the_command_prints_the_sheared_loads_medians_beside_the_bounds(capsys):
     with pytest.raises(ValueError, match="rows and bounds must cover every case, got 11 rows and 12 bounds "
                                          "for 12 cases"):
         against_bound(cases, rows[:-1], shear_bounds([c.frame for c in cases]))
+
+
+@pytest.mark.parametrize("mode", ["--decision-curve", "--load-decision", "--mismatch"])
+def test_the_command_rejects_a_profile_where_it_would_not_apply(mode, capsys):
+    from measurement.validation import main
+
+    with pytest.raises(SystemExit):
+        main([mode, "--profile", "uniform"])
+    assert "--profile applies to the validation and tuning sets, not to --decision-curve" in capsys.readouterr().err

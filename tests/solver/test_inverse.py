@@ -269,6 +269,26 @@ def test_options_are_checked_before_any_matrix_is_built(kwargs, message, monkeyp
         Reconstructor(grid, **kwargs)
 
 
+def test_the_fit_reads_the_chosen_profile_on_every_path():
+    from solver import RegionSolver, make_solver
+    from solver.kernels import stress_matrix
+
+    grid = SensorGrid.regular(6, 6, 2e-3, 2e-3)
+    hats = stress_matrix(grid, "layer", subdivision=2, profile="bilinear").T
+    uniform = stress_matrix(grid, "layer", subdivision=2).T
+    assert np.abs(hats - uniform).max() > 0.05 * np.abs(uniform).max()  # the two differ
+    default = Reconstructor(grid)
+    assert default.profile == "bilinear"
+    np.testing.assert_array_equal(default._fit_columns, hats)
+    chosen = Reconstructor(grid, profile="uniform")
+    for r in (chosen, chosen.sibling(), make_solver(grid, profile="uniform")):
+        assert r.profile == "uniform"
+        np.testing.assert_array_equal(r._fit_columns, uniform)
+    window = RegionSolver(SensorGrid.regular(40, 40, 2e-3, 2e-3), profile="uniform").reconstructor(6, 6)
+    assert window.profile == "uniform"
+    np.testing.assert_allclose(window._fit_columns, uniform, rtol=0, atol=1e-14 * np.abs(uniform).max())
+
+
 def test_sub_cells_only_where_they_are_defined_and_resolved():
     pitch = 2e-3
     assert Reconstructor(SensorGrid.regular(4, 4, pitch, pitch)).subdivision == 2

@@ -12,6 +12,7 @@ from solver.kernels import (
     point_force_stress,
     stress_matrix,
     subcell_offsets,
+    taxel_points,
 )
 
 
@@ -108,6 +109,31 @@ def test_a_sub_cell_column_is_the_cell_kernel_at_that_sub_cells_centre():
         np.testing.assert_allclose(matrix[:, (2 * 4 + q) * m + j], expected, rtol=1e-12)
 
 
+@pytest.mark.parametrize("subdivision", [1, 2, 3, 4, 5])
+@pytest.mark.parametrize("sensor_size", [0.0, 0.6], ids=["point-sensors", "taxels"])
+def test_every_sub_cell_column_is_its_kernel_read_directly(subdivision, sensor_size):
+    # Three quarters of the sub-cells read mirrored tables: each column (all three components)
+    # against the half-space cell kernel at its own sub-cell, averaged over the taxel here. The
+    # pitch 1.55 mm puts an odd subdivision's middle centre a rounding error off zero (it once
+    # left that sub-cell's table unbuilt).
+    pitch = 1.55e-3
+    grid = SensorGrid.regular(5, 4, pitch, pitch, sensor_size=sensor_size * pitch)
+    matrix = stress_matrix(grid, "cell", subdivision=subdivision)
+    m, cells, width = grid.size, subdivision**2, pitch / subdivision
+    points, weights = taxel_points(grid)
+    x, y = grid.positions[:, 0], grid.positions[:, 1]
+    for q, offset in enumerate(subcell_offsets(pitch, subdivision)):
+        for j in (0, 7, m - 1):
+            source = grid.positions[j] + offset
+            expected = sum(w * np.array(cell_force_stress(x + u - source[0], y + v - source[1],
+                                                          grid.thickness, width))
+                           for (u, v), w in zip(points, weights, strict=True))
+            for component in range(3):
+                column = matrix[:, (component * cells + q) * m + j]
+                np.testing.assert_allclose(column, expected[component], rtol=0,
+                                           atol=1e-12 * np.abs(expected).max())
+
+
 @pytest.mark.parametrize("kernel", ["cell", "layer"])
 @pytest.mark.parametrize("thickness_ratio", [0.25, 0.5, 1.0])
 def test_a_bilinear_column_is_the_finely_integrated_hat_load(kernel, thickness_ratio):
@@ -164,6 +190,28 @@ def test_a_smaller_grid_reads_the_offset_tables_of_a_larger_one(monkeypatch):
     # another geometry (here the uniform profile) has tables of its own
     stress_matrix(small, "layer", subdivision=2)
     assert len(computed) == 1
+
+
+@pytest.mark.parametrize("change", [dict(thickness=1.5e-3), dict(pitch=2.5e-3), dict(poisson_ratio=0.45),
+                                    dict(sensor_size=1e-3)])
+def test_grids_that_differ_in_anything_the_kernel_reads_do_not_share_tables(change, monkeypatch):
+    from collections import OrderedDict
+
+    import solver.kernels as kernels
+
+    options = dict(pitch=2e-3, thickness=2e-3, poisson_ratio=0.5, sensor_size=0.0)
+    other = {**options, **change}
+
+    def grid(o):
+        return SensorGrid.regular(5, 5, o["pitch"], o["thickness"], poisson_ratio=o["poisson_ratio"],
+                                  sensor_size=o["sensor_size"])
+    monkeypatch.setattr(kernels, "_TABLES", OrderedDict())
+    fresh = stress_matrix(grid(other), "layer", subdivision=2, profile="bilinear")
+    monkeypatch.setattr(kernels, "_TABLES", OrderedDict())
+    stress_matrix(SensorGrid.regular(8, 8, options["pitch"], options["thickness"]), "layer", subdivision=2,
+                  profile="bilinear")
+    after = stress_matrix(grid(other), "layer", subdivision=2, profile="bilinear")
+    np.testing.assert_allclose(after, fresh, rtol=0, atol=1e-14 * np.abs(fresh).max())
 
 
 def test_unknown_profile_is_rejected():
