@@ -219,9 +219,15 @@ def taxel_points(grid: SensorGrid):
     if grid.sensor_size == 0:
         return np.zeros((1, 2)), np.ones(1)
     # the kernels vary on the scale of h: about three points per thickness
-    count = int(min(12, max(2, math.ceil(3.0 * grid.sensor_size / grid.thickness))))
+    return _square_points(grid.sensor_size, int(min(12, max(2, math.ceil(3.0 * grid.sensor_size
+                                                                          / grid.thickness)))))
+
+
+def _square_points(size, count):
+    # count x count Gauss-Legendre points on a size x size square about its centre, and their
+    # weights (summing to 1)
     nodes, weights = np.polynomial.legendre.leggauss(count)
-    u, v = np.meshgrid(0.5 * grid.sensor_size * nodes, 0.5 * grid.sensor_size * nodes)
+    u, v = np.meshgrid(0.5 * size * nodes, 0.5 * size * nodes)
     return np.column_stack([u.ravel(), v.ravel()]), np.outer(weights, weights).ravel() / 4.0
 
 
@@ -277,9 +283,9 @@ _TABLES_KEPT = 8  # one round of the trade-off tool's configurations uses 5
 _TABLES_LOCK = threading.Lock()
 
 
-def _offset_tables(grid, kernel, subdivision, profile, q):
-    # (kx, ky, kz) of sub-cell q's source on the offsets (2ny-1, 2nx-1) of a regular grid,
-    # sensor minus node
+def _offset_tables(grid, kernel, subdivision, profile):
+    # per sub-cell q, (kx, ky, kz) of its source on the offsets (2ny-1, 2nx-1) of a regular
+    # grid, sensor minus node
     ny, nx = grid.shape
     hats = subdivision > 1 and profile == "bilinear"
     key = (kernel, grid.pitch, grid.thickness, grid.poisson_ratio, grid.sensor_size, subdivision, hats)
@@ -299,7 +305,7 @@ def _offset_tables(grid, kernel, subdivision, profile, q):
                 _TABLES.popitem(last=False)
     big_y, big_x, tables = kept
     rows, columns = slice(big_y - ny, big_y + ny - 1), slice(big_x - nx, big_x + nx - 1)
-    return [table[rows, columns] for table in tables[q]]
+    return [[table[rows, columns] for table in parts] for parts in tables]
 
 
 def _compute_tables(grid, kernel, subdivision, hats, ny, nx):
@@ -314,12 +320,9 @@ def _compute_tables(grid, kernel, subdivision, hats, ny, nx):
         # sub-cell kernel averaged over those shifts: Gauss-Legendre points, more when h is
         # small against w (within 0.1% of a fine integration of the hat down to h = w / 2,
         # the thinnest layer the contact fit gives sub-cells; at most 8 per axis).
-        count = int(min(8, max(3, math.ceil(4.0 * width / h))))
-        nodes, shift_weights = np.polynomial.legendre.leggauss(count)
-        u, v = np.meshgrid(0.5 * width * nodes, 0.5 * width * nodes)
-        shifts = np.column_stack([u.ravel(), v.ravel()])
+        shifts, shift_weights = _square_points(width, int(min(8, max(3, math.ceil(4.0 * width / h)))))
         smeared = ((taxel[0][:, None, :] + shifts[None, :, :]).reshape(-1, 2),
-                   np.outer(taxel[1], np.outer(shift_weights, shift_weights).ravel() / 4.0).ravel())
+                   np.outer(taxel[1], shift_weights).ravel())
     oy, ox = np.meshgrid(np.arange(-(ny - 1), ny) * pitch, np.arange(-(nx - 1), nx) * pitch, indexing="ij")
     # Every kernel is odd in the offset along its force and even across it, and the sub-cells
     # lie mirrored about the node: those right of (above) the node read the tables of their
@@ -395,8 +398,8 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
     if grid.is_regular:
         # Translation invariance: the kernel on the (2ny-1, 2nx-1) offsets, once per sub-cell.
         ny, nx = grid.shape
-        for q in range(cells):
-            for i, values in enumerate(_offset_tables(grid, kernel, subdivision, profile, q)):
+        for q, parts in enumerate(_offset_tables(grid, kernel, subdivision, profile)):
+            for i, values in enumerate(parts):
                 start = (i * cells + q) * m
                 _spread_offsets(values, matrix[:, start:start + m])
     else:
