@@ -50,7 +50,7 @@ lint: $(STAMP)
 	$(PY) -m ruff check solver measurement tactile_viewer tests tools benchmarks
 
 bench: system-deps $(STAMP)
-	$(PY) -m benchmarks.solver_speed
+	$(PY) -m solver.bench
 	$(XRUN) $(PY) -m benchmarks.viewer_speed
 
 clean:

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from measurement.tradeoff import machine
+from solver.bench import machine
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_data"
 

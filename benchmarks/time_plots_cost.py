@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.viewer_speed import _open_window, _wait
-from measurement.tradeoff import machine
+from solver.bench import machine
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "hertz_shear_turning.npz"
 

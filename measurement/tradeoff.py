@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import csv
 import math
-import os
-import platform
 import time
 import tracemalloc
 from dataclasses import asdict, dataclass, field
@@ -30,19 +28,9 @@ from solver.quality import CONFIGURATIONS, Configuration
 from .cases import default_cases
 from .tables import DIRECTION, NORMAL, TANGENTIAL, Column, format_table, value
 
-__all__ = ["machine", "Measurement", "measure", "measure_all", "error_of", "pareto", "BALANCED_SLACK",
+__all__ = ["Measurement", "measure", "measure_all", "error_of", "pareto", "BALANCED_SLACK",
            "presets", "preset_front", "format_measurements", "write_csv", "large_skin", "format_large"]
 
-
-def machine() -> str:
-    """One line naming the machine a measurement ran on: CPU, cores, numpy, Python."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, numpy {np.__version__}, python {platform.python_version()}"
 
 
 @dataclass(frozen=True)
@@ -202,6 +190,8 @@ def write_csv(measurements, path) -> Path:
                 "configuration",
                 "kernel",
                 "path",
+                "subdivision",
+                "profile",
                 "iterations",
                 "tolerance",
                 "max_condition",
@@ -223,6 +213,8 @@ def write_csv(measurements, path) -> Path:
                     m.name,
                     c["kernel"],
                     c["path"],
+                    c["subdivision"],
+                    c["profile"],
                     c["iterations"],
                     c["tolerance"],
                     c["max_condition"],

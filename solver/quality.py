@@ -1,7 +1,7 @@
 """Quality settings: how to build a solver.
 
-A :class:`Configuration` is one way to reconstruct (kernel, path, sub-cells,
-search resolution, regularization, region of interest) and builds its solver
+A :class:`Configuration` is one way to reconstruct (kernel, path, sub-cells and
+their profile, search resolution, regularization, region of interest) and builds its solver
 for a grid. :data:`CONFIGURATIONS` are the settings the speed/accuracy
 measurement (:mod:`measurement.tradeoff`) compares and the viewer's quality
 presets are picked from; :func:`solver.make_solver` ``(grid, quality=...)``
@@ -22,7 +22,7 @@ __all__ = ["Configuration", "CONFIGURATIONS", "PATHS"]
 PATHS = ("fit", "exact", "normal", "region")
 
 # Reconstructor arguments a configuration sets itself: build() takes any other (max_shear_ratio ...)
-_SET = ("kernel", "max_condition", "subdivision", "efficiency")
+_SET = ("kernel", "max_condition", "subdivision", "profile", "efficiency")
 
 
 @dataclass(frozen=True)
@@ -44,6 +44,9 @@ class Configuration:
     subdivision : int
         Sub-cells per side of each node's cell in the contact fit (1: the
         whole cell, the previous profile).
+    profile : {"bilinear", "uniform"}
+        The load over each sub-cell in the contact fit (a bilinear hat, or
+        uniform; :class:`~solver.Reconstructor`).
     iterations : int
         Gauss-Newton iterations of the automatic search (its resolution).
     tolerance : float
@@ -56,6 +59,7 @@ class Configuration:
     kernel: str = "layer"
     path: str = "fit"
     subdivision: int = 2
+    profile: str = "bilinear"
     iterations: int = 12
     tolerance: float = 1e-3
     max_condition: float = 100.0
@@ -71,7 +75,7 @@ class Configuration:
         ``options`` are further :class:`~solver.Reconstructor` arguments
         (``max_shear_ratio`` ...), checked as the solver checks them; those the
         configuration sets itself (kernel, max_condition, subdivision,
-        efficiency) are refused: change the configuration instead.
+        profile, efficiency) are refused: change the configuration instead.
         """
         clash = sorted(set(options) & set(_SET))
         if clash:
@@ -79,7 +83,7 @@ class Configuration:
                              f"got {', '.join(clash)}")
         efficiency = ContactFit(max_iterations=self.iterations, tolerance=self.tolerance)
         options = dict(options, kernel=self.kernel, max_condition=self.max_condition,
-                       subdivision=self.subdivision, efficiency=efficiency)
+                       subdivision=self.subdivision, profile=self.profile, efficiency=efficiency)
         if self.path == "region":
             return RegionSolver(grid, **options)
         return _Configured(Reconstructor(grid, **options), self.path)

@@ -16,8 +16,8 @@ import numpy as np
 
 from measurement import tradeoff as measured
 from measurement.cases import default_cases
-from measurement.tradeoff import machine
 from solver import SensorGrid
+from solver.bench import machine
 from solver.kernels import KERNELS
 from solver.quality import CONFIGURATIONS, Configuration
 

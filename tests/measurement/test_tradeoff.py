@@ -54,6 +54,8 @@ def test_table_and_csv(tmp_path, cases):
     path = t.write_csv(ms, tmp_path / "out.csv")
     rows = list(csv.DictReader(path.open()))
     assert [r["configuration"] for r in rows] == [m.name for m in ms]
+    assert [(r["subdivision"], r["profile"]) for r in rows] == [
+        (str(m.configuration.subdivision), m.configuration.profile) for m in ms]
     assert float(rows[1]["frame_ms"]) == pytest.approx(ms[1].frame_ms, rel=1e-3)
     assert {r["preset"] for r in rows} >= {"fast"}
 
@@ -74,8 +76,3 @@ def test_a_large_skin_is_solved_through_windows():
     assert row["m"] == 48 * 48 and row["windows_factored"] >= 1
     assert row["normal_total"] < 0.02 and row["region_frame_ms"] > 0
     assert "48x48" in t.format_large([row])
-
-
-def test_the_machine_is_one_line():
-    line = t.machine()
-    assert "\n" not in line and "cores, numpy" in line

@@ -8,6 +8,7 @@ import pytest
 import solver
 from measurement.cases import default_cases
 from solver import Reconstructor, RegionSolver, SensorGrid, make_solver
+from solver.kernels import stress_matrix
 from solver.quality import CONFIGURATIONS, PATHS, Configuration
 
 GRID = SensorGrid.regular(8, 8, 2e-3, 2e-3)
@@ -51,6 +52,19 @@ def test_make_solver_builds_what_the_setting_builds(configuration, kernel, cases
     np.testing.assert_allclose(made.solve(stress).forces, direct.solve(stress).forces, rtol=1e-9, atol=1e-15)
 
 
+@pytest.mark.parametrize("path", ["fit", "region"])
+def test_the_setting_s_profile_reaches_the_contact_fit(path):
+    # the fit's columns are those of the profile the configuration names, on either path
+    for profile in ("bilinear", "uniform"):
+        made = Configuration("p", path=path, profile=profile).build(GRID)
+        reconstructor = made.reconstructor if path == "fit" else made.reconstructor(6, 6)
+        assert reconstructor.profile == profile
+        expected = stress_matrix(reconstructor.grid, "layer", subdivision=2, profile=profile).T
+        np.testing.assert_array_equal(reconstructor._fit_columns, expected)
+    with pytest.raises(ValueError, match=r"profile must be one of \('uniform', 'bilinear'\), got 'cubic'"):
+        Configuration("p", profile="cubic").build(GRID)
+
+
 def test_without_quality_the_standard_solver_is_made():
     assert isinstance(make_solver(GRID, quality=None, kernel="cell"), Reconstructor)
 
@@ -73,8 +87,9 @@ def test_further_options_reach_the_setting_s_solver():
         make_solver(GRID, quality=Configuration("fit"), max_shear_ratio=-1)
 
 
-@pytest.mark.parametrize("option", ["max_condition", "subdivision", "efficiency"])
+@pytest.mark.parametrize("option", ["max_condition", "subdivision", "profile", "efficiency"])
 def test_what_the_setting_sets_is_not_overridden(option):
     with pytest.raises(ValueError, match=rf"options must not set what the configuration sets "
-                                         rf"\(kernel, max_condition, subdivision, efficiency\), got {option}"):
+                                         rf"\(kernel, max_condition, subdivision, profile, efficiency\), "
+                                         rf"got {option}"):
         make_solver(GRID, quality=Configuration("fit"), **{option: 1})

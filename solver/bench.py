@@ -1,7 +1,8 @@
-"""Solver benchmarks: ``python -m benchmarks.solver_speed`` (``make bench``).
+"""Solver benchmarks: ``python -m solver.bench`` (``make bench``).
 
-Prints the median per-frame ``solve`` time on a 16x16 skin (automatic
-parameters, given parameters, normal only) and the set-up time of
+Prints the median per-frame ``solve`` time, wall and CPU, on a 16x16 skin
+(automatic parameters, given parameters, a slider move, normal only) beside
+the dense-product floor measured in the same run, and the set-up time of
 :class:`solver.Reconstructor` for larger grids against ``numpy.linalg.pinv``
 of the same ``(m, 3m)`` matrix, as a ratio from the same run.
 """
@@ -9,15 +10,29 @@ of the same ``(m, 3m)`` matrix, as a ratio from the same run.
 from __future__ import annotations
 
 import argparse
+import os
+import platform
 import time
 
 import numpy as np
 
-from measurement.tradeoff import machine
-from solver import layer, loads
-from solver.geometry import SensorGrid
-from solver.inverse import Reconstructor
-from solver.kernels import KERNELS, stress_matrix
+from . import layer, loads
+from .geometry import SensorGrid
+from .inverse import Reconstructor
+from .kernels import KERNELS, stress_matrix
+
+__all__ = ["machine", "per_frame", "layer_tables", "setup", "main"]
+
+
+def machine() -> str:
+    """One line naming the machine a measurement ran on: CPU, cores, numpy, Python."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, numpy {np.__version__}, python {platform.python_version()}"
 
 
 def _median_ms(fn, repeat):
@@ -72,8 +87,9 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
             ("given", lambda b: r.solve(b, shear_ratio=0.3, shear_direction=0.5), None, stress),
             ("slider", slider, slider, stress),
             ("normal", lambda b: r.solve_normal(b), None, stress),
-            # the floor: two dense (3m, m) matrix-vector products, as in one exact solve
-            ("floor", lambda b: matrix @ (matrix.T @ (matrix @ b)), None, stress)):
+            # the floor: two dense (3m, m) matrix-vector products, as in one exact solve (C y and
+            # C^T w)
+            ("floor", lambda b: matrix.T @ (matrix @ b), None, stress)):
         times = np.full((repeat, frames), np.inf)
         cpu = np.full((repeat, frames), np.inf)
         for run in range(repeat):
@@ -114,14 +130,21 @@ def setup(n, *, pinv=True, repeat=1, kernel="layer"):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", type=int, nargs="*", default=[32, 64])
+    parser.add_argument("--sizes", type=int, nargs="*", default=[32, 64],
+                        help="skins (n x n) whose set-up is timed (default 32 64; none: skip)")
     parser.add_argument("--no-pinv", action="store_true", help="skip numpy.linalg.pinv (90 s at 64x64)")
+    parser.add_argument("--skin", type=int, default=16,
+                        help="n of the n x n skin solved per frame (default 16)")
+    parser.add_argument("--frames", type=int, default=40, help="noisy frames per median (default 40)")
     args = parser.parse_args(argv)
+    if args.skin < 4 or args.frames < 1:
+        parser.error(f"--skin must be at least 4 and --frames at least 1, got {args.skin} and {args.frames}")
     print(f"machine: {machine()}")
     print(f"layer tables (once per Poisson ratio): {layer_tables():.3f} s")
     for kernel in KERNELS:
-        t = per_frame(kernel=kernel)
-        print(f"16x16 {kernel:5} solve median wall (CPU) ms: auto {t['auto']:.3f} ({t['auto_cpu']:.3f}), "
+        t = per_frame(n=args.skin, frames=args.frames, kernel=kernel)
+        print(f"{args.skin}x{args.skin} {kernel:5} solve median wall (CPU) ms: "
+              f"auto {t['auto']:.3f} ({t['auto_cpu']:.3f}), "
               f"auto cold {t['cold']:.3f} ({t['cold_cpu']:.3f}), "
               f"auto in playback {t['playback']:.3f} ({t['playback_cpu']:.3f}), "
               f"given parameters {t['given']:.3f} ({t['given_cpu']:.3f}), slider move {t['slider']:.3f} "
