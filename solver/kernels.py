@@ -278,8 +278,11 @@ def _evaluator(grid, kernel, width):
 # Offset tables of recent geometries, the largest grid computed so far for each: a region
 # solver's windows are sub-grids of one skin, so a window's tables are the centre of a larger
 # window's (a hat costs its kernel at 9 to 64 shifts).
+# At most _TABLES_KEPT geometries and _TABLES_BYTES of tables; the latest is always kept (a 256x256
+# skin's tables at subdivision 4 are about 100 MB).
 _TABLES: OrderedDict = OrderedDict()
 _TABLES_KEPT = 8  # one round of the trade-off tool's configurations uses 5
+_TABLES_BYTES = 256 * 2**20
 _TABLES_LOCK = threading.Lock()
 
 
@@ -301,7 +304,10 @@ def _offset_tables(grid, kernel, subdivision, profile):
             stored = _TABLES.get(key)
             if stored is None or stored[0] < kept[0] or stored[1] < kept[1]:
                 _TABLES[key] = kept
-            if len(_TABLES) > _TABLES_KEPT:
+            _TABLES.move_to_end(key)
+            while len(_TABLES) > 1 and (len(_TABLES) > _TABLES_KEPT or sum(
+                    table.nbytes for _, _, tables in _TABLES.values() for parts in tables for table in parts)
+                    > _TABLES_BYTES):
                 _TABLES.popitem(last=False)
     big_y, big_x, tables = kept
     rows, columns = slice(big_y - ny, big_y + ny - 1), slice(big_x - nx, big_x + nx - 1)

@@ -214,6 +214,32 @@ def test_grids_that_differ_in_anything_the_kernel_reads_do_not_share_tables(chan
     np.testing.assert_allclose(after, fresh, rtol=0, atol=1e-14 * np.abs(fresh).max())
 
 
+def test_the_offset_tables_kept_stay_within_their_count_and_bytes(monkeypatch):
+    from collections import OrderedDict
+
+    import solver.kernels as kernels
+
+    monkeypatch.setattr(kernels, "_TABLES", OrderedDict())
+    grids = [SensorGrid.regular(6, 6, 2e-3, t) for t in (1.5e-3, 2e-3, 2.5e-3)]
+    for grid in grids:
+        stress_matrix(grid, "cell", subdivision=2)
+    assert len(kernels._TABLES) == 3
+    # a table of a 6x6 grid at subdivision 2: 4 sub-cells x 3 components x 11 x 11 offsets
+    one = 4 * 3 * 11 * 11 * 8
+    monkeypatch.setattr(kernels, "_TABLES_BYTES", 2 * one)
+    stress_matrix(grids[0], "cell", subdivision=2)  # kept: the most recent now, no eviction yet
+    stress_matrix(SensorGrid.regular(6, 6, 2e-3, 3e-3), "cell", subdivision=2)
+    # the least recently used two went: what is kept fits the budget, the latest first
+    assert [key[2] for key in kernels._TABLES] == [1.5e-3, 3e-3]
+    monkeypatch.setattr(kernels, "_TABLES_KEPT", 1)
+    stress_matrix(grids[1], "cell", subdivision=2)
+    assert [key[2] for key in kernels._TABLES] == [2e-3]
+    # the latest is kept even when it alone is over the budget
+    monkeypatch.setattr(kernels, "_TABLES_BYTES", 1)
+    stress_matrix(grids[2], "cell", subdivision=2)
+    assert [key[2] for key in kernels._TABLES] == [2.5e-3]
+
+
 def test_unknown_profile_is_rejected():
     with pytest.raises(ValueError, match="profile must be one of .* got 'spline'"):
         stress_matrix(SensorGrid.regular(2, 2, 1e-3, 1e-3), "cell", subdivision=2, profile="spline")
