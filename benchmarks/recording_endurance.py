@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import signal
 import statistics
 import subprocess
@@ -27,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from solver.bench import machine
 from tactile_viewer.recording import load
 
 OPEN_AND_SEEK = """
@@ -133,8 +133,7 @@ def main(argv=None) -> int:
     parser.add_argument("--rate", type=float, default=1000)
     args = parser.parse_args(argv)
     out = sys.stdout
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}", file=out)
+    print(f"machine: {machine()}", file=out)
     with tempfile.TemporaryDirectory() as folder:
         folder = Path(folder)
         if args.seconds > 0:

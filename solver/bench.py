@@ -1,8 +1,9 @@
 """Solver benchmarks: ``python -m solver.bench`` (``make bench``).
 
-Prints the median per-frame ``solve`` time, wall and CPU, on a 16x16 skin
-(automatic parameters, given parameters, a slider move, normal only) beside
-the dense-product floor measured in the same run, and the set-up time of
+Prints, for every kernel, the median per-frame ``solve`` time, wall and CPU,
+on an n x n skin (default 16; automatic parameters cold, after another frame
+and in playback, given parameters, a slider move, normal only) beside the
+dense-product floor measured in the same run, and the set-up time of
 :class:`solver.Reconstructor` for larger grids against ``numpy.linalg.pinv``
 of the same ``(m, 3m)`` matrix, as a ratio from the same run.
 """
@@ -45,7 +46,7 @@ def _median_ms(fn, repeat):
 
 
 def per_frame(n=16, frames=40, kernel="layer", repeat=5):
-    """Median over frames of the solve time (ms) on simulated Hertzian frames with 1% noise.
+    """Median over frames of the solve time on simulated Hertzian frames with 1% noise.
 
     Each frame is solved ``repeat`` times, in rounds over all the frames so
     that no solve follows one of the same frame (the solver keeps the last
@@ -58,6 +59,24 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
     before it, as in playback and live mode. ``cold`` is the automatic solve by
     a solver that has solved nothing before (the first frame after opening a
     recording): no last frame to start from.
+
+    Parameters
+    ----------
+    n : int, optional
+        The skin is ``n x n``, pitch and thickness 2 mm. Default 16.
+    frames : int, optional
+        Noisy frames per median. Default 40.
+    kernel : {"layer", "cell", "point"}, optional
+        Default "layer".
+    repeat : int, optional
+        Runs per frame, the fastest kept. Default 5.
+
+    Returns
+    -------
+    dict of str to float
+        Milliseconds, wall (``auto``, ``cold``, ``playback``, ``given``,
+        ``slider``, ``normal`` and ``floor``, two dense ``(3m, m)``
+        matrix-vector products) and CPU (the same keys ending ``_cpu``).
     """
     grid = SensorGrid.regular(n, n, 2e-3, 2e-3)
     rng = np.random.default_rng(0)  # fixed seed: the same frames every run
@@ -106,7 +125,18 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
 
 
 def layer_tables(poisson_ratio=0.45):
-    """Seconds to compute the layer kernel's Hankel tables of one Poisson ratio (uncached)."""
+    """Seconds to compute the layer kernel's Hankel tables of one Poisson ratio (uncached).
+
+    Parameters
+    ----------
+    poisson_ratio : float, optional
+        Default 0.45.
+
+    Returns
+    -------
+    float
+        Seconds, wall.
+    """
     start = time.perf_counter()
     layer.LayerTable.compute(poisson_ratio)
     return time.perf_counter() - start
@@ -116,7 +146,26 @@ def setup(n, *, pinv=True, repeat=1, kernel="layer"):
     """Set-up seconds for an n x n grid: our factorization and, optionally, numpy pinv.
 
     The layer kernel's Hankel tables are cached per Poisson ratio: the first
-    set-up of a process pays for them too (:func:`layer_tables`)."""
+    set-up of a process pays for them too (:func:`layer_tables`).
+
+    Parameters
+    ----------
+    n : int
+        The skin is ``n x n``, pitch and thickness 2 mm.
+    pinv : bool, optional
+        Also time ``numpy.linalg.pinv`` of the stress matrix. Default True.
+    repeat : int, optional
+        Set-ups timed, the median kept. Default 1.
+    kernel : {"layer", "cell", "point"}, optional
+        Default "layer".
+
+    Returns
+    -------
+    ours : float
+        Seconds to build :class:`~solver.Reconstructor`.
+    reference : float or None
+        Seconds of ``numpy.linalg.pinv``, None without ``pinv``.
+    """
     grid = SensorGrid.regular(n, n, 2e-3, 2e-3)
     ours = _median_ms(lambda: Reconstructor(grid, kernel=kernel), repeat) / 1e3
     reference = None
@@ -129,7 +178,16 @@ def setup(n, *, pinv=True, repeat=1, kernel="layer"):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    """The command ``python -m solver.bench``: prints the timings (module notes).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments; default ``sys.argv[1:]``.
+    """
+    parser = argparse.ArgumentParser(
+        prog="python -m solver.bench",
+        description="Solver timings: per-frame solves against the dense-product floor, and set-up.")
     parser.add_argument("--sizes", type=int, nargs="*", default=[32, 64],
                         help="skins (n x n) whose set-up is timed (default 32 64; none: skip)")
     parser.add_argument("--no-pinv", action="store_true", help="skip numpy.linalg.pinv (90 s at 64x64)")
@@ -139,6 +197,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.skin < 4 or args.frames < 1:
         parser.error(f"--skin must be at least 4 and --frames at least 1, got {args.skin} and {args.frames}")
+    if any(n < 1 for n in args.sizes):
+        parser.error(f"--sizes must be at least 1 each, got {' '.join(map(str, args.sizes))}")
     print(f"machine: {machine()}")
     print(f"layer tables (once per Poisson ratio): {layer_tables():.3f} s")
     for kernel in KERNELS:

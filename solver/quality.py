@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from .efficiency import ContactFit
 from .geometry import SensorGrid
 from .inverse import Reconstructor
+from .kernels import PROFILES
 from .region import RegionSolver
 
 __all__ = ["Configuration", "CONFIGURATIONS", "PATHS"]
@@ -46,7 +47,9 @@ class Configuration:
         whole cell, the previous profile).
     profile : {"bilinear", "uniform"}
         The load over each sub-cell in the contact fit (a bilinear hat, or
-        uniform; :class:`~solver.Reconstructor`).
+        uniform; :class:`~solver.Reconstructor`). Without sub-cells (the
+        point kernel, ``subdivision`` 1, a layer thinner than half a
+        sub-cell) there is nothing to shape; the setting is kept as given.
     iterations : int
         Gauss-Newton iterations of the automatic search (its resolution).
     tolerance : float
@@ -67,6 +70,8 @@ class Configuration:
     def __post_init__(self):
         if self.path not in PATHS:
             raise ValueError(f"path must be one of {PATHS}, got {self.path!r}")
+        if self.profile not in PROFILES:
+            raise ValueError(f"profile must be one of {PROFILES}, got {self.profile!r}")
 
     def build(self, grid: SensorGrid, **options):
         """A solver for ``grid``: an object with ``solve(stress, shear_ratio=, shear_direction=)``,

@@ -37,6 +37,7 @@ def test_the_command_prints_each_kernel_against_the_floor(capsys):
 @pytest.mark.parametrize("arguments, message", [
     (["--skin", "3"], r"--skin must be at least 4 and --frames at least 1, got 3 and 40"),
     (["--frames", "0"], r"--skin must be at least 4 and --frames at least 1, got 16 and 0"),
+    (["--sizes", "32", "0"], r"--sizes must be at least 1 each, got 32 0"),
 ])
 def test_the_command_refuses_a_skin_or_frame_count_it_cannot_time(arguments, message, capsys):
     with pytest.raises(SystemExit):

@@ -62,7 +62,7 @@ def test_the_setting_s_profile_reaches_the_contact_fit(path):
         expected = stress_matrix(reconstructor.grid, "layer", subdivision=2, profile=profile).T
         np.testing.assert_array_equal(reconstructor._fit_columns, expected)
     with pytest.raises(ValueError, match=r"profile must be one of \('uniform', 'bilinear'\), got 'cubic'"):
-        Configuration("p", profile="cubic").build(GRID)
+        Configuration("p", profile="cubic")
 
 
 def test_without_quality_the_standard_solver_is_made():
