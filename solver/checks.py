@@ -10,7 +10,7 @@ import numbers
 
 import numpy as np
 
-__all__ = ["shown", "real", "real_number", "whole_number", "optional_flag"]
+__all__ = ["shown", "real", "real_number", "whole_number", "optional_flag", "one_of"]
 
 
 def shown(value) -> str:
@@ -57,3 +57,10 @@ def optional_flag(name: str, value) -> bool | None:
     if value is None or isinstance(value, (bool, np.bool_)):
         return None if value is None else bool(value)
     raise ValueError(f"{name} must be True, False or None, got {shown(value)}")
+
+
+def one_of(name: str, value, choices: tuple):
+    """``value`` when it is one of ``choices``."""
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {choices}, got {value!r}")
+    return value

@@ -29,7 +29,7 @@ from scipy import sparse
 from scipy.spatial import cKDTree
 
 from .arrays import read_only
-from .checks import optional_flag, real_number, whole_number
+from .checks import one_of, optional_flag, real_number, whole_number
 from .efficiency import ContactFit, Frame
 from .geometry import SensorGrid
 from .kernels import KERNELS, PROFILES, stress_matrix
@@ -550,8 +550,7 @@ def check_options(grid, *, kernel="layer", max_condition=100.0, max_shear_ratio=
     """
     if not isinstance(grid, SensorGrid):
         raise ValueError(f"grid must be a SensorGrid, got {type(grid).__name__}")
-    if kernel not in KERNELS:
-        raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+    one_of("kernel", kernel, KERNELS)
     real_number("max_condition", max_condition, rule="a finite number > 1",
                 valid=lambda v: math.isfinite(v) and v > 1)
     real_number("max_shear_ratio", max_shear_ratio, rule="finite and >= 0",
@@ -559,8 +558,7 @@ def check_options(grid, *, kernel="layer", max_condition=100.0, max_shear_ratio=
     real_number("region_threshold", region_threshold, rule="in (0, 1)", valid=lambda v: 0 < v < 1)
     whole_number("region_margin", region_margin, low=0, unit="of pitches ")
     whole_number("subdivision", subdivision, low=1, high=4)
-    if profile not in PROFILES:
-        raise ValueError(f"profile must be one of {PROFILES}, got {profile!r}")
+    one_of("profile", profile, PROFILES)
     real_number("reach", reach, rule="finite and >= 0 thicknesses",
                 valid=lambda v: math.isfinite(v) and v >= 0)
 

@@ -38,7 +38,7 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
 from . import layer
-from .checks import whole_number
+from .checks import one_of, whole_number
 from .geometry import SensorGrid, check_poisson_ratio
 
 __all__ = ["KERNELS", "point_force_stress", "cell_force_stress", "layer_force_stress", "taxel_points",
@@ -305,13 +305,16 @@ def _offset_tables(grid, kernel, subdivision, profile):
             if stored is None or stored[0] < kept[0] or stored[1] < kept[1]:
                 _TABLES[key] = kept
             _TABLES.move_to_end(key)
-            while len(_TABLES) > 1 and (len(_TABLES) > _TABLES_KEPT or sum(
-                    table.nbytes for _, _, tables in _TABLES.values() for parts in tables for table in parts)
-                    > _TABLES_BYTES):
-                _TABLES.popitem(last=False)
+            total = sum(map(_table_bytes, _TABLES.values()))
+            while len(_TABLES) > 1 and (len(_TABLES) > _TABLES_KEPT or total > _TABLES_BYTES):
+                total -= _table_bytes(_TABLES.popitem(last=False)[1])
     big_y, big_x, tables = kept
     rows, columns = slice(big_y - ny, big_y + ny - 1), slice(big_x - nx, big_x + nx - 1)
     return [[table[rows, columns] for table in parts] for parts in tables]
+
+
+def _table_bytes(entry):
+    return sum(table.nbytes for parts in entry[2] for table in parts)
 
 
 def _compute_tables(grid, kernel, subdivision, hats, ny, nx):
@@ -390,11 +393,9 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
         ``C[i, j]`` is the stress from a unit force component on node
         ``j mod m``.
     """
-    if kernel not in KERNELS:
-        raise ValueError(f"kernel must be one of {KERNELS}, got {kernel!r}")
+    one_of("kernel", kernel, KERNELS)
     subdivision = whole_number("subdivision", subdivision, low=1)
-    if profile not in PROFILES:
-        raise ValueError(f"profile must be one of {PROFILES}, got {profile!r}")
+    one_of("profile", profile, PROFILES)
     if subdivision > 1 and (kernel == "point" or not grid.is_regular):
         raise ValueError("subdivision > 1 needs a regular grid and a cell or layer kernel, got "
                          f"{'an irregular grid' if not grid.is_regular else 'the point kernel'}")

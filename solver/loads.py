@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 
 from . import layer
 from .arrays import read_only
-from .checks import whole_number
+from .checks import one_of, whole_number
 from .geometry import SensorGrid
 from .kernels import point_force_stress, taxel_points
 
@@ -103,8 +103,7 @@ class Contact:
     clip: float = 0.02
 
     def __post_init__(self):
-        if self.shape not in SHAPES:
-            raise ValueError(f"shape must be one of {SHAPES}, got {self.shape!r}")
+        one_of("shape", self.shape, SHAPES)
         center = tuple(float(c) for c in self.center)
         axes = tuple(float(a) for a in self.semi_axes)
         if len(center) != 2 or not all(math.isfinite(c) for c in center):
@@ -298,8 +297,7 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
         raise ValueError(f"contacts must be one or more Contact, got {contacts!r}")
     if not (math.isfinite(noise) and noise >= 0):
         raise ValueError(f"noise must be finite and >= 0, got {noise!r}")
-    if medium not in MEDIA:
-        raise ValueError(f"medium must be one of {MEDIA}, got {medium!r}")
+    one_of("medium", medium, MEDIA)
     pitch, h = grid.pitch, grid.thickness
     if subdivisions is None:
         smallest = min(min(c.semi_axes) for c in contacts)

@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import one_of
+
 __all__ = [
     "Errors", "compare", "normal_total_error", "tangential_total_error",
     "direction_error", "field_error",
@@ -75,8 +77,7 @@ def field_error(forces, truth, component: str = "all") -> float:
     """
     forces, truth = _pair(forces, truth)
     columns = {"all": slice(0, 3), "normal": slice(2, 3), "tangential": slice(0, 2)}
-    if component not in columns:
-        raise ValueError(f"component must be one of {tuple(columns)}, got {component!r}")
+    one_of("component", component, tuple(columns))
     reference = np.linalg.norm(truth)
     if reference == 0:
         return math.nan

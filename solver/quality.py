@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .checks import one_of
 from .efficiency import ContactFit
 from .geometry import SensorGrid
 from .inverse import Reconstructor
@@ -68,10 +69,8 @@ class Configuration:
     max_condition: float = 100.0
 
     def __post_init__(self):
-        if self.path not in PATHS:
-            raise ValueError(f"path must be one of {PATHS}, got {self.path!r}")
-        if self.profile not in PROFILES:
-            raise ValueError(f"profile must be one of {PROFILES}, got {self.profile!r}")
+        one_of("path", self.path, PATHS)
+        one_of("profile", self.profile, PROFILES)
 
     def build(self, grid: SensorGrid, **options):
         """A solver for ``grid``: an object with ``solve(stress, shear_ratio=, shear_direction=)``,
