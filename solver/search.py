@@ -122,7 +122,7 @@ def _axpy(a, x, y):
         y[r] += a * x[r]
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _append(factor, k, gram, diagonal):
     # Border the k x k lower factor with a column whose Gram entries with the set are ``gram``:
     # row k is L^-1 gram and the new diagonal what is left of the column's squared norm.
@@ -170,19 +170,34 @@ def _leave(factor, index, free, k, i):
     return k - 1
 
 
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _forward(factor, k, rhs, y, start):
+    # L y = rhs from row ``start`` on (the rows above are kept: a column entering the set
+    # borders the factor and leaves them as they were), by inner products along the rows
+    for i in range(start, k):
+        total = rhs[i]
+        for j in range(i):
+            total -= factor[i, j] * y[j]
+        y[i] = total / factor[i, i]
+
+
+@numba.njit(cache=True, nogil=True, fastmath={"contract"})
+def _backward(factor, k, y, z):
+    # L^T z = y, subtracting each z_i times row i of L (contiguous) from the entries before it
+    for i in range(k):
+        z[i] = y[i]
+    for i in range(k - 1, -1, -1):
+        z[i] /= factor[i, i]
+        zi = z[i]
+        for j in range(i):
+            z[j] -= factor[i, j] * zi
+
+
 @numba.njit(cache=True, nogil=True)
 def _solve(factor, k, rhs, z):
     # (L L^T) z = rhs by two triangular solves
-    for i in range(k):
-        total = rhs[i]
-        for j in range(i):
-            total -= factor[i, j] * z[j]
-        z[i] = total / factor[i, i]
-    for i in range(k - 1, -1, -1):
-        total = z[i]
-        for j in range(i + 1, k):
-            total -= factor[j, i] * z[j]
-        z[i] = total / factor[i, i]
+    _forward(factor, k, rhs, z, 0)
+    _backward(factor, k, z, z)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -204,6 +219,8 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
     gram = np.empty(size + 1)
     rhs = np.empty(size + 1)
     z = np.empty(size + 1)
+    forward = np.empty(size + 1)                  # L^-1 A_S^T b on its first ``valid`` entries
+    valid = 0
     correlation = np.empty(n)                     # A^T b
     norm2 = np.empty(n)
     barred = np.zeros(n, np.bool_)
@@ -250,12 +267,15 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
     while k > 0:
         for i in range(k):
             rhs[i] = correlation[index[i]]
-        _solve(factor, k, rhs, z)
+        _forward(factor, k, rhs, forward, valid)
+        _backward(factor, k, forward, z)
+        valid = k
         dropped = False
         for i in range(k - 1, -1, -1):
             if z[i] <= 0:
                 dropped = True
                 k = _leave(factor, index, free, k, i)
+                valid = min(valid, i)
         if not dropped:
             for i in range(k):
                 g[index[i]] = z[i]
@@ -298,11 +318,14 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
         while True:
             for i in range(k):
                 rhs[i] = correlation[index[i]]
-            _solve(factor, k, rhs, z)
+            _forward(factor, k, rhs, forward, valid)
+            _backward(factor, k, forward, z)
+            valid = k
             if entered and z[k - 1] <= 0:
                 # rounding: the entering column does not come out positive; it would only
                 # enter again and again, so it is barred (as scipy does)
                 k -= 1
+                valid = k
                 free[entering] = False
                 barred[entering] = True
                 break
@@ -330,6 +353,7 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
                 if g[index[i]] <= 0:
                     g[index[i]] = 0.0
                     k = _leave(factor, index, free, k, i)
+                    valid = min(valid, i)
             barred[:] = False  # a smaller set: what depended on it, or failed to enter, may now
 
 
