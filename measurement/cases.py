@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from solver import loads
+from solver.checks import one_of
 from solver.geometry import SensorGrid
 
 __all__ = ["Case", "SHAPES", "GOLDEN_ANGLE", "LAYER_SEED", "standard_contact", "standard_cases",
@@ -64,6 +65,7 @@ def standard_contact(shape: str, center, pitch: float, rng, *, scale: float = 1.
     """One contact of the standard set, 1 N: Hertz and cone 2.5 pitches in radius, flat punch 2,
     ellipse with semi-axes 3 and 1.8 pitches turned at random (drawn from ``rng``); every size
     times ``scale``."""
+    one_of("shape", shape, SHAPES)
     size = scale * pitch
     if shape == "hertz":
         return loads.hertz(center, 2.5 * size, 1.0, **shear)
@@ -71,9 +73,7 @@ def standard_contact(shape: str, center, pitch: float, rng, *, scale: float = 1.
         return loads.cone(center, 2.5 * size, 1.0, **shear)
     if shape == "flat_punch":
         return loads.flat_punch(center, 2.0 * size, 1.0, **shear)
-    if shape == "ellipse":
-        return loads.ellipse(center, (3.0 * size, 1.8 * size), 1.0, angle=rng.uniform(0, math.pi), **shear)
-    raise ValueError(f"shape must be one of {SHAPES}, got {shape!r}")
+    return loads.ellipse(center, (3.0 * size, 1.8 * size), 1.0, angle=rng.uniform(0, math.pi), **shear)
 
 
 def standard_cases(*, n: int = 16, pitch: float = 2e-3, thickness_ratios=(0.5, 1.0, 1.5),

@@ -24,6 +24,7 @@ import numpy as np
 
 from solver import Reconstruction, Reconstructor, SensorGrid, make_solver
 from solver.arrays import read_only
+from solver.checks import one_of
 from solver.kernels import KERNELS
 
 from .recording import Recording, Tare
@@ -128,15 +129,12 @@ class Display:
         The one place of this rule: the window's camera buttons and menu, the
         headless screenshot and the movie all follow it.
         """
-        if camera not in self.CAMERAS:
-            raise ValueError(f"camera must be one of {self.CAMERAS}, got {camera!r}")
+        one_of("camera", camera, self.CAMERAS)
         return replace(self, in_plane=camera == "top")
 
     def __post_init__(self):
-        if self.map not in MAPS:
-            raise ValueError(f"map must be one of {MAPS}, got {self.map!r}")
-        if self.colormap not in self.COLORMAPS:
-            raise ValueError(f"colormap must be one of {self.COLORMAPS}, got {self.colormap!r}")
+        one_of("map", self.map, MAPS)
+        one_of("colormap", self.colormap, self.COLORMAPS)
         for name in ("arrow_scale", "resultant_scale", "threshold", "range_max", "arrow_range_max"):
             value = getattr(self, name)
             # bool is a number to Python, but never a scale a caller meant

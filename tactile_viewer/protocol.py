@@ -61,6 +61,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from solver.arrays import read_only
+from solver.checks import one_of
 
 __all__ = ["SYNC", "MAX_VALUES", "FORMATS", "Frame", "Decoder", "TextDecoder", "BinaryDecoder",
            "crc16", "encode_binary", "encode_text", "make_decoder"]
@@ -384,8 +385,5 @@ class BinaryDecoder(Decoder):
 
 def make_decoder(fmt: str, count: int | None = None) -> Decoder:
     """A decoder for ``fmt`` in :data:`FORMATS`."""
-    if fmt == "text":
-        return TextDecoder(count)
-    if fmt == "binary":
-        return BinaryDecoder(count)
-    raise ValueError(f"fmt must be one of {FORMATS}, got {fmt!r}")
+    one_of("fmt", fmt, FORMATS)
+    return TextDecoder(count) if fmt == "text" else BinaryDecoder(count)

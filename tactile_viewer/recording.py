@@ -43,6 +43,7 @@ import numpy as np
 
 from solver import SensorGrid
 from solver.arrays import read_only
+from solver.checks import one_of
 
 __all__ = ["Recording", "RecordingError", "StressCalibration", "Tare", "load", "save", "grid_from_fields",
            "geometry_fields", "csv_geometry_header", "raw_to_pascals", "per_taxel", "json_ready",
@@ -214,8 +215,7 @@ class StressCalibration:
     tares: tuple = ()
 
     def __post_init__(self):
-        if self.units not in RAW_UNITS:
-            raise ValueError(f"units must be one of {RAW_UNITS}, got {self.units!r}")
+        one_of("units", self.units, RAW_UNITS)
         # one number shared by every taxel stays one number until a tare says how many there are
         m = max(np.size(self.gain), np.size(self.offset), *(np.size(tare.baseline) for tare in self.tares))
         object.__setattr__(self, "gain", per_taxel(self.gain, "gain", m))

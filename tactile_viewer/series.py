@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from solver.arrays import read_only
-from solver.checks import real_number, shown
+from solver.checks import one_of, real_number, shown
 from solver.inverse import check_parameters
 from solver.metrics import direction_error, normal_total_error, tangential_total_error
 
@@ -208,8 +208,7 @@ class Series:
         if self.errors is not None and (self.truth is None or not isinstance(self.errors, TruthErrors)
                                         or self.errors.normal.size != n):
             raise ValueError(f"errors must be TruthErrors of {n} frames, and only beside a truth")
-        if self.mode not in MODES:
-            raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
+        one_of("mode", self.mode, MODES)
         total = n if self.total == -1 else self.total
         if isinstance(total, bool) or not isinstance(total, (int, np.integer)) or total < n:
             raise ValueError(f"total must be a whole number >= the {n} frames held, got {shown(self.total)}")
@@ -357,8 +356,7 @@ class SeriesBuilder:
     def __init__(self, grid, *, kernel: str = "", mode: str = "auto", source: str = "", truth: bool = False,
                  shear_ratio: float = math.nan, shear_direction: float = math.nan, total: int | None = None,
                  span: float | None = None):
-        if mode not in MODES:
-            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        one_of("mode", mode, MODES)
         if span is not None:
             real_number("span", span, rule="finite seconds > 0 (or None)", valid=lambda v: math.isfinite(v)
                         and v > 0)
