@@ -284,6 +284,7 @@ _TABLES: OrderedDict = OrderedDict()
 _TABLES_KEPT = 8  # one round of the trade-off tool's configurations uses 5
 _TABLES_BYTES = 256 * 2**20
 _TABLES_LOCK = threading.Lock()
+_BUILDING: dict = {}  # a lock per geometry, held while its tables are computed
 
 
 def _offset_tables(grid, kernel, subdivision, profile):
@@ -292,25 +293,35 @@ def _offset_tables(grid, kernel, subdivision, profile):
     ny, nx = grid.shape
     hats = subdivision > 1 and profile == "bilinear"
     key = (kernel, grid.pitch, grid.thickness, grid.poisson_ratio, grid.sensor_size, subdivision, hats)
+    kept = _kept(key)
+    if kept is None or kept[0] < ny or kept[1] < nx:
+        # one thread computes a geometry's tables; another that needs them meanwhile waits for
+        # them instead of computing them too (seconds of CPU and the memory twice)
+        with _TABLES_LOCK:
+            building = _BUILDING.setdefault(key, threading.Lock())
+        with building:
+            kept = _kept(key)
+            if kept is None or kept[0] < ny or kept[1] < nx:
+                size = (ny, nx) if kept is None else (max(ny, kept[0]), max(nx, kept[1]))
+                kept = (*size, _compute_tables(grid, kernel, subdivision, hats, *size))
+                with _TABLES_LOCK:
+                    _TABLES[key] = kept
+                    _TABLES.move_to_end(key)
+                    total = sum(map(_table_bytes, _TABLES.values()))
+                    while len(_TABLES) > 1 and (len(_TABLES) > _TABLES_KEPT or total > _TABLES_BYTES):
+                        total -= _table_bytes(_TABLES.popitem(last=False)[1])
+    big_y, big_x, tables = kept
+    rows, columns = slice(big_y - ny, big_y + ny - 1), slice(big_x - nx, big_x + nx - 1)
+    return [[table[rows, columns] for table in parts] for parts in tables]
+
+
+def _kept(key):
+    # the kept tables of a geometry, now the most recently used; None if there are none
     with _TABLES_LOCK:
         kept = _TABLES.get(key)
         if kept is not None:
             _TABLES.move_to_end(key)
-    if kept is None or kept[0] < ny or kept[1] < nx:
-        size = (ny, nx) if kept is None else (max(ny, kept[0]), max(nx, kept[1]))
-        kept = (*size, _compute_tables(grid, kernel, subdivision, hats, *size))
-        with _TABLES_LOCK:
-            # another thread may have stored a larger table meanwhile: keep the larger
-            stored = _TABLES.get(key)
-            if stored is None or stored[0] < kept[0] or stored[1] < kept[1]:
-                _TABLES[key] = kept
-            _TABLES.move_to_end(key)
-            total = sum(map(_table_bytes, _TABLES.values()))
-            while len(_TABLES) > 1 and (len(_TABLES) > _TABLES_KEPT or total > _TABLES_BYTES):
-                total -= _table_bytes(_TABLES.popitem(last=False)[1])
-    big_y, big_x, tables = kept
-    rows, columns = slice(big_y - ny, big_y + ny - 1), slice(big_x - nx, big_x + nx - 1)
-    return [[table[rows, columns] for table in parts] for parts in tables]
+        return kept
 
 
 def _table_bytes(entry):

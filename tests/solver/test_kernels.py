@@ -240,6 +240,38 @@ def test_the_offset_tables_kept_stay_within_their_count_and_bytes(monkeypatch):
     assert [key[2] for key in kernels._TABLES] == [2.5e-3]
 
 
+def test_two_threads_needing_the_same_tables_compute_them_once(monkeypatch):
+    # a viewer's worker and the trade-off tool may build solvers of one geometry at once: the
+    # second waits for the first's tables instead of computing them too (twice the time and memory)
+    import threading
+    import time
+    from collections import OrderedDict
+
+    import solver.kernels as kernels
+
+    monkeypatch.setattr(kernels, "_TABLES", OrderedDict())
+    computed = []
+    original = kernels._compute_tables
+
+    def slow(*args):
+        computed.append(args)
+        time.sleep(0.3)  # long enough for the other thread to ask meanwhile
+        return original(*args)
+    monkeypatch.setattr(kernels, "_compute_tables", slow)
+    grid = SensorGrid.regular(6, 6, 2e-3, 2e-3)
+    matrices = [None, None]
+
+    def build(i):
+        matrices[i] = stress_matrix(grid, "cell", subdivision=2)
+    threads = [threading.Thread(target=build, args=(i,)) for i in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(computed) == 1
+    np.testing.assert_array_equal(matrices[0], matrices[1])
+
+
 def test_unknown_profile_is_rejected():
     with pytest.raises(ValueError, match="profile must be one of .* got 'spline'"):
         stress_matrix(SensorGrid.regular(2, 2, 1e-3, 1e-3), "cell", subdivision=2, profile="spline")
