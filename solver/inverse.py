@@ -539,28 +539,40 @@ class Reconstructor:
         return _relative(self.matrix @ x - b, b)
 
 
-def check_options(grid, *, kernel="layer", max_condition=100.0, max_shear_ratio=1.5, region_threshold=0.2,
-                  region_margin=1, subdivision=2, profile="bilinear", reach=2.0):
-    """Check every tuning argument of :class:`Reconstructor` before any matrix is built.
+def check_options(grid, **options):
+    """Check the tuning arguments of :class:`Reconstructor` given, before any matrix is built.
+
+    Only the arguments given are checked: the defaults are :class:`Reconstructor`'s own.
 
     Raises
     ------
     ValueError
         Naming the argument, the rule and what was received.
+    TypeError
+        For an argument :class:`Reconstructor` does not take.
     """
     if not isinstance(grid, SensorGrid):
         raise ValueError(f"grid must be a SensorGrid, got {type(grid).__name__}")
-    one_of("kernel", kernel, KERNELS)
-    real_number("max_condition", max_condition, rule="a finite number > 1",
-                valid=lambda v: math.isfinite(v) and v > 1)
-    real_number("max_shear_ratio", max_shear_ratio, rule="finite and >= 0",
-                valid=lambda v: math.isfinite(v) and v >= 0)
-    real_number("region_threshold", region_threshold, rule="in (0, 1)", valid=lambda v: 0 < v < 1)
-    whole_number("region_margin", region_margin, low=0, unit="of pitches ")
-    whole_number("subdivision", subdivision, low=1, high=4)
-    one_of("profile", profile, PROFILES)
-    real_number("reach", reach, rule="finite and >= 0 thicknesses",
-                valid=lambda v: math.isfinite(v) and v >= 0)
+    for name, value in options.items():
+        if name not in _OPTION_CHECKS:
+            raise TypeError(f"Reconstructor got an unexpected keyword argument {name!r}")
+        _OPTION_CHECKS[name](name, value)
+
+
+_OPTION_CHECKS = {
+    "kernel": lambda name, value: one_of(name, value, KERNELS),
+    "max_condition": lambda name, value: real_number(name, value, rule="a finite number > 1",
+                                                     valid=lambda v: math.isfinite(v) and v > 1),
+    "max_shear_ratio": lambda name, value: real_number(name, value, rule="finite and >= 0",
+                                                       valid=lambda v: math.isfinite(v) and v >= 0),
+    "region_threshold": lambda name, value: real_number(name, value, rule="in (0, 1)",
+                                                        valid=lambda v: 0 < v < 1),
+    "region_margin": lambda name, value: whole_number(name, value, low=0, unit="of pitches "),
+    "subdivision": lambda name, value: whole_number(name, value, low=1, high=4),
+    "profile": lambda name, value: one_of(name, value, PROFILES),
+    "reach": lambda name, value: real_number(name, value, rule="finite and >= 0 thicknesses",
+                                             valid=lambda v: math.isfinite(v) and v >= 0),
+}
 
 
 def check_parameters(shear_ratio, shear_direction, exact):
