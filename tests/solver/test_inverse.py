@@ -269,6 +269,18 @@ def test_options_are_checked_before_any_matrix_is_built(kwargs, message, monkeyp
         Reconstructor(grid, **kwargs)
 
 
+def test_options_check_only_what_is_given_and_refuse_what_reconstructor_does_not_take():
+    import solver.inverse
+
+    grid = SensorGrid.regular(3, 3, 1e-3, 1e-3)
+    solver.inverse.check_options(grid)  # the defaults are Reconstructor's own, valid
+    solver.inverse.check_options(grid, profile="uniform", reach=0)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'thickness'"):
+        solver.inverse.check_options(grid, thickness=1e-3)
+    with pytest.raises(ValueError, match="grid must be a SensorGrid, got dict"):
+        solver.inverse.check_options({}, kernel="layer")
+
+
 def test_the_fit_reads_the_chosen_profile_on_every_path():
     from solver import RegionSolver, make_solver
     from solver.kernels import stress_matrix
