@@ -284,7 +284,7 @@ _TABLES: OrderedDict = OrderedDict()
 _TABLES_KEPT = 8  # one round of the trade-off tool's configurations uses 5
 _TABLES_BYTES = 256 * 2**20
 _TABLES_LOCK = threading.Lock()
-_BUILDING: dict = {}  # a lock per geometry, held while its tables are computed
+_BUILDING: dict = {}  # a lock per geometry whose tables are being computed, held meanwhile
 
 
 def _offset_tables(grid, kernel, subdivision, profile):
@@ -310,6 +310,8 @@ def _offset_tables(grid, kernel, subdivision, profile):
                     total = sum(map(_table_bytes, _TABLES.values()))
                     while len(_TABLES) > 1 and (len(_TABLES) > _TABLES_KEPT or total > _TABLES_BYTES):
                         total -= _table_bytes(_TABLES.popitem(last=False)[1])
+                    # stored: a thread asking later finds the tables (a waiting one holds this lock)
+                    _BUILDING.pop(key, None)
     big_y, big_x, tables = kept
     rows, columns = slice(big_y - ny, big_y + ny - 1), slice(big_x - nx, big_x + nx - 1)
     return [[table[rows, columns] for table in parts] for parts in tables]

@@ -270,8 +270,13 @@ def test_options_are_checked_before_any_matrix_is_built(kwargs, message, monkeyp
 
 
 def test_options_check_only_what_is_given_and_refuse_what_reconstructor_does_not_take():
+    import inspect
+
     import solver.inverse
 
+    # every tuning argument of Reconstructor has its check (the efficiency object has its own)
+    assert set(solver.inverse._OPTION_CHECKS) == set(inspect.signature(Reconstructor).parameters) - {
+        "grid", "efficiency"}
     grid = SensorGrid.regular(3, 3, 1e-3, 1e-3)
     solver.inverse.check_options(grid)  # the defaults are Reconstructor's own, valid
     solver.inverse.check_options(grid, profile="uniform", reach=0)

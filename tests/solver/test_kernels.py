@@ -252,22 +252,33 @@ def test_two_threads_needing_the_same_tables_compute_them_once(monkeypatch):
     monkeypatch.setattr(kernels, "_TABLES", OrderedDict())
     computed = []
     original = kernels._compute_tables
+    asking = threading.Event()
 
     def slow(*args):
         computed.append(args)
-        time.sleep(0.3)  # long enough for the other thread to ask meanwhile
+        asking.wait(5)  # until the other thread has asked for the same tables
+        time.sleep(0.1)  # and reached the wait for them
         return original(*args)
     monkeypatch.setattr(kernels, "_compute_tables", slow)
     grid = SensorGrid.regular(6, 6, 2e-3, 2e-3)
-    matrices = [None, None]
+    matrices, errors = [None, None], []
 
     def build(i):
-        matrices[i] = stress_matrix(grid, "cell", subdivision=2)
+        try:
+            if i == 1:
+                deadline = time.monotonic() + 5
+                while not computed and time.monotonic() < deadline:  # the first thread is computing
+                    time.sleep(0.001)
+                asking.set()
+            matrices[i] = stress_matrix(grid, "cell", subdivision=2)
+        except Exception as error:  # an exception in a thread would not fail the test
+            errors.append(error)
     threads = [threading.Thread(target=build, args=(i,)) for i in range(2)]
     for thread in threads:
         thread.start()
     for thread in threads:
         thread.join()
+    assert errors == []
     assert len(computed) == 1
     np.testing.assert_array_equal(matrices[0], matrices[1])
 
