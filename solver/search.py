@@ -122,18 +122,13 @@ def _axpy(a, x, y):
         y[r] += a * x[r]
 
 
-@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+@numba.njit(cache=True, nogil=True)
 def _append(factor, k, gram, diagonal):
     # Border the k x k lower factor with a column whose Gram entries with the set are ``gram``:
     # row k is L^-1 gram and the new diagonal what is left of the column's squared norm.
-    for i in range(k):
-        total = gram[i]
-        for j in range(i):
-            total -= factor[i, j] * factor[k, j]
-        factor[k, i] = total / factor[i, i]
-    rest = diagonal
-    for j in range(k):
-        rest -= factor[k, j] * factor[k, j]
+    border = factor[k]
+    _forward(factor, k, gram, border, 0)
+    rest = diagonal - _dot(border[:k], border[:k])
     if rest <= _DEPENDENT * diagonal:
         return False
     factor[k, k] = np.sqrt(rest)
