@@ -572,6 +572,8 @@ _OPTION_CHECKS = {
     "profile": lambda name, value: one_of(name, value, PROFILES),
     "reach": lambda name, value: real_number(name, value, rule="finite and >= 0 thicknesses",
                                              valid=lambda v: math.isfinite(v) and v >= 0),
+    # any object with ``choose`` (solver.efficiency); what it is, is its own affair
+    "efficiency": lambda name, value: None,
 }
 
 

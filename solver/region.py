@@ -81,7 +81,7 @@ def make_solver(grid: SensorGrid, *, quality=None, **options):
             raise ValueError(f"quality must be a solver.quality.Configuration or None, got {shown(quality)}")
         others = {k: v for k, v in options.items() if k != "kernel"}
         return replace(quality, kernel=options.get("kernel", quality.kernel)).build(grid, **others)
-    check_options(grid, **{k: v for k, v in options.items() if k != "efficiency"})
+    check_options(grid, **options)
     if grid.size <= DENSE_LIMIT or not grid.is_regular:
         return Reconstructor(grid, **options)
     return RegionSolver(grid, **options)
@@ -122,7 +122,7 @@ class RegionSolver:
                     valid=lambda v: math.isfinite(v) and v >= 0)
         step = whole_number("step", step, low=1)
         cache = whole_number("cache", cache, low=1)
-        check_options(grid, kernel=kernel, **{k: v for k, v in options.items() if k != "efficiency"})
+        check_options(grid, kernel=kernel, **options)
         self.grid = grid
         self.kernel = kernel
         self.threshold = float(threshold)

@@ -274,9 +274,8 @@ def test_options_check_only_what_is_given_and_refuse_what_reconstructor_does_not
 
     import solver.inverse
 
-    # every tuning argument of Reconstructor has its check (the efficiency object has its own)
-    assert set(solver.inverse._OPTION_CHECKS) == set(inspect.signature(Reconstructor).parameters) - {
-        "grid", "efficiency"}
+    # every tuning argument of Reconstructor has its check
+    assert set(solver.inverse._OPTION_CHECKS) == set(inspect.signature(Reconstructor).parameters) - {"grid"}
     grid = SensorGrid.regular(3, 3, 1e-3, 1e-3)
     solver.inverse.check_options(grid)  # the defaults are Reconstructor's own, valid
     solver.inverse.check_options(grid, profile="uniform", reach=0)
