@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from solver import Reconstructor, RegionSolver, loads, make_solver, metrics
+from solver.bench import fastest_in_rounds
 from solver.geometry import SensorGrid
 from solver.quality import CONFIGURATIONS, Configuration
 
@@ -51,26 +52,17 @@ class Measurement:
 def measure(
     configuration: Configuration, grid: SensorGrid, cases, *, repeat: int = 3, memory: bool = True
 ) -> Measurement:
-    """Set-up time, median per-frame time (fastest of ``repeat`` runs per frame: the machine is
-    shared), peak memory of set-up plus a few solves (traced separately: tracing slows numpy),
-    and median errors. The runs go in rounds over all the cases, so no solve follows one of the
-    same frame (a solver keeps the last frame's work for slider moves)."""
+    """Set-up time, median per-frame time (fastest of ``repeat`` runs per frame, in rounds over
+    all the cases: :func:`solver.bench.fastest_in_rounds`), peak memory of set-up plus a few
+    solves (traced separately: tracing slows numpy), and median errors."""
     setup = math.inf
     for _ in range(repeat):
         start = time.perf_counter()
         solver = make_solver(grid, quality=configuration)
         setup = min(setup, time.perf_counter() - start)
-    times = np.full((repeat, len(cases)), math.inf)
-    rows = []
-    for run in range(repeat):
-        for k, case in enumerate(cases):
-            start = time.perf_counter()
-            result = solver.solve(case.frame.stress)
-            times[run, k] = time.perf_counter() - start
-            if run == 0:
-                rows.append((case.shear_ratio, result.shear_ratio,
-                             metrics.compare(result.forces, case.frame.forces)))
-    times = times.min(axis=0)
+    times, _, results = fastest_in_rounds(solver.solve, [case.frame.stress for case in cases], repeat)
+    rows = [(case.shear_ratio, result.shear_ratio, metrics.compare(result.forces, case.frame.forces))
+            for case, result in zip(cases, results, strict=True)]
     del solver
     peak = math.nan
     if memory:

@@ -22,7 +22,7 @@ from .geometry import SensorGrid
 from .inverse import Reconstructor
 from .kernels import KERNELS, stress_matrix
 
-__all__ = ["machine", "per_frame", "layer_tables", "setup", "main"]
+__all__ = ["machine", "fastest_in_rounds", "per_frame", "layer_tables", "setup", "main"]
 
 
 def machine() -> str:
@@ -45,13 +45,52 @@ def _median_ms(fn, repeat):
     return 1e3 * float(np.median(times))
 
 
+def fastest_in_rounds(call, items, repeat, *, before=None):
+    """Each item's fastest of ``repeat`` timed calls, wall and CPU, taken in rounds over all items.
+
+    A round calls ``call(item)`` on every item in turn, so no call follows one
+    on the same item (a solver keeps the last frame's work for slider moves);
+    the fastest of the rounds is kept per item, since this machine is a shared
+    VM whose hiccups would otherwise dominate.
+
+    Parameters
+    ----------
+    call : callable
+        ``item -> result``, the work timed.
+    items : sequence
+    repeat : int
+        Rounds.
+    before : callable, optional
+        ``item -> None``, called before each timed call, not timed.
+
+    Returns
+    -------
+    wall, cpu : (len(items),) ndarray
+        Seconds.
+    results : list
+        What ``call`` returned for each item in the first round.
+    """
+    wall = np.full((repeat, len(items)), np.inf)
+    cpu = np.full((repeat, len(items)), np.inf)
+    results = []
+    for run in range(repeat):
+        for k, item in enumerate(items):
+            if before is not None:
+                before(item)
+            start_cpu = time.process_time()
+            start = time.perf_counter()
+            result = call(item)
+            wall[run, k] = time.perf_counter() - start
+            cpu[run, k] = time.process_time() - start_cpu
+            if run == 0:
+                results.append(result)
+    return wall.min(axis=0), cpu.min(axis=0), results
+
+
 def per_frame(n=16, frames=40, kernel="layer", repeat=5):
     """Median over frames of the solve time on simulated Hertzian frames with 1% noise.
 
-    Each frame is solved ``repeat`` times, in rounds over all the frames so
-    that no solve follows one of the same frame (the solver keeps the last
-    frame's contacts for slider moves), and its fastest run is kept: this
-    machine is a shared VM whose hiccups would otherwise dominate.
+    Each frame's fastest of ``repeat`` solves is kept (:func:`fastest_in_rounds`).
     ``slider`` is a slider move: the frame just solved, solved again at
     parameters one step away. ``playback`` is the automatic solve of a
     recording's frames in order (a contact sliding 0.05 mm and turning its
@@ -109,18 +148,9 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
             # the floor: two dense (3m, m) matrix-vector products, as in one exact solve (C y and
             # C^T w)
             ("floor", lambda b: matrix.T @ (matrix @ b), None, stress)):
-        times = np.full((repeat, frames), np.inf)
-        cpu = np.full((repeat, frames), np.inf)
-        for run in range(repeat):
-            for k, b in enumerate(sequence):
-                if before is not None:
-                    before(b)
-                start, start_cpu = time.perf_counter(), time.process_time()
-                call(b)
-                times[run, k] = time.perf_counter() - start
-                cpu[run, k] = time.process_time() - start_cpu
-        out[label] = 1e3 * float(np.median(times.min(axis=0)))
-        out[label + "_cpu"] = 1e3 * float(np.median(cpu.min(axis=0)))
+        wall, cpu, _ = fastest_in_rounds(call, sequence, repeat, before=before)
+        out[label] = 1e3 * float(np.median(wall))
+        out[label + "_cpu"] = 1e3 * float(np.median(cpu))
     return out
 
 

@@ -2,6 +2,7 @@
 
 import re
 
+import numpy as np
 import pytest
 
 from solver import bench
@@ -43,3 +44,15 @@ def test_the_command_refuses_a_skin_or_frame_count_it_cannot_time(arguments, mes
     with pytest.raises(SystemExit):
         bench.main(arguments)
     assert re.search(message, capsys.readouterr().err)
+
+
+def test_fastest_in_rounds_calls_every_item_once_per_round_and_keeps_the_first_results():
+    calls, prepared = [], []
+    wall, cpu, results = bench.fastest_in_rounds(lambda item: calls.append(item) or item * 10, ["a", "b", "c"], 3,
+                                           before=prepared.append)
+    # rounds over all the items: no call follows one on the same item
+    assert calls == ["a", "b", "c"] * 3
+    assert prepared == calls
+    assert results == ["a" * 10, "b" * 10, "c" * 10]
+    assert wall.shape == cpu.shape == (3,)
+    assert np.all(wall >= 0) and np.all(np.isfinite(wall)) and np.all(cpu >= 0)
