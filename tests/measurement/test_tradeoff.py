@@ -14,9 +14,9 @@ GRID = SensorGrid.regular(8, 8, 2e-3, 2e-3)
 
 
 def fake(name, ms, tangential, normal=0.01):
-    return t.Measurement(name=name, setup_s=0.01, frame_ms=ms, peak_mib=1.0, normal_total=normal,
-                         tangential_total=tangential, direction_deg=10.0, false_shear=0.0,
-                         configuration=Configuration(name))
+    return t.Measurement(name=name, setup_s=0.01, frame_ms=ms, frame_cpu_ms=ms, peak_mib=1.0,
+                         normal_total=normal, tangential_total=tangential, direction_deg=10.0,
+                         false_shear=0.0, configuration=Configuration(name))
 
 
 def test_the_front_keeps_only_undominated_points():
@@ -41,7 +41,7 @@ def cases():
 @pytest.mark.parametrize("configuration", CONFIGURATIONS, ids=lambda c: c.name)
 def test_every_configuration_measures(configuration, cases):
     m = t.measure(configuration, GRID, cases[:6], repeat=1)
-    assert m.setup_s > 0 and m.frame_ms > 0 and m.peak_mib > 0
+    assert m.setup_s > 0 and m.frame_ms > 0 and m.frame_cpu_ms > 0 and m.peak_mib > 0
     assert 0 <= m.normal_total < 0.2 and 0 <= m.false_shear <= 1
     if configuration.path == "normal":
         assert math.isnan(m.direction_deg) and m.tangential_total > 0.1  # no shear reconstructed
@@ -57,13 +57,14 @@ def test_table_and_csv(tmp_path, cases):
     assert [(r["subdivision"], r["profile"]) for r in rows] == [
         (str(m.configuration.subdivision), m.configuration.profile) for m in ms]
     assert float(rows[1]["frame_ms"]) == pytest.approx(ms[1].frame_ms, rel=1e-3)
+    assert float(rows[1]["frame_cpu_ms"]) == pytest.approx(ms[1].frame_cpu_ms, rel=1e-3)
     assert {r["preset"] for r in rows} >= {"fast"}
 
 
 def test_the_table_marks_the_front_and_names_the_presets():
     points = [fake("a", 0.1, 0.20), fake("b", 1.0, 0.061), fake("c", 2.0, 0.05), fake("d", 1.5, 0.08)]
     lines = t.format_measurements(points).splitlines()
-    assert lines[0].split() == ["configuration", "set-up", "s", "frame", "ms", "peak", "MiB", "normal", "tang",
+    assert lines[0].split() == ["configuration", "set-up", "s", "frame", "ms", "CPU", "ms", "peak", "MiB", "normal", "tang",
                                 "dir", "deg", "false", "mu", "front"]
     assert lines[1].endswith("1.00%  20.0%    10.0       0%  * fast")
     assert lines[2].endswith("* balanced") and lines[3].endswith("* accurate")

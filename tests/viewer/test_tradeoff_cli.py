@@ -72,7 +72,7 @@ def test_the_plot_leaves_room_around_every_point():
     from tactile_viewer.tradeoff import chart_of
 
     points = [(0.06, 0.2), (1.0, 0.06), (6.0, 0.023), (6.1, 0.023)]  # the last two almost coincide
-    measurements = [Measurement(f"c{k}", 0.01, ms, 3.0, 0.0, error, 5.0, 0.0, CONFIGURATIONS[k])
+    measurements = [Measurement(f"c{k}", 0.01, ms, ms, 3.0, 0.0, error, 5.0, 0.0, CONFIGURATIONS[k])
                     for k, (ms, error) in enumerate(points)]
     chart = chart_of(measurements)
     low, high = chart.x_axis.range
