@@ -18,7 +18,7 @@ the patches of the load decision, the template and what it leaves of the
 data), which in scipy cost about 0.1 ms of calls. A fit the updated factor
 cannot take to its optimum (a full set, or a cap on the set changes) is
 finished by scipy when it is the answer
-(:func:`nonnegative_fit`, ``ContactFit.fit``); inside the search it ends the
+(:func:`scipy_fit`, from ``ContactFit.fit``); inside the search it ends the
 search at the last optimal fit. ``docs/efficiency.md`` has the measurements
 that justify the compiled code.
 
@@ -36,7 +36,7 @@ import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
 __all__ = ["warm_up", "contact_cores", "contact_labels", "gather", "template_misfit", "load_patches",
-           "nonnegative_fit", "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
+           "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
            "BOTH", "RATIO", "DIRECTION"]
 
 
@@ -64,37 +64,6 @@ def warm_up():
 _DEPENDENT = 1e-12
 # The optimality test's relative size (lawson_hanson).
 _OPTIMAL = 1e-12
-
-
-def nonnegative_fit(matrix, stress, *, support=None, max_swaps=None):
-    """``argmin_{g >= 0} |matrix g - stress|``, warm-started from a guessed support.
-
-    Parameters
-    ----------
-    matrix : (R, n) ndarray
-    stress : (R,) ndarray
-    support : (n,) ndarray of bool, optional
-        The guessed positive set; it is not modified. Default: none (a cold
-        start from the empty set).
-    max_swaps : int, optional
-        Changes of the positive set tried before falling back to
-        ``scipy.optimize.nnls``. Default ``3 n + 10`` (a cold start on the
-        contact fit's problems needs about ``0.7 n``).
-
-    Returns
-    -------
-    g : (n,) ndarray
-        The minimizer, ``g >= 0``.
-    """
-    n = matrix.shape[1]
-    columns = np.ascontiguousarray(matrix.T, dtype=float)  # column j contiguous: columns[j]
-    b = np.ascontiguousarray(stress, dtype=float)
-    guess = np.zeros(n, dtype=bool) if support is None else np.array(support, dtype=bool)
-    g = np.zeros(n)
-    factor, index = workspace(columns)
-    steps, _ = lawson_hanson(columns, b, guess, 3 * n + 10 if max_swaps is None else int(max_swaps), g,
-                             factor, index)
-    return g if steps >= 0 else scipy_fit(matrix, stress)
 
 
 def scipy_fit(matrix, stress):
