@@ -7,6 +7,7 @@ measurement.validation``) and the benchmarks, so all of them measure the same th
 from __future__ import annotations
 
 import argparse
+import inspect
 import math
 import time
 
@@ -375,8 +376,8 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.profile is not None and (args.decision_curve or args.load_decision or args.mismatch):
         parser.error("--profile applies to the validation and tuning sets, not to --decision-curve, "
-                     "--load-decision or --mismatch (they use the default bilinear profile)")
-    profile = args.profile or "bilinear"
+                     "--load-decision or --mismatch (they use the solver's default profile)")
+    profile = args.profile or inspect.signature(Reconstructor).parameters["profile"].default
     if args.decision_curve:
         print(f"shear decision, seeds {DECISION_SEEDS[0]}-{DECISION_SEEDS[-1]}: 16x16, h/p 0.5 1 1.5, layer "
               f"data, noise {args.noise:g}; shear kept when F > c (default c = {ContactFit().shrinkage:g})")

@@ -10,6 +10,7 @@ builds one.
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 
 from .checks import one_of
@@ -25,6 +26,9 @@ PATHS = ("fit", "exact", "normal", "region")
 
 # Reconstructor arguments a configuration sets itself: build() takes any other (max_shear_ratio ...)
 _SET = ("kernel", "max_condition", "subdivision", "profile", "efficiency")
+# a configuration's defaults are the solver's: written once, in the signatures
+_SOLVER = inspect.signature(Reconstructor).parameters
+_SEARCH = inspect.signature(ContactFit).parameters
 
 
 @dataclass(frozen=True)
@@ -60,13 +64,13 @@ class Configuration:
     """
 
     name: str
-    kernel: str = "layer"
+    kernel: str = _SOLVER["kernel"].default
     path: str = "fit"
-    subdivision: int = 2
-    profile: str = "bilinear"
-    iterations: int = 12
-    tolerance: float = 1e-3
-    max_condition: float = 100.0
+    subdivision: int = _SOLVER["subdivision"].default
+    profile: str = _SOLVER["profile"].default
+    iterations: int = _SEARCH["max_iterations"].default
+    tolerance: float = _SEARCH["tolerance"].default
+    max_condition: float = _SOLVER["max_condition"].default
 
     def __post_init__(self):
         one_of("path", self.path, PATHS)
