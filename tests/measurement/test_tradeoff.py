@@ -14,7 +14,7 @@ GRID = SensorGrid.regular(8, 8, 2e-3, 2e-3)
 
 
 def fake(name, ms, tangential, normal=0.01):
-    return t.Measurement(name=name, setup_s=0.01, frame_ms=ms, frame_cpu_ms=ms, peak_mib=1.0,
+    return t.Measurement(name=name, setup_s=0.01, frame_ms=ms, frame_cpu_ms=1.5 * ms, peak_mib=1.0,
                          normal_total=normal, tangential_total=tangential, direction_deg=10.0,
                          false_shear=0.0, configuration=Configuration(name))
 
@@ -67,6 +67,8 @@ def test_the_table_marks_the_front_and_names_the_presets():
     assert lines[0].split() == ["configuration", "set-up", "s", "frame", "ms", "CPU", "ms", "peak", "MiB", "normal", "tang",
                                 "dir", "deg", "false", "mu", "front"]
     assert lines[1].endswith("1.00%  20.0%    10.0       0%  * fast")
+    # a: set-up 0.01 s, wall 0.1 ms, CPU 0.15 ms, 1 MiB
+    assert lines[1].split()[1:5] == ["0.010", "0.10", "0.15", "1.0"]
     assert lines[2].endswith("* balanced") and lines[3].endswith("* accurate")
     assert lines[4].endswith("0%")  # d: off the front
     assert len({line.index("%") for line in lines[1:]}) == 1  # the columns line up
