@@ -36,7 +36,7 @@ from .kernels import KERNELS, PROFILES, stress_matrix
 from .search import contact_labels, gather, template_misfit
 
 __all__ = ["Reconstructor", "Reconstruction", "Contact", "SymmetricInverse", "check_options",
-           "check_parameters"]
+           "check_arguments", "check_parameters"]
 
 
 @dataclass(frozen=True)
@@ -553,6 +553,11 @@ def check_options(grid, **options):
     """
     if not isinstance(grid, SensorGrid):
         raise ValueError(f"grid must be a SensorGrid, got {type(grid).__name__}")
+    check_arguments(**options)
+
+
+def check_arguments(**options):
+    """:func:`check_options` without a grid: the rules of the arguments given, and nothing else."""
     for name, value in options.items():
         if name not in _OPTION_CHECKS:
             raise TypeError(f"Reconstructor got an unexpected keyword argument {name!r}")

@@ -16,8 +16,7 @@ from dataclasses import dataclass
 from .checks import one_of
 from .efficiency import ContactFit
 from .geometry import SensorGrid
-from .inverse import Reconstructor
-from .kernels import PROFILES
+from .inverse import Reconstructor, check_arguments
 from .region import RegionSolver
 
 __all__ = ["Configuration", "CONFIGURATIONS", "PATHS"]
@@ -74,7 +73,9 @@ class Configuration:
 
     def __post_init__(self):
         one_of("path", self.path, PATHS)
-        one_of("profile", self.profile, PROFILES)
+        # the solver's own rules, so a configuration is refused when made, not when built
+        check_arguments(kernel=self.kernel, subdivision=self.subdivision, profile=self.profile,
+                        max_condition=self.max_condition)
 
     def build(self, grid: SensorGrid, **options):
         """A solver for ``grid``: an object with ``solve(stress, shear_ratio=, shear_direction=)``,

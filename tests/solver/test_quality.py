@@ -65,6 +65,16 @@ def test_the_setting_s_profile_reaches_the_contact_fit(path):
         Configuration("p", profile="cubic")
 
 
+@pytest.mark.parametrize("setting, message", [
+    (dict(kernel="fem"), r"kernel must be one of \('layer', 'cell', 'point'\), got 'fem'"),
+    (dict(subdivision=0), r"subdivision must be a whole number from 1 to 4, got 0"),
+    (dict(max_condition=1.0), r"max_condition must be a finite number > 1, got 1.0"),
+])
+def test_a_configuration_the_solver_would_refuse_is_refused_when_made(setting, message):
+    with pytest.raises(ValueError, match=message):
+        Configuration("bad", **setting)
+
+
 def test_without_quality_the_standard_solver_is_made():
     assert isinstance(make_solver(GRID, quality=None, kernel="cell"), Reconstructor)
 
