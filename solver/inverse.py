@@ -34,6 +34,7 @@ from .efficiency import ContactFit, Frame
 from .geometry import SensorGrid
 from .kernels import KERNELS, PROFILES, stress_matrix
 from .search import contact_labels, gather, template_misfit
+from .threads import one_blas_thread
 
 __all__ = ["Reconstructor", "Reconstruction", "Contact", "SymmetricInverse", "check_options",
            "check_arguments", "check_parameters"]
@@ -136,6 +137,13 @@ class Contact:
         sensed, so its shear is less certain than an inner contact's.
     total_force : (3,) ndarray
         Its resultant (Fx, Fy, Fz), newtons.
+    centre : (2,) ndarray
+        Where its compressive normal load is centred (the ``Fz``-weighted mean
+        of its nodes' positions over ``Fz > 0``), metres.
+    identity : int
+        Its number while it persists from frame to frame
+        (:class:`solver.tracking.ContactTracker`, from 1); 0 when the frame was
+        solved on its own.
     """
 
     nodes: np.ndarray
@@ -145,6 +153,8 @@ class Contact:
     shear_detected: bool
     at_edge: bool
     total_force: np.ndarray
+    centre: np.ndarray
+    identity: int = 0
 
 
 @dataclass(frozen=True)
@@ -262,7 +272,15 @@ class Reconstructor:
         Default 0.2.
     region_margin : int, optional
         Pitches by which the contact region grows around the loaded nodes.
-        Default 1.
+        Default 1. A node within the margin of two contacts goes to the
+        nearer one: contacts that touch stay two.
+    separation : float, optional
+        Two peaks of one loaded patch are two contacts when the highest path
+        between them sinks to at most this fraction of the lower peak
+        (:func:`solver.search.contact_labels`): a pinch, or two fingers a
+        pitch or two apart. 0 never splits a patch. Default 0.6. Not used
+        where the normal-only solve is damped (thick layers): there every
+        patch is one contact.
     subdivision : int, optional
         The contact fit splits each node's cell into ``s x s`` sub-cells so
         that a contact edge inside a cell is not read as shear (regular grids
@@ -286,17 +304,18 @@ class Reconstructor:
 
     def __init__(self, grid: SensorGrid, *, kernel: str = "layer", max_condition: float = 100.0,
                  max_shear_ratio: float = 1.5, region_threshold: float = 0.2,
-                 region_margin: int = 1, subdivision: int = 2, profile: str = "bilinear",
-                 reach: float = 2.0, efficiency=None):
+                 region_margin: int = 1, separation: float = 0.6, subdivision: int = 2,
+                 profile: str = "bilinear", reach: float = 2.0, efficiency=None):
         check_options(grid, kernel=kernel, max_condition=max_condition, max_shear_ratio=max_shear_ratio,
                       region_threshold=region_threshold, region_margin=region_margin,
-                      subdivision=subdivision, profile=profile, reach=reach)
+                      separation=separation, subdivision=subdivision, profile=profile, reach=reach)
         self.grid = grid
         self.kernel = kernel
         self.max_condition = float(max_condition)
         self.max_shear_ratio = float(max_shear_ratio)
         self.region_threshold = float(region_threshold)
         self.region_margin = int(region_margin)
+        self.separation = float(separation)
         self.reach = float(reach)
         self.efficiency = ContactFit() if efficiency is None else efficiency
         # (_Seen, choice, its parameters) of the last frame fitted
@@ -363,6 +382,7 @@ class Reconstructor:
             condition=self._normal.condition, regularized=self._normal.shift > 0,
             normal_only=True, shear_detected=False, region=read_only(fz > 0, bool))
 
+    @one_blas_thread()
     def solve(self, stress, *, shear_ratio: float | None = None,
               shear_direction: float | None = None, exact: bool | None = None) -> Reconstruction:
         """Three-component forces of every contact, each with its own shear parameters.
@@ -436,6 +456,10 @@ class Reconstructor:
             x = template
         forces = x.reshape(3, m).T
         totals = seen.weights @ forces  # (K, 3)
+        pushed = seen.weights * np.clip(forces[:, 2], 0.0, None)
+        # where nothing of a contact presses (the exact member may pull), its nodes' middle
+        pushed = np.where(pushed.sum(axis=1, keepdims=True) > 0, pushed, seen.weights)
+        centres = (pushed @ self.grid.positions) / pushed.sum(axis=1, keepdims=True)
         contacts = []
         for k in loaded.nonzero()[0]:
             sx, sy = choice.shear[k]
@@ -443,7 +467,7 @@ class Reconstructor:
                 nodes=seen.nodes[k], shear_ratio=math.hypot(sx, sy),
                 shear_direction=_direction(sx, sy, fallback), evidence=float(choice.evidence[k]),
                 shear_detected=bool(choice.shear_detected[k]), at_edge=bool(seen.at_edge[k]),
-                total_force=read_only(totals[k])))
+                total_force=read_only(totals[k]), centre=read_only(centres[k])))
         # a view: the frame's arrays are shared by its results, and a view of a read-only
         # array cannot be made writable again
         region = seen.region.view() if loaded.all() else read_only(
@@ -493,7 +517,7 @@ class Reconstructor:
         """Separate contacts of a normal-only solution, and the sensors near each.
 
         :func:`solver.search.contact_labels` with this reconstructor's
-        ``region_threshold``, ``region_margin`` and reach.
+        ``region_threshold``, ``region_margin``, ``separation`` and reach.
 
         Parameters
         ----------
@@ -507,8 +531,12 @@ class Reconstructor:
         near : (m, K) ndarray of bool
             The sensors within the fit's reach of each contact.
         """
+        # a damped normal-only solve (a thick layer) blurs two loads into one and turns noise into
+        # bumps: there every patch is one contact (split, single contacts came apart into pieces
+        # given the largest shear ratio: measurement.cases.load_decision_frames, h / pitch 2 to 5)
+        separation = self.separation if self._normal.shift == 0 else 0.0
         return contact_labels(np.ascontiguousarray(normal, dtype=float), self.region_threshold,
-                              self._adjacent, self._margin, self._near)
+                              separation, self.grid.positions, self._adjacent, self._margin, self._near)
 
     def _frame(self, b: np.ndarray) -> _Seen:
         # The frame's contacts, and the contact fit's view of it: sub-cell columns of every
@@ -573,6 +601,7 @@ _OPTION_CHECKS = {
     "region_threshold": lambda name, value: real_number(name, value, rule="in (0, 1)",
                                                         valid=lambda v: 0 < v < 1),
     "region_margin": lambda name, value: whole_number(name, value, low=0, unit="of pitches "),
+    "separation": lambda name, value: real_number(name, value, rule="in [0, 1]", valid=lambda v: 0 <= v <= 1),
     "subdivision": lambda name, value: whole_number(name, value, low=1, high=4),
     "profile": lambda name, value: one_of(name, value, PROFILES),
     "reach": lambda name, value: real_number(name, value, rule="finite and >= 0 thicknesses",

@@ -37,6 +37,7 @@ from .inverse import (
     patch_links,
 )
 from .search import contact_cores
+from .threads import one_blas_thread
 
 __all__ = ["RegionSolver", "make_solver", "DENSE_LIMIT"]
 
@@ -205,6 +206,7 @@ class RegionSolver:
         """Normal-only forces, window by window (zero outside the contact windows)."""
         return self.solve(stress, normal_only=True)
 
+    @one_blas_thread()
     def solve(self, stress, *, shear_ratio=None, shear_direction=None, exact=None,
               normal_only=False) -> Reconstruction:
         """Solve every contact on its window (its own parameters when automatic).
@@ -242,8 +244,13 @@ class RegionSolver:
                 nodes = np.zeros(grid.shape, dtype=bool)
                 nodes[rows, columns] = contact.nodes.reshape(window.shape)
                 nodes = nodes.ravel()
+                # the window's own positions are centred on the window: the skin's are not
+                pushed = np.clip(forces.reshape(-1, 3)[nodes, 2], 0.0, None)
+                centre = (grid.positions[nodes].T @ pushed / pushed.sum() if pushed.sum() > 0
+                          else grid.positions[nodes].mean(axis=0))
                 contacts.append(replace(contact, nodes=read_only(nodes, bool),
-                                        at_edge=bool(np.any(nodes & grid.border))))
+                                        at_edge=bool(np.any(nodes & grid.border)),
+                                        centre=read_only(centre)))
         norm = float(np.linalg.norm(image))
         unexplained += float(np.sum(image[~explained] ** 2))
         contacts.sort(key=lambda c: -c.total_force[2])

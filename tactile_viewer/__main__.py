@@ -6,7 +6,8 @@
 - ``--movie out.mp4``: render frames ``--start`` to ``--stop`` (exclusive) off screen with the
   time, parameters and forces burnt in, write them as a video (.mp4, .mkv, .avi) or an animated
   GIF, exit;
-- ``--report``: reconstruct headlessly and print a per-frame table;
+- ``--report``: reconstruct headlessly and print a per-frame table, each frame's contacts
+  (followed over the frames, numbered from 1) under its line;
 - ``--info``: print what the file holds, one fact per line, solving nothing.
 """
 
@@ -21,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver import make_solver, metrics
+from solver import ContactTracker, make_solver, metrics
 from solver.kernels import KERNELS
 
 from .model import KERNEL_HELP, Display, ViewerModel, geometry_text
@@ -31,7 +32,12 @@ from .recording import RecordingError, facts, load
 def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None, out=None):
     """Reconstruct a recording headlessly and print one line per frame (with errors when it has truth).
 
-    The first line names the geometry, the elastomer's Poisson ratio included.
+    The first line names the geometry, the elastomer's Poisson ratio included. Under each
+    frame's line, one line per contact (largest normal force first): its identity
+    (``#1``, ``#2`` ...: :class:`solver.ContactTracker` follows the contacts over the
+    frames reported, in order, so a number is the same contact from frame to frame),
+    its normal and tangential force, its own shear ratio and direction in the frame's
+    columns, then its centre in millimetres.
     """
     out = sys.stdout if out is None else out
     recording = load(path)
@@ -50,10 +56,12 @@ def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direc
         header += f" {'dFz':>6} {'dFt/F':>6} {'dth':>6}"
     print(header + f" {'ms':>6}", file=out)
     times = []
+    tracker = ContactTracker(grid)
     for k in indices:
         start = time.perf_counter()
         result = reconstructor.solve(recording.frames[k], shear_ratio=shear_ratio, shear_direction=direction)
         times.append(time.perf_counter() - start)
+        result = tracker.update(result)
         total = result.total_force
         line = (f"{k:5d} {recording.t[k]:6.3f} {total[2]:7.4f} {math.hypot(total[0], total[1]):6.4f} "
                 f"{result.shear_ratio:5.2f} {math.degrees(result.shear_direction):+6.0f} "
@@ -62,6 +70,12 @@ def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direc
             e = metrics.compare(result.forces, recording.truth_forces[k])
             line += f" {100 * e.normal_total:5.1f}% {100 * e.tangential_total:5.1f}% {e.direction_deg:6.1f}"
         print(line + f" {times[-1] * 1e3:6.2f}", file=out)
+        for contact in result.contacts:
+            fx, fy, fz = contact.total_force
+            x, y = contact.centre * 1e3
+            print(f"{'#' + str(contact.identity):>5} {'':6} {fz:7.4f} {math.hypot(fx, fy):6.4f} "
+                  f"{contact.shear_ratio:5.2f} {math.degrees(contact.shear_direction):+6.0f} "
+                  f"at x {x:+.2f} y {y:+.2f} mm", file=out)
     print(f"median solve {np.median(times) * 1e3:.2f} ms over {len(times)} frames", file=out)
 
 

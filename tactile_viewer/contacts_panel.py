@@ -2,8 +2,9 @@
 
 A frame with several contacts is solved with a shear ratio and direction per
 contact (``solver.Reconstruction.contacts``); the scene draws a resultant per
-contact and this table lists them, largest normal force first, numbered as in
-the status line.
+contact and this table lists them, largest normal force first, each with its
+identity: the number it keeps from frame to frame while it persists (the model
+follows the contacts, :class:`solver.ContactTracker`), as in the status line.
 """
 
 from __future__ import annotations
@@ -17,7 +18,9 @@ from .model import Solved, ViewerModel
 __all__ = ["ContactsPanel", "contact_rows", "COLUMNS"]
 
 COLUMNS = ("#", "Fz mN", "Ft mN", "mu", "theta deg", "x mm", "y mm", "note")
-TIPS = ("Contact number, largest normal force first (as in the status line)",
+TIPS = ("Contact number: it keeps it from frame to frame while the contact persists; a new contact gets "
+        "the next number, one lost for long is ended (its number never comes back); after a jump in the "
+        "recording the numbers start again from 1. The rows are largest normal force first",
         "Normal force of the contact (resultant), millinewtons; positive presses into the skin",
         "Tangential force of the contact, millinewtons",
         "Its shear ratio: tangential over normal force of its template load",
@@ -30,8 +33,9 @@ TIPS = ("Contact number, largest normal force first (as in the status line)",
 def contact_rows(solved: Solved) -> list[tuple[str, ...]]:
     """The table's rows for ``solved``: one per contact; the whole frame when it has none.
 
-    A normal-only solve has no contacts: its row is the whole frame's
-    resultant with no parameters.
+    The first cell is the contact's identity (its place in the list when the
+    result was not followed over frames, identity 0). A normal-only solve has
+    no contacts: its row is the whole frame's resultant with no parameters.
     """
     result = solved.result
     rows = []
@@ -42,7 +46,7 @@ def contact_rows(solved: Solved) -> list[tuple[str, ...]]:
             notes.append("edge")
         if solved.auto and not contact.shear_detected:
             notes.append("no shear")
-        rows.append(_row(str(number), contact.total_force, f"{contact.shear_ratio:.2f}",
+        rows.append(_row(str(contact.identity or number), contact.total_force, f"{contact.shear_ratio:.2f}",
                          f"{math.degrees(contact.shear_direction):+.0f}", centroid, ", ".join(notes)))
     if not rows and solved.centroid is not None:
         rows.append(_row("all", result.total_force, "-", "-", solved.centroid,

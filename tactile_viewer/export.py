@@ -17,9 +17,24 @@ m, ``nx``, ``ny``, ``pitch``, ``thickness`` (m), ``poisson_ratio`` (the
 elastomer's nu), ``sensor_size`` (side of a square taxel, m; 0: point sensors),
 ``kernel``, ``mode`` ("auto" or "manual"), ``source`` (the recording's path).
 
+Per-contact totals (both formats): the contacts of each frame as the solver
+found them, largest normal force first, each with its identity
+(:class:`solver.ContactTracker`: the number it keeps while it persists, from 1;
+the frames are followed in the order they were solved, so a whole-recording
+export numbers them from its first frame on). NPZ keys ``contact_identity (T,
+K)`` int (0: no contact in that slot), ``contact_force (T, K, 3)`` N (its
+resultant Fx, Fy, Fz) and ``contact_centre (T, K, 2)`` m (where its compressive
+load is centred); ``K`` is the most contacts of any frame, empty slots hold 0
+and nan.
+
 Forces CSV: ``#`` header lines ``key=value`` (source, kernel, mode, nx, ny,
 pitch, thickness, poisson_ratio, sensor_size), then one row per frame and node:
-``frame, t, node, x, y, Fx, Fy, Fz, shear_ratio, shear_direction_deg``.
+``frame, t, node, x, y, Fx, Fy, Fz, shear_ratio, shear_direction_deg``. The
+per-contact totals follow the node rows as ``#`` lines in the header's
+``key=value`` form, so a reader that skips ``#`` lines reads the node table
+alone, as before: the header's ``contact_columns=frame,t,identity,Fx,Fy,Fz,x,y``
+(newtons, metres) names the fields of each ``# contact=...`` line, one per frame
+and contact.
 """
 
 from __future__ import annotations
@@ -34,17 +49,20 @@ from pathlib import Path
 
 import numpy as np
 
-from solver import Reconstructor
+from solver import ContactTracker, Reconstructor
 from solver.arrays import read_only
 
 from .recording import Recording
 from .worker import Cancelled
 
-__all__ = ["ForceTable", "reconstruct_frames", "force_table", "save_forces", "load_forces", "SIDECAR_SUFFIX",
+__all__ = ["ForceTable", "reconstruct_frames", "force_table", "save_forces", "load_forces", "contact_arrays",
+           "CSV_COLUMNS", "CONTACT_COLUMNS", "CONTACT_TAG", "SIDECAR_SUFFIX",
            "SIDECAR_MARKER", "SIDECAR_VERSION", "SidecarConflict", "sidecar_path", "check_sidecar",
            "write_sidecar", "derived_name"]
 
 CSV_COLUMNS = ("frame", "t", "node", "x", "y", "Fx", "Fy", "Fz", "shear_ratio", "shear_direction_deg")
+CONTACT_TAG = "contact"  # the key of each "# contact=..." line of the CSV (one per frame and contact)
+CONTACT_COLUMNS = ("frame", "t", "identity", "Fx", "Fy", "Fz", "x", "y")
 
 SIDECAR_SUFFIX = ".view.json"  # appended to the image's full name
 SIDECAR_MARKER = "tactile_viewer_sidecar"  # the key that marks a sidecar as ours; its value is the version
@@ -93,6 +111,9 @@ class ForceTable:
 
     ``poisson_ratio`` and ``sensor_size`` (metres) are those of the geometry the
     forces were solved on: the layer kernel's forces depend on them.
+    ``contact_identity (T, K)``, ``contact_force (T, K, 3)`` and
+    ``contact_centre (T, K, 2)`` are each frame's contacts (module notes;
+    :func:`contact_arrays`); None (the default) is no contacts, ``K = 0``.
     """
 
     forces: np.ndarray
@@ -112,16 +133,35 @@ class ForceTable:
     source: str
     poisson_ratio: float = 0.5
     sensor_size: float = 0.0
+    contact_identity: np.ndarray | None = None
+    contact_force: np.ndarray | None = None
+    contact_centre: np.ndarray | None = None
 
     def __post_init__(self):
         for name in ("forces", "frames", "t", "shear_ratio", "shear_direction", "efficiency", "residual",
                      "condition", "positions"):
             object.__setattr__(self, name, read_only(getattr(self, name), int if name == "frames" else float))
+        count = len(self.frames)
+        for name, tail, dtype in (("contact_identity", (), np.int64), ("contact_force", (3,), float),
+                                  ("contact_centre", (2,), float)):
+            value = getattr(self, name)
+            value = np.zeros((count, 0) + tail, dtype) if value is None else value
+            object.__setattr__(self, name, read_only(value, dtype))
+        shapes = [getattr(self, name).shape for name in ("contact_identity", "contact_force",
+                                                         "contact_centre")]
+        if len(shapes[0]) != 2 or shapes[0][0] != count or shapes[1] != shapes[0] + (3,) \
+                or shapes[2] != shapes[0] + (2,):
+            raise ValueError(f"contact_identity, contact_force and contact_centre must be (T, K), (T, K, 3) "
+                             f"and (T, K, 2) for the T = {count} frames, got shapes {shapes}")
 
 
 def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frames=None, *,
                        shear_ratio=None, shear_direction=None, progress=None) -> ForceTable:
     """Solve the given frames (default: all) with automatic or given parameters.
+
+    The contacts are followed over the frames in the order given
+    (:class:`solver.ContactTracker`): give them increasing for identities that
+    mean the same contact over time.
 
     Parameters
     ----------
@@ -133,9 +173,10 @@ def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frame
     if frames.size and (frames.min() < 0 or frames.max() >= len(recording)):
         raise ValueError(f"frames must be in [0, {len(recording) - 1}], got {frames.tolist()}")
     results = []
+    tracker = ContactTracker(recording.grid)  # the contacts numbered in the order the frames are solved
     for i, k in enumerate(frames):
-        results.append(reconstructor.solve(recording.frames[k], shear_ratio=shear_ratio,
-                                           shear_direction=shear_direction))
+        results.append(tracker.update(reconstructor.solve(recording.frames[k], shear_ratio=shear_ratio,
+                                                          shear_direction=shear_direction)))
         if progress is not None and progress(i + 1, frames.size) is False:
             raise Cancelled(f"cancelled after {i + 1} of {frames.size} frames")
     auto = shear_ratio is None and shear_direction is None
@@ -146,16 +187,55 @@ def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frame
 def force_table(results, frames, t, grid, *, solver, mode: str, source: str = "") -> ForceTable:
     """The table of already solved frames: ``results[i]`` is frame ``frames[i]`` at time ``t[i]``.
 
-    ``solver`` is what solved them: its kernel and its geometry's material are recorded.
+    ``solver`` is what solved them: its kernel and its geometry's material are recorded. The
+    contacts keep the identities the results carry (the viewer's, followed as it showed them);
+    results whose contacts carry none (0: solved alone) are followed here, in the order given.
     """
     fields = ("shear_ratio", "shear_direction", "efficiency", "residual", "condition")
-    return ForceTable(forces=np.array([r.forces for r in results]).reshape(len(results), grid.size, 3),
+    if any(c.identity == 0 for r in results for c in r.contacts):
+        tracker = ContactTracker(grid)
+        results = [tracker.update(r) for r in results]
+    identity, force, centre = contact_arrays(results)
+    return ForceTable(contact_identity=identity, contact_force=force, contact_centre=centre,
+                      forces=np.array([r.forces for r in results]).reshape(len(results), grid.size, 3),
                       frames=np.asarray(frames), t=np.asarray(t, dtype=float), positions=grid.positions,
                       shape=tuple(grid.shape), pitch=grid.pitch, thickness=grid.thickness,
                       kernel=solver.kernel, mode=mode, source=source,
                       # the material the forces were solved with, which is the solver's
                       poisson_ratio=solver.grid.poisson_ratio, sensor_size=solver.grid.sensor_size,
                       **{name: np.array([getattr(r, name) for r in results], dtype=float) for name in fields})
+
+
+def contact_arrays(results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The contacts of solved frames as arrays: one row per frame, one slot per contact.
+
+    Parameters
+    ----------
+    results : sequence of solver.Reconstruction
+        ``T`` solved frames.
+
+    Returns
+    -------
+    identity : (T, K) ndarray of int
+        Each contact's identity (:attr:`solver.Contact.identity`) in the
+        result's order (largest normal force first); 0 in the slots beyond a
+        frame's contacts. ``K`` is the most contacts of any frame.
+    force : (T, K, 3) ndarray
+        Each contact's resultant (Fx, Fy, Fz), newtons; nan in empty slots.
+    centre : (T, K, 2) ndarray
+        Each contact's centre, metres; nan in empty slots.
+    """
+    count = len(results)
+    width = max((len(r.contacts) for r in results), default=0)
+    identity = np.zeros((count, width), np.int64)
+    force = np.full((count, width, 3), np.nan)
+    centre = np.full((count, width, 2), np.nan)
+    for row, result in enumerate(results):
+        for slot, contact in enumerate(result.contacts):
+            identity[row, slot] = contact.identity
+            force[row, slot] = contact.total_force
+            centre[row, slot] = contact.centre
+    return identity, force, centre
 
 
 def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
@@ -171,7 +251,9 @@ def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
                                 condition=table.condition, positions=table.positions, nx=nx, ny=ny,
                                 pitch=table.pitch, thickness=table.thickness,
                                 poisson_ratio=table.poisson_ratio, sensor_size=table.sensor_size,
-                                kernel=table.kernel, mode=table.mode, source=source)
+                                kernel=table.kernel, mode=table.mode, source=source,
+                                contact_identity=table.contact_identity, contact_force=table.contact_force,
+                                contact_centre=table.contact_centre)
     elif path.suffix.lower() == ".csv":
         T, m = table.forces.shape[:2]
         rows = np.column_stack([
@@ -184,10 +266,16 @@ def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
         for key, value in (("source", " ".join(source.split())), ("kernel", table.kernel),
                            ("mode", table.mode), ("nx", nx), ("ny", ny), ("pitch", repr(table.pitch)),
                            ("thickness", repr(table.thickness)), ("poisson_ratio", repr(table.poisson_ratio)),
-                           ("sensor_size", repr(table.sensor_size)), ("units", "m, N, degrees")):
+                           ("sensor_size", repr(table.sensor_size)), ("units", "m, N, degrees"),
+                           (f"{CONTACT_TAG}_columns", ",".join(CONTACT_COLUMNS))):
             buffer.write(f"# {key}={value}\n")
         buffer.write(",".join(CSV_COLUMNS) + "\n")
         np.savetxt(buffer, rows, delimiter=",", fmt=["%d", "%.6f", "%d"] + ["%.9g"] * 7)
+        # the per-contact totals: "# contact=..." lines after the node rows
+        for row, slot in zip(*np.nonzero(table.contact_identity), strict=True):
+            values = (*table.contact_force[row, slot], *table.contact_centre[row, slot])
+            buffer.write(f"# {CONTACT_TAG}={table.frames[row]:d},{table.t[row]:.6f},"
+                         f"{table.contact_identity[row, slot]:d},{','.join(f'{v:.9g}' for v in values)}\n")
         path.write_text(buffer.getvalue(), encoding="utf-8")
     else:
         raise ValueError(f"{path}: unknown export type {path.suffix!r}, expected .npz or .csv")
@@ -195,16 +283,39 @@ def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
 
 
 def load_forces(path) -> dict:
-    """Read a force export back: ``forces (T, m, 3)``, ``frames``, ``t`` and the rest."""
+    """Read a force export back: ``forces (T, m, 3)``, ``frames``, ``t`` and the rest.
+
+    Both formats give the per-contact arrays ``contact_identity (T, K)``,
+    ``contact_force (T, K, 3)`` and ``contact_centre (T, K, 2)`` (``K = 0`` for
+    an export written before they were).
+    """
     path = Path(path)
     if path.suffix.lower() == ".npz":
         with np.load(path, allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
-    table = np.loadtxt(path, delimiter=",", skiprows=_header_lines(path), ndmin=2)
+    table = np.loadtxt(path, delimiter=",", skiprows=_header_lines(path), ndmin=2)  # "#" lines skipped
     frames = np.unique(table[:, 0]).astype(int)
     m = int(table[:, 2].max()) + 1
-    return {"frames": frames, "t": table[::m, 1], "forces": table[:, 5:8].reshape(frames.size, m, 3),
-            "shear_ratio": table[::m, 8], "shear_direction": np.radians(table[::m, 9])}
+    loaded = {"frames": frames, "t": table[::m, 1], "forces": table[:, 5:8].reshape(frames.size, m, 3),
+              "shear_ratio": table[::m, 8], "shear_direction": np.radians(table[::m, 9])}
+    # the per-contact lines, back into slots in the order written
+    tag = f"# {CONTACT_TAG}="
+    with open(path, encoding="utf-8") as handle:
+        rows = [[float(v) for v in line[len(tag):].split(",")] for line in handle if line.startswith(tag)]
+    per_frame: dict[int, list] = {}
+    for row in rows:
+        per_frame.setdefault(int(row[0]), []).append(row)
+    width = max((len(v) for v in per_frame.values()), default=0)
+    identity = np.zeros((frames.size, width), np.int64)
+    force = np.full((frames.size, width, 3), np.nan)
+    centre = np.full((frames.size, width, 2), np.nan)
+    where = {int(k): i for i, k in enumerate(frames)}
+    for k, contacts in per_frame.items():
+        for slot, row in enumerate(contacts):
+            identity[where[k], slot] = int(row[2])
+            force[where[k], slot] = row[3:6]
+            centre[where[k], slot] = row[6:8]
+    return loaded | {"contact_identity": identity, "contact_force": force, "contact_centre": centre}
 
 
 def _header_lines(path) -> int:

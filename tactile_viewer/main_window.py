@@ -61,6 +61,9 @@ Directions are angles from +x (0 deg = +x, 90 deg = +y).</p>
 <h3>The two parameters</h3>
 <p><b>Auto</b> picks, per contact, the shear ratio and direction whose compressive load explains the
 sensors best (the efficiency maximum). Moving a slider switches Auto off and solves with your values.</p>
+<p>Torsion is invisible to a normal-stress skin: a twist (shear circling a centre) changes no
+sensor reading, so no torque is ever shown; a twisting contact appears as if it did not twist
+(its normal load, and any one-way shear). See docs/torsion.md.</p>
 <h3>Mouse</h3>
 <p>Left drag: rotate. Shift + left drag or middle drag: pan. Wheel or right drag: zoom.
 Point at a taxel to read its values.</p>

@@ -8,6 +8,19 @@ solves: every change that alters what is shown (a frame the source produced,
 the parameters, a new solver) submits a solve to one latest-wins worker thread
 that owns the solver, and the result comes back through ``dispatch`` (the Qt
 layer posts it to the GUI thread) as the ``solved`` signal.
+
+Contacts followed over time: the model owns a :class:`solver.ContactTracker`
+per source and numbers the contacts of each result as it is delivered, in the
+order the frames are shown (``Contact.identity``, from 1, in ``Solved.result``).
+A live source's frames only move on: every frame continues the tracks. A
+recording's continue while playback (or a step) moves forward by at most the
+tracker's ``patience`` frames; a seek backwards or a longer jump starts the
+numbers again at that frame (the tracker is reset), since nothing is known of
+the frames in between. The same frame solved again (new parameters, a re-tare)
+is matched again from the tracks as they stood before it, so the numbers do not
+drift. A new source or solver (another kernel or quality) starts from 1.
+Played from its start, a recording is numbered as the whole-recording force
+export and ``--report`` number it (the same tracker over the same frames).
 """
 
 from __future__ import annotations
@@ -22,7 +35,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from solver import Reconstruction, Reconstructor, SensorGrid, make_solver
+from solver import ContactTracker, Reconstruction, Reconstructor, SensorGrid, make_solver
 from solver.arrays import read_only
 from solver.checks import one_of
 from solver.kernels import KERNELS
@@ -170,6 +183,10 @@ class Solved:
     contact_centroids : tuple of ((2,) ndarray or None)
         The same for each contact of ``result.contacts``, in their order
         (over the contact's own nodes).
+
+    The contacts of a result the model delivers carry their identities
+    (``result.contacts[k].identity``, from 1: module notes); ``Solved.of``
+    alone leaves them as the solver gave them.
     """
 
     frame: int
@@ -291,6 +308,8 @@ class ViewerModel:
         self._generation = 0  # grows with each installed solver: results of older ones are dropped
         self._closed = False
         self._worker = None if dispatch is None else LatestWorker(self._work, name="tactile-solver")
+        self._tracker: ContactTracker | None = None  # numbers the contacts of the source's frames
+        self._tracked = None  # (frame, time) last numbered and the tracker as it stood before it
 
     # -- building -----------------------------------------------------------------
 
@@ -363,6 +382,7 @@ class ViewerModel:
         self.reconstructor = reconstructor
         self.kernel = reconstructor.kernel
         self.last = None
+        self._tracker, self._tracked = ContactTracker(reconstructor.grid), None  # numbers from 1 again
         self._unshown = self._waiting = False
         if not same:
             self.current = None
@@ -553,16 +573,35 @@ class ViewerModel:
         return Solved.of(job.solver.grid, job.stress, result, frame=job.frame, time=job.time,
                          solve_ms=elapsed, auto=job.auto)
 
+    def _track(self, solved: Solved) -> Solved:
+        # on the model's thread, in the order results are shown: number the contacts (module notes)
+        tracker = self._tracker
+        if tracker is None:
+            return solved
+        key = (solved.frame, solved.time)
+        last = self._tracked
+        if last is not None and last[0] == key:
+            tracker = self._tracker = last[1].copy()  # the same frame again: matched from before it
+        elif last is not None and not self.live and not 0 < solved.frame - last[0][0] <= tracker.patience:
+            tracker.reset()  # a seek backwards or a long jump: nothing is known of the frames between
+        self._tracked = (key, tracker.copy())
+        try:
+            return replace(solved, result=tracker.update(solved.result))
+        except ValueError:  # a solver whose results the tracker cannot read: shown unnumbered
+            log.exception("the contacts of frame %s could not be followed", solved.frame)
+            return solved
+
     def solve(self) -> Solved | None:
         """Reconstruct the current frame with the current parameters, here and now, and announce it.
 
         In Auto mode the parameters found are in the result; the manual
-        values (``shear_ratio``, ``shear_direction``) stay the user's.
+        values (``shear_ratio``, ``shear_direction``) stay the user's. The
+        contacts are numbered as the frames go by (module notes).
         """
         job = self._job()
         if job is None:
             return None
-        self.last = self._compute(job)
+        self.last = self._track(self._compute(job))
         self.solved.emit(self.last)
         return self.last
 
@@ -592,6 +631,7 @@ class ViewerModel:
     def _deliver(self, job: _Job, solved: Solved):
         if job.generation != self._generation:
             return  # solved with a solver that has been replaced since
+        solved = self._track(solved)
         self.last = solved
         self._unshown = self.pace and self.live
         self.solved.emit(solved)

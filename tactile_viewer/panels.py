@@ -49,7 +49,7 @@ def status_text(solved: Solved, model: ViewerModel) -> str:
                  f"theta {math.degrees(r.shear_direction):+.0f} deg")
     if len(r.contacts) > 1:  # each contact has its own parameters
         shear += "  (" + "; ".join(
-            f"contact {k + 1}: mu {c.shear_ratio:.2f}, theta "
+            f"contact {c.identity or k + 1}: mu {c.shear_ratio:.2f}, theta "
             f"{math.degrees(c.shear_direction):+.0f}" for k, c in enumerate(r.contacts)) + ")"
     where = (f"seq {solved.frame}" if solved.frame >= 0 else "live") if model.live \
         else f"frame {solved.frame} (of 0-{len(model.recording) - 1})"

@@ -20,13 +20,21 @@ factorizations is behind a lock. So the model's solver may serve a background
 series while the model's worker thread solves the frame on screen, as the
 whole-recording force export already does.
 
+Contacts followed over time: beside the totals, a series holds the same six
+quantities of each contact (its resultant and its load centre) by its identity
+(:class:`solver.ContactTracker`; nan on the frames it is absent from).
+:func:`compute_series` follows the contacts over the frames it solves, in
+order (a sampled long take is followed over its samples); a live source's rows
+carry the identities the window's model gave them.
+
 CSV: ``#`` header lines (``key=value``: what it is, source, kernel, mode, the
 given parameters, the units), one line of column names whose suffixes name the
 units, then one row per frame: ``frame, t_s, fz_N, tangential_N,
 direction_deg, shear_ratio, centroid_x_m, centroid_y_m`` and, with truth,
 the same eight quantities prefixed ``truth_`` (no frame and time) then
-``fz_error_pct, tangential_error_pct, direction_error_deg``. Empty cells are
-written ``nan``.
+``fz_error_pct, tangential_error_pct, direction_error_deg``; then the six
+quantities of each contact, prefixed ``contact<identity>_`` (``contact1_fz_N``
+...), by identity. Empty cells are written ``nan``.
 """
 
 from __future__ import annotations
@@ -39,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from solver import ContactTracker
 from solver.arrays import read_only
 from solver.checks import one_of, real_number, shown
 from solver.inverse import check_parameters
@@ -63,6 +72,7 @@ _QUANTITIES = ("fz", "tangential", "direction", "shear_ratio", "centroid_x", "ce
 _COLUMNS = (("fz_N", 1.0), ("tangential_N", 1.0), ("direction_deg", 180 / math.pi), ("shear_ratio", 1.0),
             ("centroid_x_m", 1.0), ("centroid_y_m", 1.0))
 _ERROR_COLUMNS = (("fz_error_pct", 100.0), ("tangential_error_pct", 100.0), ("direction_error_deg", 1.0))
+_NOTHING = (math.nan,) * 6  # a contact's quantities on a frame it is absent from
 
 
 @dataclass(frozen=True)
@@ -178,6 +188,10 @@ class Series:
     total : int
         Frames the complete series holds: ``n`` once complete, more for a
         partial series handed out while it is computed.
+    contacts : tuple of (int, Quantities)
+        Each followed contact's quantities over the ``n`` frames (nan where
+        it is absent), by increasing identity (from 1); :meth:`contact` finds
+        one. Empty when no contact was followed.
     """
 
     frame: np.ndarray
@@ -191,6 +205,7 @@ class Series:
     shear_direction: float = math.nan
     source: str = ""
     total: int = -1
+    contacts: tuple = ()
 
     def __post_init__(self):
         frame = np.asarray(self.frame)
@@ -217,9 +232,37 @@ class Series:
         object.__setattr__(self, "total", int(total))
         object.__setattr__(self, "shear_ratio", float(self.shear_ratio))
         object.__setattr__(self, "shear_direction", float(self.shear_direction))
+        contacts = tuple(self.contacts)
+        pairs = all(isinstance(pair, tuple) and len(pair) == 2 for pair in contacts)
+        identities = [pair[0] if pairs else None for pair in contacts]
+        numbers = all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and i >= 1
+                      for i in identities)
+        if not (pairs and numbers and identities == sorted(set(identities))
+                and all(isinstance(q, Quantities) and len(q) == n for _, q in contacts)):
+            raise ValueError(f"contacts must be (identity, Quantities of {n} frames) pairs by increasing "
+                             f"identity from 1, got identities {identities}")
+        object.__setattr__(self, "contacts", tuple((int(i), q) for i, q in contacts))
 
     def __len__(self) -> int:
         return self.frame.size
+
+    @property
+    def identities(self) -> tuple[int, ...]:
+        """The followed contacts' identities, increasing."""
+        return tuple(i for i, _ in self.contacts)
+
+    def contact(self, identity: int) -> Quantities:
+        """The quantities of contact ``identity`` over the frames (nan where it is absent).
+
+        Raises
+        ------
+        KeyError
+            When no contact of that identity is in the series.
+        """
+        for i, quantities in self.contacts:
+            if i == identity:
+                return quantities
+        raise KeyError(f"no contact {identity!r} in the series (identities {list(self.identities)})")
 
     @property
     def complete(self) -> bool:
@@ -255,6 +298,10 @@ class Series:
                                                                                   strict=True)]
             columns += [getattr(self.errors, f.name) * factor
                         for f, (_, factor) in zip(fields(TruthErrors), _ERROR_COLUMNS, strict=True)]
+        for identity, quantities in self.contacts:
+            names += [f"contact{identity}_{name}" for name, _ in _COLUMNS]
+            columns += [getattr(quantities, q) * factor for q, (_, factor) in zip(_QUANTITIES, _COLUMNS,
+                                                                                  strict=True)]
         table = np.column_stack(columns) if len(self) else np.zeros((0, len(names)))
         lines = [f"# {line}" for line in header] + [",".join(names)]
         lines += [",".join([str(int(row[0])), *(repr(float(v)) for v in row[1:])]) for row in table]
@@ -296,16 +343,22 @@ class Series:
                                      f"{len(rows[-1])}")
         plain = ["frame", "t_s", *(name for name, _ in _COLUMNS)]
         with_truth = plain + [f"truth_{name}" for name, _ in _COLUMNS] + [name for name, _ in _ERROR_COLUMNS]
-        if names not in (plain, with_truth):
+        names = names or []
+        base = with_truth if names[:len(with_truth)] == with_truth else plain
+        identities = _contact_columns(names[len(base):]) if names[:len(base)] == base else None
+        if identities is None:
             raise ValueError(f"{path}: the columns must be {','.join(plain)} (and, with truth, "
-                             f"{','.join(with_truth[len(plain):])}), got {names}")
+                             f"{','.join(with_truth[len(plain):])}; then contact<N>_fz_N ... for each "
+                             f"contact), got {names}")
         table = np.array(rows, dtype=float).reshape(len(rows), len(names))
 
         def quantities(offset):
             return Quantities(*(table[:, offset + i] / factor for i, (_, factor) in enumerate(_COLUMNS)))
 
         truth = errors = None
-        if names == with_truth:
+        contacts = tuple((identity, quantities(len(base) + k * len(_COLUMNS)))
+                         for k, identity in enumerate(identities))
+        if base == with_truth:
             truth = quantities(2 + len(_COLUMNS))
             errors = TruthErrors(*(table[:, 2 + 2 * len(_COLUMNS) + i] / factor
                                    for i, (_, factor) in enumerate(_ERROR_COLUMNS)))
@@ -316,14 +369,34 @@ class Series:
             return cls(table[:, 0].astype(np.int64), table[:, 1], quantities(2), truth, errors,
                        kernel=meta.get("kernel", ""), mode=meta.get("mode", "auto"), shear_ratio=ratio,
                        shear_direction=direction, source=meta.get("source", ""),
-                       total=int(meta.get("total", len(rows))))
+                       total=int(meta.get("total", len(rows))), contacts=contacts)
         except (KeyError, ValueError) as exc:
             raise ValueError(f"{path}: damaged header: {exc}") from None
 
 
+def _contact_columns(names) -> list[int] | None:
+    # the identities of the contact<N>_... column groups, None when they are not such groups
+    width, identities = len(_COLUMNS), []
+    if len(names) % width:
+        return None
+    for start in range(0, len(names), width):
+        prefix = names[start].removesuffix(_COLUMNS[0][0])
+        number = prefix.removeprefix("contact").removesuffix("_")
+        if not (number.isdigit() and int(number) >= 1 and prefix == f"contact{number}_"
+                and names[start:start + width] == [prefix + name for name, _ in _COLUMNS]):
+            return None
+        identities.append(int(number))
+    return identities if identities == sorted(set(identities)) else None
+
+
 def _row(forces, centroid) -> tuple:
     # the six quantities of one frame's nodal forces (m, 3): one rule for estimate and truth
-    fx, fy, fz = np.asarray(forces, dtype=float).sum(axis=0)
+    return _totals(np.asarray(forces, dtype=float).sum(axis=0), centroid)
+
+
+def _totals(total, centroid) -> tuple:
+    # the six quantities of a resultant (Fx, Fy, Fz) and its load centroid (None: nothing presses)
+    fx, fy, fz = (float(v) for v in total)
     tangential = math.hypot(fx, fy)
     if tangential > NO_TANGENTIAL * math.hypot(tangential, fz):
         direction = math.atan2(fy, fx)
@@ -367,6 +440,7 @@ class SeriesBuilder:
                           shear_direction=shear_direction)
         self._total = total
         self._rows: deque = deque()
+        self._contacts: deque = deque()  # per row: {identity: the contact's six quantities}
 
     def __len__(self) -> int:
         return len(self._rows)
@@ -374,6 +448,10 @@ class SeriesBuilder:
     def add(self, solved: Solved, truth=None) -> None:
         """Add a solved frame (``solved.frame``, ``solved.time``, its forces and load centroid);
         the same frame (number and time) as the last one added replaces it.
+
+        Its contacts that carry an identity (followed over frames: the model's
+        results, :func:`compute_series`) add to their own series; contacts of
+        identity 0 only to the totals.
 
         Parameters
         ----------
@@ -395,16 +473,21 @@ class SeriesBuilder:
             row += _row(truth, load_centroid(self.grid.positions, truth[:, 2]))
             row += (normal_total_error(forces, truth), tangential_total_error(forces, truth),
                     direction_error(forces, truth))
+        contacts = {c.identity: _totals(c.total_force, centroid)
+                    for c, centroid in zip(solved.result.contacts, solved.contact_centroids, strict=True)
+                    if c.identity > 0}
         if self._rows and self._rows[-1][:2] == row[:2]:
             # the same frame solved again (new parameters on a quiet board): its row is replaced,
             # so the series never holds one time twice
-            self._rows[-1] = row
+            self._rows[-1], self._contacts[-1] = row, contacts
         else:
             self._rows.append(row)
+            self._contacts.append(contacts)
         if self.span is not None:
             # a live source's rolling window: its clock only moves on, so the oldest rows go first
             while self._rows and self._rows[0][1] < solved.time - self.span:
                 self._rows.popleft()
+                self._contacts.popleft()
 
     def series(self) -> Series:
         """The rows so far as a :class:`Series`."""
@@ -413,8 +496,11 @@ class SeriesBuilder:
         truth = Quantities(*table[:, 8:14].T) if self.truth else None
         errors = TruthErrors(*table[:, 14:17].T) if self.truth else None
         total = len(table) if self._total is None else max(self._total, len(table))
+        identities = sorted({i for frame in self._contacts for i in frame})
+        contacts = tuple((i, Quantities(*np.array([frame.get(i, _NOTHING) for frame in self._contacts],
+                                                  dtype=float).reshape(-1, 6).T)) for i in identities)
         return Series(table[:, 0].astype(np.int64), table[:, 1], Quantities(*table[:, 2:8].T), truth, errors,
-                      total=total, **self._meta)
+                      total=total, contacts=contacts, **self._meta)
 
 
 def spread_frames(count: int, limit: int = MAX_FRAMES) -> np.ndarray:
@@ -457,6 +543,10 @@ def nearest_frame(t, x: float) -> int:
 def compute_series(recording: Recording, solver, *, shear_ratio=None, shear_direction=None, frames=None,
                    progress=None, partial=None, every: float = 0.3, source: str = "") -> Series:
     """Solve a recording frame by frame (as the window's model does) and collect its time series.
+
+    The contacts are followed over the frames solved, in order
+    (:class:`solver.ContactTracker`), each with its own quantities in the
+    series (:attr:`Series.contacts`).
 
     Parameters
     ----------
@@ -525,9 +615,10 @@ def compute_series(recording: Recording, solver, *, shear_ratio=None, shear_dire
                             shear_ratio=math.nan if shear_ratio is None else shear_ratio,
                             shear_direction=math.nan if shear_direction is None else shear_direction)
     handed = time.perf_counter()
+    tracker = ContactTracker(grid)
     for done, k in enumerate(frames.tolist(), start=1):
         stress = recording.frames[k]
-        result = solver.solve(stress, **given)
+        result = tracker.update(solver.solve(stress, **given))
         # Solved.of: the load centroid by the very rule of the frame the window draws
         builder.add(Solved.of(grid, stress, result, frame=k, time=float(recording.t[k]), auto=auto),
                     None if truth is None else truth[k])

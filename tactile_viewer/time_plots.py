@@ -8,6 +8,13 @@ drawn and follows playback; a click on a plot (or dragging the cursor) shows
 the nearest frame. CSV (:meth:`tactile_viewer.series.Series.to_csv`) and PNG
 exports.
 
+Contacts followed over time: when the series holds more than one contact
+identity (:attr:`tactile_viewer.series.Series.contacts`), every row also has a
+thin curve per contact, named ``#1``, ``#2`` ... in the Fz legend as in the
+contacts table, broken where the contact is absent (the ``MAX_CONTACT_CURVES``
+contacts present on the most frames; a single contact's curves would repeat
+the totals, so none are drawn for it).
+
 The series is solved in the background (:func:`tactile_viewer.series.compute_series`
 in a task of the window's :class:`~tactile_viewer.tasks.TaskRunner`, without
 its modal dialog: the window stays free) and drawn as it fills in; a new
@@ -44,6 +51,7 @@ SETTLE_MS = 250  # parameters must stay this long before their series is solved 
 LIVE_SPAN_S = 60.0  # a live source's plots hold this much of its history
 ROW_PX = 80  # the least height of one plot: below it the dock scrolls instead of squashing them
 CACHED = 4  # series kept per source and solver (Auto on and off again costs nothing)
+MAX_CONTACT_CURVES = 8  # contacts drawn with curves of their own (those present on the most frames)
 
 # (key, axis label, unit, the plotted value of a Quantities) of each row; the labels are short: a
 # row is a few centimetres high and its label runs along its side (the tooltips spell them out)
@@ -78,6 +86,9 @@ ANGLE_TICKS = [[(v, str(v)) for v in (-180, -90, 0, 90, 180)]]
 ESTIMATE_PEN = pg.mkPen((31, 119, 180), width=2)
 TRUTH_PEN = pg.mkPen((255, 127, 14), width=2, style=QtCore.Qt.PenStyle.DashLine)
 ERROR_PENS = (pg.mkPen((214, 39, 40), width=2), pg.mkPen((44, 160, 44), width=2))
+# one colour per contact identity (cycling), none of them the estimate's, the truth's or the errors'
+CONTACT_COLOURS = ((148, 103, 189), (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34),
+                   (23, 190, 207), (44, 160, 44), (214, 39, 40))
 CURSOR_PEN = pg.mkPen((0, 0, 0, 170), width=1)
 CURSOR_HOVER_PEN = pg.mkPen((214, 39, 40), width=3)
 INK = (40, 40, 40)  # axes, ticks and labels
@@ -132,6 +143,9 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         The estimate's and the truth's curve of each row of :data:`ROWS`.
     error_curves : dict of str to list of pyqtgraph.PlotDataItem
         The curves of each row of :data:`ERROR_ROWS`.
+    contact_curves : dict of int to (dict of str to pyqtgraph.PlotDataItem)
+        By contact identity, its curve of each row of :data:`ROWS` (only the
+        contacts drawn).
     cursors : list of pyqtgraph.InfiniteLine
         One per plot.
     """
@@ -192,6 +206,7 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         self.curves: dict[str, pg.PlotDataItem] = {}
         self.truth_curves: dict[str, pg.PlotDataItem] = {}
         self.error_curves: dict[str, list] = {}
+        self.contact_curves: dict[int, dict] = {}
         self.cursors: list[pg.InfiniteLine] = []
         first = None
         for key, label, unit, _ in ROWS:
@@ -492,9 +507,30 @@ class TimePlotsDock(QtWidgets.QDockWidget):
             for key, *_, members in ERROR_ROWS:
                 for curve, (_, value) in zip(self.error_curves[key], members, strict=True):
                     curve.setData(x, value(series.errors))
+        self._draw_contacts(series)
         self._move_lines(self._lines_x)
         self._set_exports()
         self.drawn.emit()
+
+    def _draw_contacts(self, series: Series):
+        # a curve per followed contact on every row, when there is more than one
+        contacts = series.contacts if len(series.contacts) > 1 else ()
+        if len(contacts) > MAX_CONTACT_CURVES:
+            present = sorted(contacts, key=lambda pair: -np.count_nonzero(np.isfinite(pair[1].fz)))
+            contacts = sorted(present[:MAX_CONTACT_CURVES], key=lambda pair: pair[0])
+        drawn = {identity for identity, _ in contacts}
+        for identity in [i for i in self.contact_curves if i not in drawn]:
+            for key, curve in self.contact_curves.pop(identity).items():
+                self.plots[key].removeItem(curve)  # and from the legend
+        for identity, quantities in contacts:
+            curves = self.contact_curves.get(identity)
+            if curves is None:
+                pen = pg.mkPen(CONTACT_COLOURS[(identity - 1) % len(CONTACT_COLOURS)], width=1.5)
+                curves = self.contact_curves[identity] = {
+                    key: self._curve(self.plots[key], pen, f"#{identity}" if key == "fz" else None)
+                    for key, *_ in ROWS}
+            for key, _, _, value in ROWS:
+                self._set(curves[key], series.t, value(quantities), key == "direction")
 
     @staticmethod
     def _set(curve, x, y, wrap):

@@ -7,9 +7,11 @@ import pytest
 from scipy import ndimage
 
 import solver.efficiency as efficiency
+import solver.search as search
 from solver import Reconstructor, SensorGrid, loads
 from solver.efficiency import ContactFit, NoShear
 from solver.kernels import stress_matrix
+from solver.threads import one_blas_thread
 
 
 @pytest.fixture(scope="module")
@@ -27,8 +29,9 @@ def sheared(reconstructor):
 # -- the contact region ------------------------------------------------------------------------
 
 def _contacts_by_image(r, normal):
-    # the contact labelling of Reconstructor.contact_labels, written independently on the
-    # image with scipy.ndimage (raster order numbers the contacts as the compiled one does)
+    # the contact labelling of Reconstructor.contact_labels without splitting patches
+    # (separation 0: touching contacts join), written independently on the image with
+    # scipy.ndimage (raster order numbers the contacts as the compiled one does)
     image = normal.reshape(r.grid.shape)
     if not image.max() > 0:
         return np.zeros(normal.size, int)
@@ -53,12 +56,16 @@ def test_contacts_are_the_grown_patches_of_the_normal_solution(reconstructor, sh
         expected = _contacts_by_image(reconstructor, normal)
         counts.append(expected.max())
         for r in (reconstructor, irregular):
-            labels, near = r.contact_labels(normal)
+            labels, near = search.contact_labels(normal, r.region_threshold, 0.0, r.grid.positions,
+                                                 r._adjacent, r._margin, r._near)
             np.testing.assert_array_equal(labels, expected)
             # near: the sensors within the fit's reach of each contact's nodes
             within = distance <= r._rings * grid.pitch * 1.0001
             np.testing.assert_array_equal(
                 near, np.stack([within[:, labels == k].any(axis=1) for k in range(1, labels.max() + 1)], axis=1))
+            # the default separation finds the two apart contacts too, and never more contacts
+            if noise == 0:
+                np.testing.assert_array_equal(r.contact_labels(normal)[0], expected)
     assert counts[0] == 2 and len(set(counts)) > 1  # two contacts apart, and noise that joins or adds
 
 
@@ -98,7 +105,9 @@ def test_frame_columns_are_the_sub_cells_of_the_region(reconstructor, sheared):
     np.testing.assert_array_equal(frame.column_contact, np.zeros(columns.size, int))
     assert frame.row_contact.shape == (rows.size, 1) and frame.row_contact.all()
     # the answer is one force per node: the sum of its sub-cells' profile
-    choice = r.efficiency.choose(frame)
+    # on one BLAS thread, as the solve runs: the same products, summed in the same order
+    with one_blas_thread():
+        choice = r.efficiency.choose(frame)
     result = r.solve(b)
     np.testing.assert_allclose(result.forces[:, 2], np.bincount(nodes, weights=choice.profile, minlength=m),
                                rtol=1e-12, atol=0)

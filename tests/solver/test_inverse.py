@@ -253,9 +253,11 @@ def test_constructor_checks_its_arguments():
     (dict(subdivision=math.nan), "subdivision must be a whole number from 1 to 4, got nan"),
     (dict(region_margin=10**400), "region_margin must be a whole number of pitches >= 0, got 1000"),
     (dict(profile="hat"), "profile must be one of \\('uniform', 'bilinear'\\), got 'hat'"),
+    (dict(separation=1.5), "separation must be in \\[0, 1\\], got 1.5"),
+    (dict(separation=math.nan), "separation must be in \\[0, 1\\], got nan"),
 ], ids=["subdivision-0", "subdivision-5", "subdivision-fraction", "subdivision-bool", "reach", "reach-nan",
         "reach-text", "max_shear_ratio-inf", "region_threshold-bool", "max_condition-nan", "subdivision-inf",
-        "subdivision-nan", "region_margin-huge", "profile"])
+        "subdivision-nan", "region_margin-huge", "profile", "separation", "separation-nan"])
 def test_options_are_checked_before_any_matrix_is_built(kwargs, message, monkeypatch):
     import solver.inverse
 

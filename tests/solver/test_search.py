@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from scipy import sparse
+from scipy import ndimage, sparse
 from scipy.optimize import nnls
 
 import solver.search as search
@@ -167,7 +167,141 @@ def test_after_warm_up_a_recorded_frame_compiles_nothing():
 def test_no_contact_when_nothing_is_above_the_threshold(threshold):
     r = Reconstructor(SensorGrid.regular(4, 4, 1e-3, 1e-3), kernel="cell")
     normal = np.linspace(0.1, 1.0, 16)
-    labels, near = contact_labels(normal, threshold, r._adjacent, r._margin, r._near)
+    labels, near = _labels(r, normal, threshold=threshold)
     assert labels.shape == (16,) and not labels.any() and near.shape == (16, 0)
-    labels, near = contact_labels(normal, 0.95, r._adjacent, r._margin, r._near)  # the peak node alone
+    labels, near = _labels(r, normal, threshold=0.95)  # the peak node alone
     assert labels.max() == 1 and near.shape == (16, 1) and near[15, 0]
+
+
+def _labels(r, normal, *, threshold=0.2, separation=0.6):
+    return contact_labels(np.asarray(normal, float), threshold, separation, r.grid.positions, r._adjacent,
+                          r._margin, r._near)
+
+
+def _two_bumps(grid, dip):
+    # two round bumps of height 1 and 0.8 on one row, 5 pitches apart, joined by a ridge that sinks
+    # to ``dip`` between them: one patch above any threshold below ``dip``
+    x, y = (grid.positions / grid.pitch).T
+    bumps = np.maximum(np.exp(-((x + 2.5) ** 2 + y ** 2) / 1.5), 0.8 * np.exp(-((x - 2.5) ** 2 + y ** 2) / 1.5))
+    ridge = dip * np.exp(-(y ** 2) / 1.5) * (np.abs(x) <= 2.5)
+    return np.maximum(bumps, ridge)
+
+
+@pytest.fixture(scope="module")
+def plain():
+    return Reconstructor(SensorGrid.regular(15, 9, 1e-3, 1e-3), kernel="cell")
+
+
+def test_a_patch_with_a_dip_between_two_peaks_is_two_contacts(plain):
+    grid = plain.grid
+    x = grid.positions[:, 0] / grid.pitch
+    # the lower peak's node reads 0.8 exp(-1/6) = 0.677: a dip of 0.3 is 0.44 of it, one of 0.5 is 0.74
+    for dip, separation, count in ((0.3, 0.6, 2), (0.3, 0.45, 2), (0.3, 0.43, 1), (0.3, 0.0, 1), (0.5, 0.6, 1)):
+        normal = _two_bumps(grid, dip)
+        core, cores = np.zeros(grid.size, np.int64), None
+        cores = search.contact_cores(normal, 0.2, plain._adjacent, core)
+        assert cores.sum() == 1  # one patch above the threshold
+        labels, near = _labels(plain, normal, separation=separation)
+        assert labels.max() == count == near.shape[1], (dip, separation)
+        if count == 2:
+            # each holds its own peak, and the ridge is cut where it is lowest
+            peaks = [np.argmax(np.where(x < 0, normal, 0)), np.argmax(np.where(x > 0, normal, 0))]
+            assert labels[peaks[0]] != labels[peaks[1]] and labels[peaks].all()
+            row = np.flatnonzero((np.abs(grid.positions[:, 1]) < 1e-9) & (normal > 0.2))  # the core's
+            assert set(labels[row[x[row] <= -1]]) == {labels[peaks[0]]}
+            assert set(labels[row[x[row] >= 1]]) == {labels[peaks[1]]}
+    # every local maximum is a contact at separation 1
+    assert _labels(plain, _two_bumps(grid, 0.7), separation=1.0)[0].max() == 2
+
+
+def _prominent_peaks(grid, normal, threshold, separation):
+    # brute force: a peak of a kept core patch is a contact's when every path from it to higher
+    # ground sinks to at most separation times its height (its key saddle, found on the level sets)
+    structure = np.ones((3, 3))
+    image = normal.reshape(grid.shape)
+    core, count = ndimage.label(image > threshold * image.max(), structure=structure)
+    mass = ndimage.sum_labels(image, core, index=np.arange(1, count + 1))
+    peaks = 0
+    for k in np.flatnonzero(mass >= 0.05 * mass.max()) + 1:
+        patch = core == k
+        summit = image[patch].max()
+        peaks += 1  # the patch's highest peak
+        maxima = patch & (image == ndimage.maximum_filter(np.where(patch, image, -np.inf), footprint=structure))
+        for p in zip(*np.nonzero(maxima), strict=True):
+            height = image[p]
+            if height == summit:
+                continue
+            # the highest level at which p's component of {v >= level} within the patch reaches higher
+            levels = np.sort(image[patch & (image <= height)])[::-1]
+            saddle = -np.inf
+            for level in levels:
+                parts = ndimage.label(patch & (image >= level), structure=structure)[0]
+                if (image[parts == parts[p]] > height).any():
+                    saddle = level
+                    break
+            peaks += saddle <= separation * height
+    return peaks
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_the_pieces_of_a_patch_are_its_prominent_peaks(plain, seed):
+    # random fields of a few bumps and noise: as many pieces as prominent peaks (brute force)
+    rng = np.random.default_rng(seed)  # one field per seed
+    grid = plain.grid
+    x, y = (grid.positions / grid.pitch).T
+    normal = 0.05 * rng.standard_normal(grid.size)
+    for _ in range(int(rng.integers(1, 5))):
+        cx, cy = rng.uniform(-7, 7), rng.uniform(-4, 4)
+        normal += rng.uniform(0.3, 1.0) * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / rng.uniform(0.5, 3.0))
+    # distinct values: the brute force and the merge tree order ties alike only by chance
+    normal += 1e-9 * rng.standard_normal(grid.size)
+    core = np.zeros(grid.size, np.int64)
+    kept = search.contact_cores(normal, 0.2, plain._adjacent, core)
+    core = np.where(kept[core], core, 0)
+    for separation in (0.3, 0.6, 0.9):
+        pieces = np.zeros(grid.size, np.int64)
+        count = search._separate(normal, core, separation, plain._adjacent, pieces)
+        assert count == pieces.max() == _prominent_peaks(grid, normal, 0.2, separation), separation
+        # each piece lies within one core patch and is connected
+        for k in range(1, count + 1):
+            assert len(set(core[pieces == k])) == 1
+            image = (pieces == k).reshape(grid.shape)
+            assert ndimage.label(image, structure=np.ones((3, 3)))[1] == 1
+
+
+def test_light_pieces_and_noise_all_over_the_skin_join_their_neighbours(plain):
+    grid = plain.grid
+    x, y = (grid.positions / grid.pitch).T
+    # two bumps 4 pitches apart, their dip deep enough to split them
+    pair = lambda second: np.maximum(np.exp(-((x + 2) ** 2 + y ** 2) / 1.0),  # noqa: E731
+                                     second * np.exp(-((x - 2) ** 2 + y ** 2) / 1.0))
+    assert _labels(plain, pair(0.8))[0].max() == 2
+    # the same second bump with a quarter of the first's core load or less joins it
+    assert _labels(plain, pair(0.35))[0].max() == 1
+    assert search.SEPARATE_MASS == 0.25
+    # more bumps that could stand apart than a hand makes: noise, and touching ones join as before
+    bumps = [np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / 0.6) for cx, cy in
+             ((-6, -2), (-3, -2), (0, -2), (3, -2), (6, -2), (-6, 2), (-3, 2), (0, 2), (3, 2), (6, 2))]
+    field = np.max(bumps[:search.SEPARATE_MOST], axis=0)
+    assert _labels(plain, field)[0].max() == search.SEPARATE_MOST
+    field = np.max(bumps, axis=0)
+    assert _labels(plain, field)[0].max() < len(bumps)
+    assert _labels(plain, field)[0].max() == _labels(plain, field, separation=0.0)[0].max()
+
+
+def test_a_node_between_two_contacts_goes_to_the_nearer(plain):
+    grid = plain.grid
+    x = grid.positions[:, 0] / grid.pitch
+    normal = np.where(np.abs(grid.positions[:, 1]) < 1e-9, 0.0, -1.0)
+    normal[np.isclose(x, -2)] = 1.0  # two single-node cores on the middle row, 3 pitches apart
+    normal[np.isclose(x, 1)] = 1.0
+    normal = np.where(np.abs(grid.positions[:, 1]) < 1e-9, normal, -1.0)
+    r = Reconstructor(plain.grid, kernel="cell", region_margin=2)
+    labels, _ = _labels(r, normal)
+    left, right = labels[np.isclose(x, -2) & (normal > 0)][0], labels[np.isclose(x, 1) & (normal > 0)][0]
+    assert left != right
+    row = np.abs(grid.positions[:, 1]) < 1e-9
+    # grown by 2 pitches the two regions overlap: each node goes to the nearer core, and neither region
+    # takes the other's core
+    assert labels[row & np.isclose(x, -1)][0] == left and labels[row & np.isclose(x, 0)][0] == right
+    assert labels[row & np.isclose(x, -4)][0] == left and labels[row & np.isclose(x, 3)][0] == right

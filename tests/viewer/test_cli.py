@@ -13,21 +13,24 @@ from tactile_viewer.recording import load
 from tools import make_samples as samples
 
 SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
-NAMES = ["hertz_static.npz", "hertz_shear_turning.npz", "flat_punch_shear.npz", "two_contacts.npz"]
+NAMES = ["hertz_static.npz", "hertz_shear_turning.npz", "flat_punch_shear.npz", "two_contacts.npz",
+         "pinch.npz", "three_contacts.npz", "twist.npz"]
+# the broad press: six frames of a 32x32 skin
+ALL = NAMES + ["broad_press_32x32.npz"]
 
 
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", ALL)
 def test_bundled_samples_load_with_truth(name):
     recording = load(SAMPLES / name)
-    assert len(recording) >= 30
+    assert len(recording) >= (6 if name in ALL[len(NAMES):] else 30)
     assert recording.truth_forces is not None
-    assert recording.grid.shape == (16, 16)
+    assert recording.grid.shape == ((32, 32) if name == "broad_press_32x32.npz" else (16, 16))
     assert recording.description
 
 
 def test_samples_are_reproducible_from_the_script(tmp_path):
     written = samples.make_all(tmp_path)
-    assert sorted(p.name for p in written) == sorted(NAMES)
+    assert sorted(p.name for p in written) == sorted(ALL)
     for path in written:
         ours, bundled = load(path), load(SAMPLES / path.name)
         np.testing.assert_allclose(ours.frames, bundled.frames, rtol=1e-12, atol=1e-9)
@@ -43,6 +46,29 @@ def test_report_on_the_turning_shear_sample(capsys):
     # total normal force within 5% of the 1 N truth on every frame
     assert all(abs(float(r[2]) - 1.0) < 0.05 for r in rows)
     assert "median solve" in out
+
+
+def test_report_lists_each_frames_contacts_numbered_over_time(capsys):
+    assert main([str(SAMPLES / "two_contacts.npz"), "--report"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    frames = [i for i, line in enumerate(lines) if re.match(r"\s+\d+\s+\d\.\d{3}\s", line)]
+    assert len(frames) == 45  # the contact lines are not taken for frames
+    contact = re.compile(r"\s+#(\d+)\s+(-?\d\.\d{4}) (\d\.\d{4})\s+(\d\.\d\d)\s+([+-]\d+) "
+                         r"at x ([+-]\d+\.\d\d) y ([+-]\d+\.\d\d) mm$")
+    seen = {}
+    for start, stop in zip(frames, frames[1:] + [len(lines) - 1], strict=True):
+        matches = [contact.fullmatch(line) for line in lines[start + 1:stop]]
+        assert matches and all(matches), lines[start + 1:stop]
+        total = float(lines[start].split()[2])
+        # the contacts' normal forces add up to the frame's (automatic solves load nothing else)
+        assert sum(float(m[2]) for m in matches) == pytest.approx(total, abs=2e-4)
+        for m in matches:
+            seen.setdefault(int(m[1]), []).append((float(m[6]), float(m[7])))
+    # the 0.6 N contact is #1 on every frame; the ramping one #2 from when it is found on
+    assert sorted(seen) == [1, 2] and len(seen[1]) == 45 and len(seen[2]) >= 40
+    for number, (x, y) in ((1, (-6.8, -5.0)), (2, (6.8, 6.0))):
+        spots = np.array(seen[number])
+        assert np.abs(spots - (x, y)).max() < 1.0, number  # each number stays on one contact
 
 
 def test_report_with_given_parameters_on_one_frame(capsys):

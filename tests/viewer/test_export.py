@@ -10,6 +10,7 @@ import pytest
 from solver import Reconstructor, SensorGrid, loads
 from tactile_viewer import export
 from tactile_viewer.export import (
+    CONTACT_COLUMNS,
     CSV_COLUMNS,
     SIDECAR_MARKER,
     SidecarConflict,
@@ -129,6 +130,74 @@ def test_csv_export_has_its_header_and_columns(recording, reconstructor, tmp_pat
     node = 7
     assert float(rows[node][3]) == pytest.approx(recording.grid.positions[node, 0])
     assert float(rows[node][7]) == pytest.approx(table.forces[0, node, 2], rel=1e-8)
+
+
+@pytest.fixture(scope="module")
+def two_fingers():
+    """Two Hertzian presses (0.8 N left, 0.5 N right) sliding towards each other over four frames."""
+    grid = SensorGrid.regular(14, 8, 2e-3, 2e-3)
+    frames = [loads.simulate(grid, [loads.hertz((-6e-3 + 0.5e-3 * k, 0.0), 3e-3, 0.8),
+                                    loads.hertz((6e-3 - 0.5e-3 * k, 0.0), 3e-3, 0.5, shear_ratio=0.3)],
+                             noise=0.005, rng=k).stress for k in range(4)]
+    recording = Recording(grid, np.array(frames), [0.0, 0.05, 0.1, 0.15], description="two fingers")
+    return recording, Reconstructor(grid)
+
+
+@pytest.mark.parametrize("name", ["fingers.npz", "fingers.csv"])
+def test_per_contact_totals_are_exported_and_read_back(two_fingers, tmp_path, name):
+    recording, solver = two_fingers
+    table = reconstruct_frames(recording, solver)
+    # each frame's contacts, largest first, numbered as they persist: the left one 1, the right one 2
+    assert table.contact_identity.shape == (4, 2)
+    np.testing.assert_array_equal(table.contact_identity, [[1, 2]] * 4)
+    for row in range(4):
+        result = solver.solve(recording.frames[row])
+        for slot, contact in enumerate(result.contacts):
+            np.testing.assert_allclose(table.contact_force[row, slot], contact.total_force, rtol=1e-6,
+                                       atol=1e-9)
+            np.testing.assert_allclose(table.contact_centre[row, slot], contact.centre, atol=1e-9)
+    assert table.contact_centre[0, 0, 0] == pytest.approx(-6e-3, abs=0.5e-3)
+    assert table.contact_force[:, 0, 2] == pytest.approx([0.8] * 4, rel=0.05)
+    back = load_forces(save_forces(table, tmp_path / name))
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]  # one file, contacts inside it
+    np.testing.assert_array_equal(back["contact_identity"], table.contact_identity)
+    np.testing.assert_allclose(back["contact_force"], table.contact_force, rtol=1e-8, atol=1e-15)
+    np.testing.assert_allclose(back["contact_centre"], table.contact_centre, rtol=1e-8, atol=1e-15)
+    np.testing.assert_allclose(back["forces"], table.forces, rtol=1e-8, atol=1e-15)
+
+
+def test_csv_contacts_are_hash_marked_lines_that_node_readers_skip(two_fingers, tmp_path):
+    recording, solver = two_fingers
+    table = reconstruct_frames(recording, solver, [1, 2])
+    path = save_forces(table, tmp_path / "fingers.csv")
+    # a reader that skips "#" lines sees the node table alone, as before the section existed
+    nodes = np.loadtxt(path, delimiter=",", skiprows=_first_data_line(path))
+    assert nodes.shape == (2 * recording.grid.size, len(CSV_COLUMNS))
+    lines = path.read_text().splitlines()
+    header = {line[2:].split("=", 1)[0]: line.split("=", 1)[1] for line in lines if line.startswith("#")}
+    assert header["contact_columns"].split(",") == list(CONTACT_COLUMNS)
+    rows = np.array([line.split("=", 1)[1].split(",") for line in lines if line.startswith("# contact=")],
+                    dtype=float)
+    assert rows.shape == (4, len(CONTACT_COLUMNS))  # two frames, two contacts each
+    np.testing.assert_array_equal(rows[:, 0], [1, 1, 2, 2])  # frame
+    np.testing.assert_array_equal(rows[:, 2], [1, 2, 1, 2])  # identity
+    np.testing.assert_allclose(rows[:, 3:6], table.contact_force.reshape(-1, 3), rtol=1e-8)
+    np.testing.assert_allclose(rows[:, 6:8], table.contact_centre.reshape(-1, 2), rtol=1e-8)
+
+
+def test_frames_solved_alone_are_numbered_when_tabled(two_fingers):
+    recording, solver = two_fingers
+    results = [solver.solve(recording.frames[k]) for k in range(3)]
+    assert {c.identity for r in results for c in r.contacts} == {0}
+    table = export.force_table(results, [0, 1, 2], recording.t[:3], recording.grid, solver=solver, mode="auto")
+    np.testing.assert_array_equal(table.contact_identity, [[1, 2]] * 3)
+    with pytest.raises(ValueError, match=r"contact_identity, contact_force and contact_centre must be \(T, K\)"):
+        export.ForceTable(**{**table.__dict__, "contact_centre": np.zeros((3, 2, 3))})
+
+
+def _first_data_line(path):
+    with open(path) as handle:
+        return next(number for number, line in enumerate(handle) if not line.startswith("#")) + 1
 
 
 def test_an_unknown_export_type_is_rejected(recording, reconstructor, tmp_path):

@@ -738,3 +738,65 @@ def test_a_new_recording_hides_arrows_under_two_percent_of_its_largest_node_forc
     assert HIDE_BELOW == 0.02 and model.display.threshold == pytest.approx(0.02 * peak)
     forces = np.linalg.norm(model.solve().result.forces, axis=1)
     assert 0 < np.sum(forces > model.display.threshold) < recording.grid.size  # the noise arrows go
+
+
+# -- contacts followed over time ---------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def crossing():
+    """Two presses whose sizes cross: the left grows from 0.4 to 1 N, the right falls from 0.9 to 0.5 N."""
+    grid = SensorGrid.regular(14, 8, PITCH, THICKNESS)
+    frames = [loads.simulate(grid, [loads.hertz((-6e-3, 0.0), 3e-3, 0.4 + 0.15 * k),
+                                    loads.hertz((6e-3, 0.0), 3e-3, 0.9 - 0.1 * k)], noise=0.005, rng=k).stress
+              for k in range(5)]
+    recording = Recording(grid, frames, 0.05 * np.arange(5), description="crossing sizes")
+    return recording, ViewerModel.build(grid, "layer")
+
+
+def sides(solved):
+    """{"left" / "right": identity} of a solved frame's two contacts."""
+    left, right = sorted(solved.result.contacts, key=lambda c: c.centre[0])
+    return {"left": left.identity, "right": right.identity}
+
+
+def test_contacts_keep_their_numbers_during_playback_and_start_again_after_a_seek_back(crossing):
+    recording, solver = crossing
+    model = ViewerModel()
+    model.set_source(RecordingSource(recording), solver)
+    for k in range(5):
+        model.set_frame(k)
+        solved = model.solve()
+        # numbered on frame 0, largest first: the right one is 1 and stays 1 after the left outgrows it
+        assert sides(solved) == {"left": 2, "right": 1}, k
+    assert solved.result.contacts[0].identity == 2  # listed first (the larger now), still number 2
+    model.set_parameters(shear_ratio=0.2, shear_direction=0.0)  # the same frame solved again
+    assert sides(model.solve()) == {"left": 2, "right": 1}
+    assert model._tracker.next_identity == 3  # matched again from before the frame: nothing drifted
+    model.set_frame(3)  # a step back: nothing is known of the way there, the numbers start again
+    assert sides(model.solve()) == {"left": 1, "right": 2}
+    model.set_frame(4)
+    assert sides(model.solve()) == {"left": 1, "right": 2}
+
+
+def test_a_new_source_numbers_its_contacts_from_one(crossing):
+    recording, solver = crossing
+    model = ViewerModel()
+    model.set_source(RecordingSource(recording), solver)
+    for k in range(3):
+        model.set_frame(k)
+        model.solve()
+    model.set_source(RecordingSource(recording), solver)
+    model.set_frame(4)
+    assert sides(model.solve()) == {"left": 1, "right": 2}
+
+
+def test_live_frames_delivered_by_the_worker_carry_their_numbers(threaded, crossing):
+    recording, solver = crossing
+    model, posted = threaded
+    board = Pushed(recording.grid)
+    model.set_source(board, solver)
+    for k in range(5):
+        board.push(recording.frames[k], 100 + k)
+        posted.run(model)  # the hand-over
+        posted.run(model)  # the result
+        assert model.last.frame == 100 + k and sides(model.last) == {"left": 2, "right": 1}

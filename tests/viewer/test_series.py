@@ -235,6 +235,67 @@ def test_a_frame_solved_again_replaces_its_row(skin):
     assert series.estimate.shear_ratio[0] == pytest.approx(0.5, abs=0.05)  # the newer solve's
 
 
+@pytest.fixture(scope="module")
+def two():
+    """Frame 0: a press on the left; 1 and 2: a second on the right too; 3: the left one lifted."""
+    grid = SensorGrid.regular(14, 8, 2e-3, 2e-3)
+    left, right = loads.hertz((-6e-3, 0.0), 3e-3, 0.8), loads.hertz((6e-3, 0.0), 3e-3, 0.5, shear_ratio=0.3)
+    scenes = [[left], [left, right], [left, right], [right]]
+    frames = [loads.simulate(grid, scene, noise=0.005, rng=k).stress for k, scene in enumerate(scenes)]
+    return Recording(grid, np.array(frames), np.arange(4) / 30.0, description="two presses"), \
+        ViewerModel.build(grid, "layer")
+
+
+def test_each_contact_has_its_own_series_by_identity(two, tmp_path):
+    recording, solver = two
+    series = compute_series(recording, solver)
+    assert series.identities == (1, 2)
+    left, right = series.contact(1), series.contact(2)
+    assert_same(np.isnan(left.fz), [False, False, False, True])  # lifted on the last frame
+    assert_same(np.isnan(right.fz), [True, False, False, False])
+    assert left.fz[:3] == pytest.approx([0.8] * 3, rel=0.05)
+    assert right.fz[1:] == pytest.approx([0.5] * 3, rel=0.05)
+    assert np.all(right.shear_ratio[1:] > 0.1)  # the sheared one (0.3 true; accuracy is not the point)
+    assert left.centroid_x[:3] == pytest.approx([-6e-3] * 3, abs=0.5e-3)
+    assert right.centroid_x[1:] == pytest.approx([6e-3] * 3, abs=0.5e-3)
+    # each contact's quantities are its own resultant's, as the contacts table shows them
+    for k in range(4):
+        result = solver.solve(recording.frames[k])
+        assert np.nansum([left.fz[k], right.fz[k]]) == pytest.approx(sum(c.total_force[2]
+                                                                         for c in result.contacts), rel=1e-6)
+    with pytest.raises(KeyError, match=r"no contact 3 in the series \(identities \[1, 2\]\)"):
+        series.contact(3)
+    # the CSV carries them, column groups contact<N>_..., and reads them back
+    path = series.to_csv(tmp_path / "two.csv")
+    columns = next(line for line in path.read_text().splitlines() if not line.startswith("#")).split(",")
+    assert columns[8:10] == ["contact1_fz_N", "contact1_tangential_N"] and columns[-1] == "contact2_centroid_y_m"
+    back = Series.from_csv(path)
+    assert back.identities == (1, 2)
+    for identity in (1, 2):
+        for name in QUANTITIES:
+            assert_same(getattr(back.contact(identity), name), getattr(series.contact(identity), name),
+                        rtol=1e-14)
+
+
+def test_a_builder_keeps_only_followed_contacts_and_drops_them_with_their_rows(two):
+    recording, solver = two
+    builder = SeriesBuilder(recording.grid, mode="as shown", span=0.05)
+    for k in range(4):  # solved alone: identity 0, in the totals only
+        builder.add(Solved.of(recording.grid, recording.frames[k], solver.solve(recording.frames[k]), frame=k,
+                              time=float(recording.t[k])))
+    assert builder.series().contacts == ()
+    model = ViewerModel()  # the model's results carry their identities
+    model.set_source(RecordingSource(recording), solver)
+    builder = SeriesBuilder(recording.grid, mode="as shown", span=0.05)
+    for k in range(4):
+        model.set_frame(k)
+        builder.add(model.solve())
+    series = builder.series()
+    np.testing.assert_array_equal(series.frame, [2, 3])  # the rolling window took the rest
+    assert series.identities == (1, 2)
+    assert_same(np.isnan(series.contact(1).fz), [False, True])
+
+
 def test_nearest_frame():
     t = [0.0, 0.1, 0.2, 0.2, 0.5]
     assert [nearest_frame(t, x) for x in (-1.0, 0.04, 0.06, 0.15, 0.2, 0.36, 9.0)] == [0, 0, 1, 1, 2, 4, 4]
@@ -297,12 +358,19 @@ def test_bad_series_are_refused(skin):
         Quantities(*np.zeros((5, 2)), np.zeros(3))
     with pytest.raises(ValueError, match=r"forces must have shape \(n, 64, 3\), got \(2, 3\)"):
         Quantities.of_forces(recording.grid, np.zeros((2, 3)))
+    for contacts, identities in (([(0, estimate)], r"\[0\]"), ([(2, estimate), (1, estimate)], r"\[2, 1\]"),
+                                 ([estimate], r"\[None\]"), ([(1, Quantities(*np.zeros((6, 3))))], r"\[1\]")):
+        with pytest.raises(ValueError, match=r"contacts must be \(identity, Quantities of 2 frames\) pairs by "
+                           rf"increasing identity from 1, got identities {identities}"):
+            Series([0, 1], [0.0, 0.1], estimate, contacts=contacts)
 
 
 @pytest.mark.parametrize("text, message", [
     ("frame,t_s\n", "not a time series of this viewer"),
     ("", "got 'an empty file'"),
     (f"# {CSV_MARKER}\nframe,t_s,fz_N\n0,0.0,1.0\n", "the columns must be frame,t_s,fz_N"),
+    (f"# {CSV_MARKER}\nframe,t_s,fz_N,tangential_N,direction_deg,shear_ratio,centroid_x_m,centroid_y_m,"
+     "contact1_fz_N\n", "the columns must be frame,t_s,fz_N"),
     (f"# {CSV_MARKER}\nframe,t_s,fz_N,tangential_N,direction_deg,shear_ratio,centroid_x_m,centroid_y_m\n"
      "0,0.0,1.0,0.1,20,0.1,0,abc\n", "line 3: every value must be a number, got '0,0.0"),
     (f"# {CSV_MARKER}\nframe,t_s,fz_N,tangential_N,direction_deg,shear_ratio,centroid_x_m,centroid_y_m\n"

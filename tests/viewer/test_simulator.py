@@ -1,4 +1,4 @@
-"""tactile-sim: the Board byte stream, the contact cycle, and the command line on a real pseudo-terminal."""
+"""tactile-sim: the Board byte stream, the scenes, the lazy cycle, the command line on a real pseudo-terminal."""
 
 import json
 import os
@@ -6,6 +6,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -13,14 +14,15 @@ import pytest
 import serial
 
 from solver import SensorGrid
+from tactile_viewer import simulator
 from tactile_viewer.layout import SensorLayout, load_layout
 from tactile_viewer.protocol import BinaryDecoder, TextDecoder, crc16, make_decoder
-from tactile_viewer.simulator import Board, contact_cycle, main
+from tactile_viewer.simulator import SCENES, Board, Cycle, contact_cycle, main, scene_contacts, scene_frame
 
 
 @pytest.fixture(scope="module")
 def layout():
-    # 4x4 keeps the precomputed cycle fast; kPa as the CLI sends by default
+    # 4x4 keeps the cycle fast; kPa as the CLI sends by default
     return SensorLayout(SensorGrid.regular(4, 4, 2e-3, 2e-3), "kPa")
 
 
@@ -42,7 +44,8 @@ def decode(fmt, count, data, seed=0):
 
 def clean(board, seq):
     """The noiseless frame ``seq`` in the units on the wire (the cycle advances with time, not frames)."""
-    index = int((seq / board.rate) / 2.0 * len(board.cycle)) % len(board.cycle)
+    index = int((seq / board.rate) / board.period * len(board.cycle)) % len(board.cycle)
+    assert index == board.index(seq)
     return board.cycle[index] * 1e-3
 
 
@@ -50,7 +53,8 @@ def clean(board, seq):
 
 def test_board_cycle_is_the_contact_cycle(layout):
     board = Board(layout)
-    np.testing.assert_array_equal(board.cycle, contact_cycle(layout.grid))
+    assert board.period == 2.0 and len(board.cycle) == 100  # the circling contact, by default
+    np.testing.assert_array_equal(board.cycle.array(), contact_cycle(layout.grid))
 
 
 @pytest.mark.parametrize("fmt", ["binary", "text"])
@@ -70,16 +74,17 @@ def test_noiseless_board_sends_the_clean_cycle(layout, fmt):
         np.testing.assert_allclose(got, expected, rtol=5e-6, atol=0)  # six significant digits
 
 
-def test_noise_is_gaussian_relative_to_the_peak(layout):
+def test_noise_is_gaussian_relative_to_the_frames_peak(layout):
     board = Board(layout, rate=100.0, noise=0.02, seed=11)  # fixed seed
     _, frames = decode("binary", layout.count, stream(board, 400))
     assert [f.seq for f in frames] == list(range(400))
-    residual = np.array([f.values - clean(board, f.seq) for f in frames])
-    sigma = 0.02 * np.abs(board.cycle).max() * 1e-3
-    assert board.noise * 1e-3 == pytest.approx(sigma)
-    assert np.abs(residual).max() < 6 * sigma  # 6400 samples: 6 sigma is never reached by chance
-    assert residual.std() == pytest.approx(sigma, rel=0.05)
-    assert abs(residual.mean()) < 0.05 * sigma
+    # in units of each frame's own sigma: 2% of its peak clean stress (as loads.simulate has it)
+    sigma = np.array([0.02 * np.abs(clean(board, f.seq)).max() for f in frames])
+    assert sigma.max() > 1.5 * sigma.min()  # the circling contact's force varies: so does the noise
+    residual = np.array([(f.values - clean(board, f.seq)) / s for f, s in zip(frames, sigma, strict=True)])
+    assert np.abs(residual).max() < 6  # 6400 samples: 6 sigma is never reached by chance
+    assert residual.std() == pytest.approx(1.0, rel=0.05)
+    assert abs(residual.mean()) < 0.05
 
 
 def test_boards_with_the_same_seed_send_the_same_bytes(layout):
@@ -386,31 +391,348 @@ def test_cli_duration_bounds_the_frame_count():
     assert sent + dropped == 10 and dropped > 0
 
 
-def test_the_port_and_layout_exist_before_the_contact_is_computed(tmp_path, monkeypatch, capsys):
-    # a viewer told the port connects at once: the slow part (the finely integrated contact) comes
-    # after the device path is printed, the link made and the layout written
-    import threading
+def fake_frames(monkeypatch, gate):
+    """Make the scene frames wait: frame ``k`` of a cycle of ``CYCLE`` is computed once ``gate(k)`` returns.
 
-    from tactile_viewer import simulator
+    The cache of cycles starts empty (and the test's cycles stay out of the real one).
+    """
+    real = simulator.scene_frame
 
+    def gated(scene, grid, phase, **kwargs):
+        gate(round(phase * simulator.CYCLE))
+        return real(scene, grid, phase, **kwargs)
+
+    monkeypatch.setattr(simulator, "scene_frame", gated)
+    monkeypatch.setattr(simulator, "_CYCLES", {})  # no cycle computed or cached outside this test
+
+
+def test_the_port_and_layout_exist_before_the_first_frame_is_computed(tmp_path, monkeypatch, capsys):
+    # a viewer told the port connects at once: the device path is printed, the link made and
+    # the layout written before any frame is computed
     link, layout = tmp_path / "board", tmp_path / "board.json"
     seen = {}
     release = threading.Event()
-
-    def slow_cycle(grid, *args, **kwargs):
-        release.wait(10)
-        return np.zeros((4, grid.size))
 
     def look():
         deadline = time.monotonic() + 10
         while not link.exists() and time.monotonic() < deadline:
             time.sleep(0.01)
-        seen.update(link=link.exists(), layout=layout.exists(), opened=serial.Serial(str(link)).is_open)
+        seen.update(link=link.exists(), layout=layout.exists(), opened=serial.Serial(str(link)).is_open,
+                    computed=[cycle.computed for cycle in simulator._CYCLES.values()])
         release.set()
-    monkeypatch.setattr(simulator, "contact_cycle", slow_cycle)
+    fake_frames(monkeypatch, lambda k: release.wait(10))
     checker = threading.Thread(target=look)
     checker.start()
-    assert main(["--link", str(link), "--layout", str(layout), "--duration", "0.05"]) == 0
+    assert main(["--link", str(link), "--layout", str(layout), "--duration", "0.05", "--nx", "3", "--ny", "2"]) == 0
     checker.join()
-    assert seen == dict(link=True, layout=True, opened=True)  # all while the contact was computing
+    # all while no frame was computed (the cycle may not even exist yet)
+    assert seen == dict(link=True, layout=True, opened=True, computed=seen["computed"])
+    assert seen["computed"] in ([], [0])
     assert capsys.readouterr().out.startswith("/dev/pts/")
+
+
+def test_the_first_frame_is_sent_before_the_rest_of_the_cycle_is_computed(tmp_path, monkeypatch, capsys):
+    # the board sends frame 0 while frame 1 cannot be computed yet: it does not compute its whole
+    # cycle before sending (as it once did, for about 3 s)
+    link = tmp_path / "board"
+    opened, release = threading.Event(), threading.Event()
+    got = {}
+
+    def gate(k):
+        opened.wait(10)  # no frame before the reader has the port open (opening flushes what is queued)
+        if k > 0:
+            release.wait(10)
+
+    def read():
+        deadline = time.monotonic() + 10
+        while not link.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        decoder = BinaryDecoder(6)
+        with serial.Serial(str(link), timeout=0.05) as port:
+            opened.set()
+            frames = []
+            while not frames and time.monotonic() < deadline:
+                frames += decoder.feed(port.read(64))
+            got.update(seq=frames[0].seq if frames else None,
+                       computed=[(cycle.computed, len(cycle)) for cycle in simulator._CYCLES.values()])
+            release.set()
+            while port.read(4096):  # drain, so that the board never stalls on a full port
+                pass
+    fake_frames(monkeypatch, gate)
+    reader = threading.Thread(target=read)
+    reader.start()
+    assert main(["--link", str(link), "--duration", "0.1", "--nx", "3", "--ny", "2", "--noise", "0"]) == 0
+    reader.join()
+    assert got == dict(seq=0, computed=[(1, 100)])  # frame 0 on the wire, 1 of the cycle's 100 computed
+    assert "sent 10 frames" in capsys.readouterr().err
+
+
+def test_duration_sends_all_its_frames_even_when_frames_are_slow_to_compute(tmp_path, monkeypatch, capsys):
+    # 0.1 s at 100 Hz is 10 frames, also when computing them takes longer than sending them would
+    fake_frames(monkeypatch, lambda k: time.sleep(0.05))
+    assert main(["--link", str(tmp_path / "board"), "--duration", "0.1", "--nx", "3", "--ny", "2"]) == 0
+    assert "sent 10 frames, dropped 0" in capsys.readouterr().err
+
+
+# -- the lazy cycle -------------------------------------------------------------------------------
+
+def test_a_cycle_computes_a_frame_when_it_is_first_asked_for():
+    grid = SensorGrid.regular(3, 2, 2e-3, 2e-3)
+    cycle = Cycle("circle", grid, 10)  # never started: no background thread
+    assert len(cycle) == 10 and cycle.computed == 0 and not cycle.ready(0)
+    first = cycle[0]
+    assert cycle.computed == 1 and cycle.ready(0) and not cycle.ready(1)  # only the frame asked for
+    np.testing.assert_array_equal(first, scene_frame("circle", grid, 0.0).clean_stress)
+    assert cycle.peak(0) == np.abs(first).max() and cycle.computed == 1
+    assert cycle[0] is first  # computed once
+    # frames depend on their index only, not on the order they were computed in
+    backwards = Cycle("circle", grid, 10)
+    reversed_frames = [backwards[k] for k in reversed(range(10))][::-1]
+    np.testing.assert_array_equal(cycle.array(), reversed_frames)
+    np.testing.assert_array_equal(cycle[3], scene_frame("circle", grid, 0.3).clean_stress)
+    assert cycle.computed == 10
+    with pytest.raises(IndexError, match="frame 10 of a 10-frame cycle"):
+        cycle[10]
+
+
+def test_a_board_sends_its_first_frame_while_its_cycle_is_still_computing(monkeypatch):
+    # the background thread is held at frame 1: the board sends frame 0 (and any frame asked for
+    # computes itself), then the thread finishes the cycle
+    release = threading.Event()
+    fake_frames(monkeypatch, lambda k: k > 0 and release.wait(10))
+    board = Board(SensorLayout(SensorGrid.regular(8, 8, 2e-3, 2e-3), "Pa"), rate=50.0, noise=0.0)
+    try:
+        _, (first,) = decode("binary", 64, board.next_bytes())
+        assert first.seq == 0 and board.cycle.computed == 1 and not board.cycle.ready(1)
+        np.testing.assert_allclose(first.values, board.cycle[0], rtol=1e-7)
+        release.set()
+        deadline = time.monotonic() + 30
+        while board.cycle.computed < len(board.cycle):
+            assert time.monotonic() < deadline, "the background thread did not finish the cycle"
+            time.sleep(0.01)
+    finally:
+        release.set()
+        board.close()
+
+
+def test_a_failing_frame_raises_where_it_is_asked_for_and_is_tried_again(monkeypatch):
+    failing = {3}
+
+    def gate(k):
+        if k in failing:
+            raise RuntimeError(f"frame {k} failed")
+    fake_frames(monkeypatch, gate)
+    cycle = Cycle("circle", SensorGrid.regular(3, 2, 2e-3, 2e-3)).start()
+    with pytest.raises(RuntimeError, match="frame 3 failed"):
+        cycle[3]
+    failing.clear()
+    assert np.all(np.isfinite(cycle[3])) and cycle.ready(3)
+    cycle.close()
+
+
+def test_cycles_are_shared_by_scene_and_everything_of_the_grid():
+    grid = SensorGrid.regular(3, 2, 2e-3, 2e-3)
+    cycle = simulator.shared_cycle("circle", grid)
+    assert simulator.shared_cycle("circle", SensorGrid.regular(3, 2, 2e-3, 2e-3)) is cycle
+    for other in (grid.replace(thickness=3e-3), grid.replace(poisson_ratio=0.45), grid.replace(sensor_size=1e-3),
+                  SensorGrid.regular(2, 3, 2e-3, 2e-3)):
+        assert simulator.shared_cycle("circle", other) is not cycle
+    assert simulator.shared_cycle("twist", grid) is not cycle
+
+
+# -- the scenes -----------------------------------------------------------------------------------
+
+GRIDS = [(16, 16), (32, 32), (8, 8), (4, 4), (3, 2), (24, 8), (6, 20), (1, 1)]
+
+
+@pytest.mark.parametrize("shape", GRIDS)
+@pytest.mark.parametrize("scene", list(SCENES))
+def test_every_scene_stays_on_the_skin(scene, shape):
+    grid = SensorGrid.regular(*shape, 2e-3, 2e-3)
+    low = grid.positions.min(axis=0) - grid.pitch / 2  # the node cells' rectangle
+    high = grid.positions.max(axis=0) + grid.pitch / 2
+    for k in range(0, 100, 2):
+        for contact in scene_contacts(scene, grid, k / 100):
+            assert contact.angle == 0  # so its support is the box of its semi-axes about its centre
+            centre, axes = np.array(contact.center), np.array(contact.semi_axes)
+            assert np.all(centre - axes >= low - 1e-12) and np.all(centre + axes <= high + 1e-12), (k, contact)
+
+
+def contact_totals(frame, side):
+    """Nodal truth summed over the nodes where ``side`` (a boolean per node) holds: (Fx, Fy, Fz)."""
+    return frame.forces[side].sum(axis=0)
+
+
+def test_pinch_two_contacts_approach_and_shear_towards_each_other():
+    grid = SensorGrid.regular(16, 16, 2e-3, 2e-3)
+    assert SCENES["pinch"].period == 3.0
+    gaps = []
+    for k in range(0, 51, 5):  # from apart to closest, half the period
+        left, right = scene_contacts("pinch", grid, k / 100)
+        assert left.center[1] == right.center[1] == 0 and left.center[0] < 0 < right.center[0]
+        assert left.force == right.force and left.shear_ratio == right.shear_ratio == 0.3
+        gaps.append(right.center[0] - left.center[0] - left.semi_axes[0] - right.semi_axes[0])
+        frame = scene_frame("pinch", grid, k / 100)
+        x = grid.positions[:, 0]
+        for side, towards in ((x < 0, 1.0), (x > 0, -1.0)):  # each contact's true force
+            fx, fy, fz = contact_totals(frame, side)
+            assert fz == pytest.approx(left.force, rel=1e-6)
+            assert fx * towards == pytest.approx(0.3 * fz, rel=1e-6) and abs(fy) < 1e-9  # at the other
+    assert np.all(np.diff(gaps) < 0) and gaps[0] > 3 * gaps[-1] > 0  # closing in, never touching
+    # and parting again: the cycle repeats
+    assert scene_contacts("pinch", grid, 0.0) == scene_contacts("pinch", grid, 1.0)
+    # the data show the converging shear: compression between the two (beyond the normal loads')
+    stress = scene_frame("pinch", grid, 0.5).clean_stress.reshape(16, 16)
+    plain = simulator.loads.simulate(grid, [simulator.loads.hertz(c.center, c.semi_axes[0], c.force)
+                                           for c in scene_contacts("pinch", grid, 0.5)],
+                                     subdivisions=5).clean_stress.reshape(16, 16)
+    middle = slice(7, 9)
+    assert stress[:, middle].sum() > 1.05 * plain[:, middle].sum()
+
+
+def test_pinch_runs_along_the_long_side_of_a_narrow_skin():
+    grid = SensorGrid.regular(6, 20, 2e-3, 2e-3)
+    first, second = scene_contacts("pinch", grid, 0.25)
+    assert first.center[0] == second.center[0] == 0 and first.center[1] < second.center[1]
+    assert first.shear_direction == pytest.approx(np.pi / 2) and second.shear_direction == pytest.approx(-np.pi / 2)
+
+
+def paths(scene, grid, count=100):
+    """``(count, contacts, 2)`` centres over one period, and the contacts of every step."""
+    steps = [scene_contacts(scene, grid, k / count) for k in range(count)]
+    return np.array([[c.center for c in contacts] for contacts in steps]), steps
+
+
+def test_two_contacts_move_independently_on_distinct_paths_with_different_shears():
+    grid = SensorGrid.regular(16, 16, 2e-3, 2e-3)
+    centres, steps = paths("two", grid)
+    assert centres.shape == (100, 2, 2)
+    radius = max(max(c.semi_axes) for c in steps[0])
+    # distinct paths: every point of one at least two radii plus a pitch from every point of the other
+    apart = np.linalg.norm(centres[:, None, 0] - centres[None, :, 1], axis=-1)
+    assert apart.min() > 2 * radius + grid.pitch
+    # both move, and not together (their displacements are not the same)
+    moves = np.diff(centres, axis=0)
+    assert np.all(np.linalg.norm(moves, axis=-1).sum(axis=0) > 5 * grid.pitch)
+    assert np.abs(moves[:, 0] - moves[:, 1]).max() > 0.5 * grid.pitch / 10
+    ratios = {round(c.shear_ratio, 3) for c in steps[0]}
+    assert ratios == {0.3, 0.15}
+    # the truth agrees: the left contact's tangential force is 0.3 of its normal force, the right one's 0.15
+    frame = scene_frame("two", grid, 0.3)
+    for side, ratio in ((grid.positions[:, 0] < 0, 0.3), (grid.positions[:, 0] > 0, 0.15)):
+        fx, fy, fz = contact_totals(frame, side)
+        assert np.hypot(fx, fy) == pytest.approx(ratio * fz, rel=1e-6)
+
+
+def test_three_contacts_move_apart_from_each_other_with_different_shears():
+    grid = SensorGrid.regular(16, 16, 2e-3, 2e-3)
+    centres, steps = paths("three", grid)
+    assert centres.shape == (100, 3, 2)
+    radius = max(max(c.semi_axes) for c in steps[0])
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        assert np.linalg.norm(centres[:, i] - centres[:, j], axis=-1).min() > 2 * radius  # never touching
+        # distinct paths: no point of one is on the other's
+        assert np.linalg.norm(centres[:, None, i] - centres[None, :, j], axis=-1).min() > 2 * radius
+    travelled = np.linalg.norm(np.diff(centres, axis=0), axis=-1).sum(axis=0)
+    assert np.all(travelled > 3 * grid.pitch)  # all three move
+    assert [c.shear_ratio for c in steps[0]] == [0.3, 0.2, 0.0]
+    directions = np.array([[c.shear_direction for c in contacts] for contacts in steps])
+    assert np.ptp(directions[:, 0]) == 0 and np.ptp(np.unwrap(directions[:, 1])) > 6  # fixed; turning
+    frame = scene_frame("three", grid, 0.0)
+    assert frame.forces[:, 2].sum() == pytest.approx(sum(c.force for c in steps[0]), rel=1e-6)
+
+
+def test_the_press_covers_most_of_the_skin_with_a_slowly_varying_force():
+    for shape in ((16, 16), (32, 32)):
+        grid = SensorGrid.regular(*shape, 2e-3, 2e-3)
+        frame = scene_frame("press", grid, 0.25)  # full force
+        (contact,) = frame.contacts
+        skin = np.prod(np.ptp(grid.positions, axis=0) + grid.pitch)
+        assert np.pi * np.prod(contact.semi_axes) / skin == pytest.approx(0.69, abs=0.01)  # the load's area
+        loaded = frame.forces[:, 2] > 0
+        assert 0.65 < loaded.mean() < 0.85  # the nodes whose cells carry some of it
+        assert np.all(frame.forces[:, :2] == 0)  # no shear
+        assert np.all(frame.clean_stress > 0)  # compression under every sensor
+        assert (frame.clean_stress > 0.1 * frame.clean_stress.max()).mean() > 0.6  # and most sensors feel it
+    forces = np.array([scene_contacts("press", grid, k / 100)[0].force for k in range(100)])
+    assert forces.min() == pytest.approx(0.5 * forces.max(), rel=1e-3)  # from half to full force
+    assert np.abs(np.diff(forces)).max() < 0.02 * forces.max()  # slow: under 2% a frame
+    assert SCENES["press"].period == 6.0
+
+
+def test_the_twist_has_torque_but_no_net_shear_and_the_sensors_cannot_see_it():
+    grid = SensorGrid.regular(16, 16, 2e-3, 2e-3)
+    still = scene_frame("twist", grid, 0.0)  # no torque at the start of the period
+    assert np.abs(still.forces[:, :2]).max() < 1e-12
+    torques = []
+    for phase in (0.25, 0.6, 0.75):
+        frame = scene_frame("twist", grid, phase)
+        (contact,) = frame.contacts
+        assert contact.shear_ratio == 0 and contact.torsion != 0
+        x, y = (grid.positions - contact.center).T
+        fx, fy = frame.forces[:, 0], frame.forces[:, 1]
+        torque = np.sum(x * fy - y * fx)
+        torques.append(torque)
+        assert torque == pytest.approx(contact.torsion, rel=0.01)
+        assert np.hypot(fx, fy).sum() > 0.1 * frame.forces[:, 2].sum()  # plenty of tangential load ...
+        assert np.hypot(fx.sum(), fy.sum()) < 1e-9 * np.hypot(fx, fy).sum()  # ... with no net force
+        # torsion is invisible to normal-stress sensors: the stress is the untwisted press's
+        np.testing.assert_allclose(frame.clean_stress, still.clean_stress, atol=1e-3 * still.clean_stress.max())
+    assert torques[0] > 0 > torques[2]  # twisted back and forth
+
+
+def test_every_scene_makes_a_cycle_of_finite_compressive_frames():
+    grid = SensorGrid.regular(8, 8, 2e-3, 2e-3)
+    for name, scene in SCENES.items():
+        cycle = contact_cycle(grid, 4, scene=name)
+        assert cycle.shape == (4, 64) and np.all(np.isfinite(cycle)) and np.all(cycle.sum(axis=1) > 0), name
+        assert scene.period > 0 and scene.summary
+
+
+@pytest.mark.parametrize("scene", ["pinch", "press"])
+def test_board_streams_the_scene_it_is_given(layout, scene):
+    board = Board(layout, scene=scene, rate=50.0, noise=0.0)
+    board.close()  # the frames sent are computed when sent: no need for the rest of the cycle
+    assert board.period == SCENES[scene].period and board.cycle.scene.name == scene
+    _, frames = decode("binary", layout.count, stream(board, 20))
+    expected = Cycle(scene, layout.grid)  # computes only the frames asked for
+    np.testing.assert_allclose([f.values for f in frames],
+                               [expected[board.index(f.seq)] * 1e-3 for f in frames], rtol=1e-6)
+
+
+@pytest.mark.parametrize("call", [
+    lambda grid: Board(SensorLayout(grid, "kPa"), scene="squeeze"),
+    lambda grid: scene_contacts("squeeze", grid, 0.0),
+    lambda grid: Cycle("squeeze", grid),
+    lambda grid: contact_cycle(grid, scene="Pinch"),
+])
+def test_an_unknown_scene_is_refused_naming_the_scenes(call):
+    with pytest.raises(ValueError, match=r"scene must be one of \('circle', 'pinch', 'two', 'three', 'press', "
+                                         r"'twist'\), got '(squeeze|Pinch)'"):
+        call(SensorGrid.regular(3, 2, 2e-3, 2e-3))
+
+
+@pytest.mark.parametrize("value", ["squeeze", "", "Circle"])
+def test_cli_refuses_an_unknown_scene(value, capsys, tmp_path):
+    with pytest.raises(SystemExit) as info:
+        main(["--scene", value, "--link", str(tmp_path / "board")])
+    assert info.value.code == 2
+    last = capsys.readouterr().err.splitlines()[-1]
+    assert last == (f"tactile-sim: error: argument --scene: invalid choice: '{value}' (choose from 'circle', "
+                    f"'pinch', 'two', 'three', 'press', 'twist')")
+    assert not (tmp_path / "board").exists()
+
+
+def test_cli_streams_a_scene(tmp_path, processes):
+    process, link, layout_path = run_sim(tmp_path, "--scene", "two", "--rate", "100", "--duration", "0.5",
+                                         "--nx", "6", "--ny", "4", "--noise", "0")
+    processes.append(process)
+    process.stdout.readline()
+    data = read_link_until_exit(link, process)
+    assert process.wait(timeout=10) == 0
+    layout = load_layout(layout_path)
+    frames = BinaryDecoder(layout.count).feed(data)
+    assert len(frames) >= 40
+    cycle = Cycle("two", layout.grid)  # computes only the frames asked for
+    index = (np.array([f.seq for f in frames]) / 100 / 4.0 * len(cycle)).astype(int) % len(cycle)
+    np.testing.assert_allclose([f.values for f in frames], [cycle[k] * 1e-3 for k in index], rtol=1e-6)

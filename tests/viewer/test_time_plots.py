@@ -181,6 +181,33 @@ def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(
     assert not shown.plots["fz"].getAxis("bottom").isVisible()
 
 
+def test_each_contact_has_curves_of_its_own_when_there_are_several(window, shown, qtbot):
+    from tactile_viewer.recording import load
+    from tactile_viewer.time_plots import ROWS
+
+    assert shown.series.identities == (1,) and shown.contact_curves == {}  # one contact: the totals say it
+    assert legend_names(shown.plots["fz"]) == ["estimate", "truth"]
+    show(window, shown, qtbot, load(SAMPLES / "two_contacts.npz"))
+    series = shown.series
+    assert series.identities == (1, 2) and sorted(shown.contact_curves) == [1, 2]
+    for identity in (1, 2):
+        quantities = series.contact(identity)
+        for key, *_ in ROWS:
+            assert shown.contact_curves[identity][key] in shown.plots[key].items
+        np.testing.assert_allclose(shown.contact_curves[identity]["fz"].yData, quantities.fz * 1e3)
+        np.testing.assert_allclose(shown.contact_curves[identity]["centroid_x"].yData,
+                                   quantities.centroid_x * 1e3)
+    assert np.isnan(shown.contact_curves[2]["fz"].yData[0])  # the second press is not there yet
+    assert legend_names(shown.plots["fz"]) == ["estimate", "truth", "#1", "#2"]
+    # the contacts table numbers the frame drawn as the curves do (both followed from frame 0)
+    last = window.model.last
+    for contact in last.result.contacts:
+        assert series.contact(contact.identity).fz[last.frame] == pytest.approx(contact.total_force[2],
+                                                                                rel=1e-6)
+    show(window, shown, qtbot)  # one contact again: its curves go, from the legend too
+    assert shown.contact_curves == {} and legend_names(shown.plots["fz"]) == ["estimate", "truth"]
+
+
 def test_new_parameters_solve_a_new_series_and_auto_again_is_kept(window, shown, qtbot):
     model = window.model
     with qtbot.waitSignal(shown.computed, timeout=30000):
