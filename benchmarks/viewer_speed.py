@@ -11,7 +11,14 @@ Measures, in the real window (``QtInteractor``, whatever OpenGL the display offe
 - serial decoder throughput (frames per second, 256 values, binary and text);
 - with ``--live SECONDS``: the window on ``tactile-sim`` at 1 kHz through a
   pseudo-terminal, recording everything: frames lost in the recording, display
-  frame rate, CPU use of the viewer and of the simulator.
+  frame rate, CPU use of the viewer and of the simulator;
+- solves in the window against a plain loop (``--solve-samples``, by default
+  the two- and three-contact samples): the window's own automatic solve times
+  during 1x looped playback (``Solved.solve_ms``, wall, and the worker
+  thread's CPU time of the same solves) against the same frames solved in
+  order by a solver of the same settings in a plain loop of the same process,
+  with the other core idle and with it busy (a spinning process), as medians,
+  95th percentiles and the ratio in-window / plain.
 
 It needs a display: under a headless machine run it through ``xvfb-run -a``.
 """
@@ -20,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -28,7 +36,10 @@ import numpy as np
 
 from solver.bench import machine
 
-SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "hertz_shear_turning.npz"
+SAMPLES = Path(__file__).resolve().parents[1] / "sample_data"
+SAMPLE = SAMPLES / "hertz_shear_turning.npz"
+SOLVE_SAMPLES = (SAMPLES / "two_contacts.npz", SAMPLES / "three_contacts.npz")
+LOADS = ("idle", "busy")
 
 
 _APP = []  # the one QApplication, kept alive between measurements (a second one cannot start)
@@ -231,6 +242,151 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
     return dict(recorded=len(recording), gaps=gaps, display_fps=len(drawn) / elapsed)
 
 
+def busy_core():
+    """A process spinning on a core until the caller ends it (``terminate``, then ``wait``)."""
+    return subprocess.Popen([sys.executable, "-c", "while True:\n    pass"])
+
+
+def _window_solves(window, app, seconds):
+    # the window's own automatic solves during 1x looped playback: each delivered frame's solve_ms
+    # (wall, the model's) and stress, and the worker thread's CPU time of every solve it ran
+    from tactile_viewer.panels import SPEEDS
+
+    solver, solved, cpu = window.model.reconstructor, [], []
+    original = solver.solve
+
+    def timed(*args, **kwargs):  # on the worker thread: its own CPU time (the solve runs there alone)
+        start = time.thread_time()
+        try:
+            return original(*args, **kwargs)
+        finally:
+            cpu.append(1e3 * (time.thread_time() - start))
+
+    slot = solved.append
+    solver.solve = timed  # the instance's own attribute: the class is left alone
+    window.model.solved.connect(slot)
+    try:
+        window.playback.loop_box.setChecked(True)
+        window.playback.speed_box.setCurrentIndex(SPEEDS.index(1.0))
+        window.playback.set_playing(True)
+        start = time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            app.processEvents()
+        window.playback.set_playing(False)
+        deadline = time.perf_counter() + 10
+        while not window.model.wait_idle(0.01) and time.perf_counter() < deadline:
+            app.processEvents()
+        for _ in range(20):  # the last result's delivery
+            app.processEvents()
+    finally:
+        window.model.solved.disconnect(slot)
+        del solver.solve
+    return ([s.solve_ms for s in solved if s.auto], cpu,
+            [s.stress for s in solved if s.auto])
+
+
+def _plain_solves(solver, stress):
+    # the same frames in the same order, solved one after another on this thread
+    wall, cpu = [], []
+    for b in stress:
+        start_cpu, start = time.thread_time(), time.perf_counter()
+        solver.solve(b)
+        wall.append(1e3 * (time.perf_counter() - start))
+        cpu.append(1e3 * (time.thread_time() - start_cpu))
+    return wall, cpu
+
+
+def _stats(values):
+    values = np.asarray(values, dtype=float)
+    if not values.size:
+        return dict(n=0, median=float("nan"), p95=float("nan"))
+    return dict(n=int(values.size), median=float(np.median(values)), p95=float(np.percentile(values, 95)))
+
+
+def solve_comparison(path, *, seconds=5.0, loads=LOADS, size=(1280, 820), wait_presets=True, out=None):
+    """Automatic solve times in the window during playback against a plain loop of the same frames.
+
+    Opens ``path`` in a window of ``size``; unless ``wait_presets`` is
+    False, waits until the window has measured its quality presets (a
+    separate process that takes a core for seconds). Then for each load in
+    ``loads`` (``"idle"``: nothing else started; ``"busy"``: a spinning
+    process, :func:`busy_core`, runs throughout): ``seconds`` of 1x looped
+    playback with automatic parameters, timed by the window (``solve_ms`` of
+    each delivered result, wall; the worker thread's CPU time of each solve),
+    then the delivered frames again, in their order, solved in a plain loop
+    on this thread by a solver of the window's settings
+    (``ViewerModel.build``; its own last-frame state), wall and this thread's
+    CPU time.
+
+    Returns
+    -------
+    dict of str to dict
+        Per load: ``window``, ``window_cpu``, ``plain``, ``plain_cpu`` (each
+        ``n``, ``median``, ``p95`` in ms) and ``ratio``, ``ratio_p95``,
+        ``ratio_cpu`` (in-window over plain, medians and 95th percentiles).
+    """
+    from tactile_viewer.model import ViewerModel
+    from tactile_viewer.presets import PRESET_LIMIT
+
+    out = sys.stdout if out is None else out
+    for load in loads:
+        if load not in LOADS:
+            raise ValueError(f"loads must be among {', '.join(LOADS)}, got {load!r}")
+    if not seconds > 0:
+        raise ValueError(f"seconds must be > 0, got {seconds!r}")
+    app, window = _open_window(path, size, "benchmarks.viewer_speed")
+    results = {}
+    try:
+        model = window.model
+        grid = model.grid
+        settled = "not waited for"
+        if wait_presets and grid.size <= PRESET_LIMIT:
+            try:
+                _wait(app, window.presets.measured, timeout=300)
+                settled = "measured before"
+            except TimeoutError:
+                settled = "still measuring after 300 s"
+        window.parameters.auto_box.setChecked(True)
+        for _ in range(20):
+            app.processEvents()
+        plain = ViewerModel.build(grid, model.kernel, model.configuration)
+        recording = model.recording
+        print(f"{Path(path).name}: {grid.shape[1]}x{grid.shape[0]} grid, {len(recording)} frames; solves "
+              f"in the window (1x looped playback, {seconds:g} s, automatic parameters) against the same "
+              f"frames in a plain loop ({type(plain).__name__}, {model.kernel} kernel); quality presets "
+              f"{settled}",
+              file=out)
+        print(f"  {'load':<5} {'where':<7} {'solves':>6} {'wall median':>11} {'p95':>7} "
+              f"{'CPU median':>10} {'p95':>7}  (ms)", file=out)
+        for load in loads:
+            spinner = busy_core() if load == "busy" else None
+            try:
+                if spinner is not None:
+                    time.sleep(0.5)  # the spinner has started
+                window_ms, window_cpu, stress = _window_solves(window, app, seconds)
+                plain_ms, plain_cpu = _plain_solves(plain, stress)
+            finally:
+                if spinner is not None:
+                    spinner.terminate()
+                    spinner.wait(10)
+            r = dict(window=_stats(window_ms), window_cpu=_stats(window_cpu), plain=_stats(plain_ms),
+                     plain_cpu=_stats(plain_cpu))
+            r["ratio"] = r["window"]["median"] / r["plain"]["median"]
+            r["ratio_p95"] = r["window"]["p95"] / r["plain"]["p95"]
+            r["ratio_cpu"] = r["window_cpu"]["median"] / r["plain_cpu"]["median"]
+            results[load] = r
+            for where, wall, cpu in (("window", r["window"], r["window_cpu"]),
+                                     ("plain", r["plain"], r["plain_cpu"])):
+                print(f"  {load:<5} {where:<7} {wall['n']:6d} {wall['median']:11.2f} {wall['p95']:7.2f} "
+                      f"{cpu['median']:10.2f} {cpu['p95']:7.2f}", file=out)
+            print(f"  {load:<5} window / plain: wall median {r['ratio']:.2f}x, p95 {r['ratio_p95']:.2f}x; "
+                  f"CPU median {r['ratio_cpu']:.2f}x", file=out)
+    finally:
+        window.close()
+        app.processEvents()
+    return results
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m benchmarks.viewer_speed",
                                      description=__doc__.splitlines()[0])
@@ -239,10 +395,24 @@ def main(argv=None):
     parser.add_argument("--seconds", type=float, default=5.0, help="playback time per speed")
     parser.add_argument("--live", type=float, metavar="SECONDS", default=0.0,
                         help="also run the live mode this long at 1 kHz through a pseudo-terminal")
+    parser.add_argument("--solve-samples", nargs="*", default=[str(p) for p in SOLVE_SAMPLES],
+                        help="recordings whose solves in the window are timed against a plain loop "
+                             "(default the two- and three-contact samples; none: skip)")
+    parser.add_argument("--solve-seconds", type=float, default=5.0,
+                        help="playback time per recording and load for those solves (default 5)")
+    parser.add_argument("--loads", nargs="+", choices=LOADS, default=list(LOADS),
+                        help="the other core idle, busy (a spinning process) or both (default)")
     args = parser.parse_args(argv)
+    if not args.solve_seconds > 0:
+        parser.error(f"--solve-seconds must be > 0, got {args.solve_seconds:g}")
+    missing = [name for name in args.solve_samples if not Path(name).is_file()]
+    if missing:
+        parser.error(f"--solve-samples: no such file: {', '.join(missing)}")
     print("serial decoders")
     decoder_throughput()
     run(args.recording, count=args.count, seconds=args.seconds)
+    for sample in args.solve_samples:
+        solve_comparison(sample, seconds=args.solve_seconds, loads=args.loads)
     if args.live:
         live(args.live)
 

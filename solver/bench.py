@@ -6,14 +6,23 @@ and in playback, given parameters, a slider move, normal only) beside the
 dense-product floor measured in the same run, and the set-up time of
 :class:`solver.Reconstructor` for larger grids against ``numpy.linalg.pinv``
 of the same ``(m, 3m)`` matrix, as a ratio from the same run.
+
+Then the frames of several contacts (:func:`multi_contact`: one, two and three
+contacts on a 16x16 skin of the bonded layer, ``--contacts``) and the broad
+press (:func:`broad_press`: one load over most of the skin, ``--press-sizes``,
+32x32 by default; 64x64 takes minutes and gigabytes), each as the median and
+95th percentile of every timed automatic solve, wall and CPU.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import platform
+import resource
 import time
+import tracemalloc
 
 import numpy as np
 
@@ -21,8 +30,17 @@ from . import layer, loads
 from .geometry import SensorGrid
 from .inverse import Reconstructor
 from .kernels import KERNELS, stress_matrix
+from .region import make_solver
 
-__all__ = ["machine", "fastest_in_rounds", "per_frame", "layer_tables", "setup", "main"]
+__all__ = ["machine", "fastest_in_rounds", "timed_in_rounds", "per_frame", "contact_frames", "multi_contact",
+           "press_frames", "broad_press", "layer_tables", "setup", "main"]
+
+# the skin of the multi-contact frames and of the broad press: pitch 1.5 mm, h / pitch 1, nu 0.49
+PITCH = 1.5e-3
+POISSON_RATIO = 0.49
+CONTACT_COUNTS = (1, 2, 3)
+_CONTACT_SEED = 29  # fixed seeds: the same frames every run
+_PRESS_SEED = 64
 
 
 def machine() -> str:
@@ -70,6 +88,23 @@ def fastest_in_rounds(call, items, repeat, *, before=None):
     results : list
         What ``call`` returned for each item in the first round.
     """
+    wall, cpu, results = timed_in_rounds(call, items, repeat, before=before)
+    return wall.min(axis=0), cpu.min(axis=0), results
+
+
+def timed_in_rounds(call, items, repeat, *, before=None):
+    """Every one of ``repeat`` timed calls on each item, wall and CPU, taken in rounds over all items.
+
+    As :func:`fastest_in_rounds` (same arguments), but every timing is kept,
+    for medians and percentiles over all of them.
+
+    Returns
+    -------
+    wall, cpu : (repeat, len(items)) ndarray
+        Seconds, ``[round, item]``; CPU is the process's (``time.process_time``).
+    results : list
+        What ``call`` returned for each item in the first round.
+    """
     wall = np.full((repeat, len(items)), np.inf)
     cpu = np.full((repeat, len(items)), np.inf)
     results = []
@@ -84,7 +119,23 @@ def fastest_in_rounds(call, items, repeat, *, before=None):
             cpu[run, k] = time.process_time() - start_cpu
             if run == 0:
                 results.append(result)
-    return wall.min(axis=0), cpu.min(axis=0), results
+    return wall, cpu, results
+
+
+def _spread(wall, cpu, scale=1e3):
+    # median and 95th percentile over every timing, wall and CPU (milliseconds by default)
+    wall, cpu = scale * np.ravel(wall), scale * np.ravel(cpu)
+    return dict(wall=float(np.median(wall)), wall_p95=float(np.percentile(wall, 95)),
+                cpu=float(np.median(cpu)), cpu_p95=float(np.percentile(cpu, 95)))
+
+
+def _skin(n):
+    return SensorGrid.regular(n, n, PITCH, PITCH, poisson_ratio=POISSON_RATIO)
+
+
+def _rss_mb():
+    # the process's peak resident set so far (Linux reports kilobytes)
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 def per_frame(n=16, frames=40, kernel="layer", repeat=5):
@@ -152,6 +203,185 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
         out[label] = 1e3 * float(np.median(wall))
         out[label + "_cpu"] = 1e3 * float(np.median(cpu))
     return out
+
+
+_SHAPES = (loads.hertz, loads.cone, loads.flat_punch)
+_RATIOS = (0.0, 0.2, 0.4)
+
+
+def _placed(count, half, rng):
+    # ``count`` contacts of radius 1.6 to 2.4 pitches, a pitch or more apart and inside the skin
+    for _ in range(1000):
+        radii = rng.uniform(1.6, 2.4, count) * PITCH
+        centres = [rng.uniform(-half + r + PITCH, half - r - PITCH, 2) for r in radii]
+        if all(np.linalg.norm(centres[i] - centres[j]) >= radii[i] + radii[j] + PITCH
+               for i in range(count) for j in range(i + 1, count)):
+            return [_SHAPES[rng.integers(len(_SHAPES))](
+                tuple(c), r, rng.uniform(0.6, 1.2), shear_ratio=_RATIOS[rng.integers(len(_RATIOS))],
+                shear_direction=rng.uniform(-math.pi, math.pi)) for c, r in zip(centres, radii, strict=True)]
+    raise ValueError(f"{count} contacts of 1.6 to 2.4 pitches do not fit apart on a skin of half-width "
+                     f"{half / PITCH:g} pitches")
+
+
+def contact_frames(count, frames, *, n=16, seed=_CONTACT_SEED):
+    """Noisy frames of ``count`` separate contacts on an ``n x n`` skin of the bonded layer.
+
+    Pitch 1.5 mm, thickness one pitch, Poisson ratio 0.49; each frame places
+    its contacts anew (Hertz, cone or flat punch of radius 1.6 to 2.4 pitches,
+    0.6 to 1.2 N, shear ratio 0, 0.2 or 0.4 in any direction, a pitch or more
+    apart) and draws its own 1% noise (:func:`solver.loads.simulate`), from a
+    fixed seed: the same frames every run.
+
+    Parameters
+    ----------
+    count : int
+        Contacts per frame, at least 1.
+    frames : int
+        Frames, at least 1.
+    n : int, optional
+        At least 8. Default 16.
+    seed : int, optional
+
+    Returns
+    -------
+    grid : SensorGrid
+    stress : list of (n * n,) ndarray
+        Pascals.
+
+    Raises
+    ------
+    ValueError
+        For fewer than one contact or frame, a skin under 8 x 8, or contacts
+        that do not fit apart on it.
+    """
+    if count < 1 or frames < 1:
+        raise ValueError(f"count and frames must be at least 1, got {count} and {frames}")
+    if n < 8:
+        raise ValueError(f"n must be at least 8 (a contact of 2.4 pitches and a pitch around it), got {n}")
+    grid = _skin(n)
+    rng = np.random.default_rng([seed, count])
+    half = (n - 1) / 2 * PITCH
+    return grid, [loads.simulate(grid, _placed(count, half, rng), noise=0.01, rng=rng).stress
+                  for _ in range(frames)]
+
+
+def multi_contact(counts=CONTACT_COUNTS, *, n=16, frames=20, repeat=5):
+    """Automatic solves of frames of one, two and three contacts (:func:`contact_frames`).
+
+    The solver is :func:`solver.make_solver` of the skin (the viewer's). One
+    untimed round over the frames first (compilation, caches), then
+    ``repeat`` timed rounds over all frames (:func:`timed_in_rounds`: no solve
+    follows one of the same frame).
+
+    Parameters
+    ----------
+    counts : sequence of int, optional
+        Contacts per frame, each timed on its own frames. Default 1, 2, 3.
+    n : int, optional
+        The skin is ``n x n``. Default 16.
+    frames : int, optional
+        Frames per count. Default 20.
+    repeat : int, optional
+        Timed rounds. Default 5.
+
+    Returns
+    -------
+    dict of int to dict
+        Per count: ``wall``, ``wall_p95``, ``cpu``, ``cpu_p95`` (milliseconds,
+        median and 95th percentile over every timed solve), ``fastest`` and
+        ``fastest_cpu`` (median over frames of each frame's fastest, as
+        :func:`per_frame`), ``solves`` (timed), ``frames`` and ``found`` (the
+        median count of contacts the solver found per frame).
+    """
+    out = {}
+    for count in counts:
+        grid, stress = contact_frames(count, frames, n=n)
+        solver = make_solver(grid)
+        found = [len(solver.solve(b).contacts) for b in stress]  # the untimed round
+        wall, cpu, _ = timed_in_rounds(solver.solve, stress, repeat)
+        out[count] = dict(_spread(wall, cpu), fastest=1e3 * float(np.median(wall.min(axis=0))),
+                          fastest_cpu=1e3 * float(np.median(cpu.min(axis=0))), solves=wall.size,
+                          frames=len(stress), found=float(np.median(found)))
+    return out
+
+
+def press_frames(n, frames, *, seed=_PRESS_SEED):
+    """Noisy frames of a broad press on an ``n x n`` skin of the bonded layer.
+
+    One Hertzian load of radius 0.4 of the skin's side (half of it is
+    loaded), its centre within a pitch of the middle, mean pressure 6 to 9
+    kPa, shear ratio 0.2 in any direction on every other frame, 1% noise,
+    fixed seed. Pitch 1.5 mm, thickness one pitch, Poisson ratio 0.49.
+
+    Returns
+    -------
+    grid : SensorGrid
+    stress : list of (n * n,) ndarray
+    """
+    if n < 2 or frames < 1:
+        raise ValueError(f"n must be at least 2 and frames at least 1, got {n} and {frames}")
+    grid = _skin(n)
+    rng = np.random.default_rng([seed, n])
+    radius = 0.4 * (n - 1) * PITCH
+    stress = []
+    for k in range(frames):
+        force = rng.uniform(6e3, 9e3) * math.pi * radius**2
+        contact = loads.hertz(tuple(rng.uniform(-PITCH, PITCH, 2)), radius, force, shear_ratio=0.2 * (k % 2),
+                              shear_direction=rng.uniform(-math.pi, math.pi))
+        stress.append(loads.simulate(grid, contact, noise=0.01, rng=rng).stress)
+    return grid, stress
+
+
+def broad_press(n, *, frames=3, memory=True):
+    """Set-up, automatic solves and peak memory of a broad press (:func:`press_frames`) on ``n x n``.
+
+    The solver is :func:`solver.make_solver` of the skin (a dense
+    :class:`~solver.Reconstructor` up to 32x32, the region solver beyond);
+    the layer tables of its Poisson ratio are computed before, not counted.
+    Each frame is solved once, in order, so no solve follows one of the same
+    frame; the first solve is also given alone (it meets the solver new, as
+    the first frame of a recording does). Memory, two ways: the process's
+    peak resident set (``getrusage``) before the set-up and after the last
+    solve (a stage that raises the peak shows its own; an earlier, larger
+    stage hides it), and, in a second, untimed pass with a new solver, the
+    peak that ``tracemalloc`` traces (numpy's arrays and Python's objects,
+    not numba's or BLAS's own buffers) over the set-up and the first solve
+    (with ``memory=False`` this pass is skipped).
+
+    Returns
+    -------
+    dict
+        ``setup`` and ``setup_cpu`` (s), ``first`` and ``first_cpu`` (s),
+        ``wall``, ``wall_p95``, ``cpu``, ``cpu_p95`` (s, median and 95th
+        percentile over all the solves, the first included), ``solves``,
+        ``found`` (median contacts found), ``solver`` (its class name),
+        ``fallbacks`` (solves that took a cheaper member than the accurate
+        path, ``Reconstruction.fallback``) and ``fallback`` (the first one's
+        note, empty without), ``rss_before`` and ``rss_peak`` (MB),
+        ``traced_peak`` (MB, NaN without ``memory``).
+    """
+    grid, stress = press_frames(n, frames)
+    layer.table(POISSON_RATIO)
+    rss_before = _rss_mb()
+    start_cpu, start = time.process_time(), time.perf_counter()
+    solver = make_solver(grid)
+    setup_wall, setup_cpu = time.perf_counter() - start, time.process_time() - start_cpu
+    wall, cpu, results = timed_in_rounds(solver.solve, stress, 1)
+    rss_peak, traced, kind = _rss_mb(), math.nan, type(solver).__name__
+    if memory:
+        del solver  # its matrices are not counted twice
+        tracemalloc.start()
+        try:
+            make_solver(grid).solve(stress[0])
+            traced = tracemalloc.get_traced_memory()[1] / 2**20
+        finally:
+            tracemalloc.stop()
+    return dict(_spread(wall, cpu, scale=1.0), setup=setup_wall, setup_cpu=setup_cpu, first=float(wall[0, 0]),
+                first_cpu=float(cpu[0, 0]), solves=wall.size,
+                found=float(np.median([len(r.contacts) for r in results])), solver=kind,
+                fallbacks=sum(bool(getattr(r, "fallback", "")) for r in results),
+                fallback=next((r.fallback for r in results if getattr(r, "fallback", "")), ""),
+                rss_before=rss_before, rss_peak=rss_peak, traced_peak=traced)
 
 
 def layer_tables(poisson_ratio=0.45):
@@ -224,14 +454,34 @@ def main(argv=None):
     parser.add_argument("--skin", type=int, default=16,
                         help="n of the n x n skin solved per frame (default 16)")
     parser.add_argument("--frames", type=int, default=40, help="noisy frames per median (default 40)")
+    parser.add_argument("--kernels", nargs="*", choices=KERNELS, default=list(KERNELS),
+                        help="kernels solved per frame on the Hertz frames (default all; none: skip)")
+    parser.add_argument("--contacts", type=int, nargs="*", default=list(CONTACT_COUNTS),
+                        help="contacts per frame of the 16x16 multi-contact frames, each 1 to 3 "
+                             "(default 1 2 3; none: skip)")
+    parser.add_argument("--contact-frames", type=int, default=20,
+                        help="frames per contact count, each timed in 5 rounds (default 20)")
+    parser.add_argument("--press-sizes", type=int, nargs="*", default=[32],
+                        help="skins (n x n) solved under a broad press (default 32; 64 takes minutes and "
+                             "gigabytes; none: skip)")
+    parser.add_argument("--press-frames", type=int, default=3,
+                        help="broad-press frames per skin, each solved once (default 3)")
     args = parser.parse_args(argv)
     if args.skin < 4 or args.frames < 1:
         parser.error(f"--skin must be at least 4 and --frames at least 1, got {args.skin} and {args.frames}")
     if any(n < 1 for n in args.sizes):
         parser.error(f"--sizes must be at least 1 each, got {' '.join(map(str, args.sizes))}")
+    if any(count not in CONTACT_COUNTS for count in args.contacts):
+        parser.error(f"--contacts must be 1, 2 or 3 each, got {' '.join(map(str, args.contacts))}")
+    if args.contact_frames < 1:
+        parser.error(f"--contact-frames must be at least 1, got {args.contact_frames}")
+    if any(n < 8 for n in args.press_sizes):
+        parser.error(f"--press-sizes must be at least 8 each, got {' '.join(map(str, args.press_sizes))}")
+    if args.press_frames < 1:
+        parser.error(f"--press-frames must be at least 1, got {args.press_frames}")
     print(f"machine: {machine()}")
     print(f"layer tables (once per Poisson ratio): {layer_tables():.3f} s")
-    for kernel in KERNELS:
+    for kernel in args.kernels:
         t = per_frame(n=args.skin, frames=args.frames, kernel=kernel)
         print(f"{args.skin}x{args.skin} {kernel:5} solve median wall (CPU) ms: "
               f"auto {t['auto']:.3f} ({t['auto_cpu']:.3f}), "
@@ -248,6 +498,29 @@ def main(argv=None):
         if ref is not None:
             line += f", numpy.linalg.pinv {ref:.2f} s, ratio pinv/ours {ref / ours:.1f}x"
         print(line, flush=True)
+    skin = "pitch 1.5 mm, h/pitch 1, nu 0.49, layer kernel, 1% noise"
+    if args.contacts:
+        print(f"16x16 multi-contact frames ({skin}; make_solver; per count its own frames, each placed "
+              f"and noised anew, one untimed round, then 5 rounds over all frames):", flush=True)
+    for count in args.contacts:
+        t = multi_contact([count], frames=args.contact_frames)[count]
+        print(f"16x16 {count} contact{'s' if count > 1 else ' '} automatic solve ms, {t['solves']} solves of "
+              f"{t['frames']} frames: wall median {t['wall']:.3f} p95 {t['wall_p95']:.3f}, "
+              f"CPU median {t['cpu']:.3f} p95 {t['cpu_p95']:.3f}; each frame's fastest, median "
+              f"{t['fastest']:.3f} ({t['fastest_cpu']:.3f}); contacts found, median {t['found']:g}",
+              flush=True)
+    for n in args.press_sizes:
+        print(f"{n}x{n} broad press ({skin}; a Hertzian load of radius 0.4 of the side; "
+              f"{args.press_frames} frames, each solved once): running ...", flush=True)
+        t = broad_press(n, frames=args.press_frames)
+        print(f"{n}x{n} broad press: set-up ({t['solver']}) {t['setup']:.2f} s (CPU {t['setup_cpu']:.2f} s); "
+              f"first solve {t['first']:.3f} s (CPU {t['first_cpu']:.3f} s); automatic solve s, "
+              f"{t['solves']} solves: wall median {t['wall']:.3f} p95 {t['wall_p95']:.3f}, CPU median "
+              f"{t['cpu']:.3f} p95 {t['cpu_p95']:.3f}; contacts found, median {t['found']:g}; "
+              f"cheaper fallback on {t['fallbacks']} of {t['solves']}{': ' if t['fallback'] else ''}"
+              f"{t['fallback']}; "
+              f"peak RSS {t['rss_peak']:.0f} MB ({t['rss_before']:.0f} MB before its set-up); traced peak of "
+              f"set-up and first solve (tracemalloc, untimed pass) {t['traced_peak']:.0f} MB", flush=True)
 
 
 if __name__ == "__main__":

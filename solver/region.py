@@ -26,8 +26,10 @@ from scipy import ndimage
 
 from .arrays import read_only
 from .checks import real_number, shown, whole_number
+from .convolution import NormalConvolution
 from .geometry import SensorGrid
 from .inverse import (
+    Contact,
     Reconstruction,
     Reconstructor,
     _direction,
@@ -134,6 +136,7 @@ class RegionSolver:
         self._lock = threading.Lock()
         self._links = patch_links(grid)
         self._capacity = cache
+        self._convolution = None  # the whole skin's normal-only operator, made when first needed
         self.factorizations = 0  # windows set up so far, each inverting its matrices (the rest were reused)
 
     def _window(self, rows: int, columns: int) -> SensorGrid:
@@ -226,7 +229,12 @@ class RegionSolver:
         explained = np.zeros(grid.shape, dtype=bool)
         unexplained = 0.0
         shapes = {}
-        for rows, columns in self.windows(image):
+        windows = self.windows(image)
+        broad = [w for w in windows if (w[0].stop - w[0].start) * (w[1].stop - w[1].start) > DENSE_LIMIT]
+        if broad:
+            return self._broad(image, windows, broad, shear_ratio, shear_direction)
+        notes = []
+        for rows, columns in windows:
             window = image[rows, columns]
             ordinal = shapes[window.shape] = shapes.get(window.shape, -1) + 1
             solver = self.reconstructor(window.shape[0], window.shape[1], ordinal)
@@ -240,6 +248,8 @@ class RegionSolver:
             explained[rows, columns] = True
             unexplained += (result.residual * np.linalg.norm(window)) ** 2
             results.append(result)
+            if result.fallback and result.fallback not in notes:
+                notes.append(result.fallback)
             for contact in result.contacts:
                 nodes = np.zeros(grid.shape, dtype=bool)
                 nodes[rows, columns] = contact.nodes.reshape(window.shape)
@@ -269,4 +279,47 @@ class RegionSolver:
             efficiency=main.efficiency, residual=math.sqrt(unexplained) / norm if norm > 0 else 0.0,
             condition=max(r.condition for r in results), regularized=any(r.regularized for r in results),
             normal_only=normal_only, shear_detected=any(r.shear_detected for r in results),
-            region=read_only(region.ravel(), bool), exact=main.exact, contacts=tuple(contacts))
+            region=read_only(region.ravel(), bool), exact=main.exact, contacts=tuple(contacts),
+            fallback="; ".join(notes))
+
+    def _broad(self, image, windows, broad, shear_ratio, shear_direction):
+        # A window over DENSE_LIMIT nodes would need the dense matrices of a skin that size
+        # (gigabytes at 64x64): the frame gets the normal-only answer of the whole skin by
+        # convolution (solver.convolution), in memory that grows with the skin, not its square.
+        grid = self.grid
+        if self._convolution is None:
+            self._convolution = NormalConvolution(grid, kernel=self.kernel,
+                                                  **{k: v for k, v in self._options.items()
+                                                     if k == "max_condition"})
+        fz, _ = self._convolution.solve(image.ravel())
+        forces = np.zeros((grid.size, 3))
+        forces[:, 2] = fz
+        region = np.zeros(grid.shape, dtype=bool)
+        contacts = []
+        direction = _direction(0.0, 0.0, 0.0 if shear_direction is None else float(shear_direction))
+        for rows, columns in windows:
+            box = np.zeros(grid.shape, dtype=bool)
+            box[rows, columns] = True
+            region |= box
+            nodes = box.ravel()
+            pushed = np.clip(fz[nodes], 0.0, None)
+            centre = (grid.positions[nodes].T @ pushed / pushed.sum() if pushed.sum() > 0
+                      else grid.positions[nodes].mean(axis=0))
+            contacts.append(Contact(nodes=read_only(nodes, bool), shear_ratio=0.0, shear_direction=direction,
+                                    evidence=math.nan, shear_detected=False,
+                                    at_edge=bool(np.any(nodes & grid.border)),
+                                    total_force=read_only(forces[nodes].sum(axis=0)),
+                                    centre=read_only(centre)))
+        contacts.sort(key=lambda c: -c.total_force[2])
+        largest = max((w[0].stop - w[0].start) * (w[1].stop - w[1].start) for w in broad)
+        given = "" if shear_ratio is None and shear_direction is None else ", the given shear not applied"
+        norm = float(np.linalg.norm(image))
+        misfit = self._convolution.apply(fz) - image.ravel()
+        return Reconstruction(
+            forces=read_only(forces), shear_ratio=0.0, shear_direction=direction, efficiency=math.nan,
+            residual=float(np.linalg.norm(misfit)) / norm if norm > 0 else 0.0,
+            condition=self._convolution.condition, regularized=self._convolution.shift > 0,
+            normal_only=True, shear_detected=False, region=read_only(region.ravel(), bool), exact=True,
+            contacts=tuple(contacts),
+            fallback=(f"normal only{given}: a load window of {largest} nodes, more than the "
+                      f"{DENSE_LIMIT} a window may have (solved by convolution over the whole skin)"))

@@ -5,64 +5,62 @@ columns on the sensors near the contacts, the exact member's ``C^T w``), far
 too small to share between threads. OpenBLAS shares them anyway: its threads
 spin while they wait, and on a 2-core machine they fight with the window's
 drawing thread and with each other. Measured on three-contact frames of a
-16x16 skin (2-core Xeon VM, the other core busy): 38.9 ms CPU median per
-automatic solve with OpenBLAS's 2 threads, 13.0 ms on one (``docs/efficiency.md``).
+16x16 skin (2-core VM, the other core busy): 38.9 ms CPU median per
+automatic solve with OpenBLAS's 2 threads, 13.0 ms on one.
 
-:func:`one_blas_thread` sets every BLAS library the process has loaded
-(numpy's and scipy's OpenBLAS, found by ``threadpoolctl``) to one thread while
-a solve runs and gives back the count it found when the last solve ends. The
-setting is the process's, not the thread's (OpenBLAS has no per-thread
-count): solves on several threads at once share one setting, and a large
-product on another thread during a solve runs on one thread too. Set-ups
-(factorizations of large skins) are not wrapped: they gain from every core.
-The machine's ``OPENBLAS_NUM_THREADS`` and the like are never touched.
+:func:`one_blas_thread` puts the calling thread's BLAS calls on one thread
+while a solve runs and gives back its count after. OpenBLAS (0.3.27 and
+later, as numpy's and scipy's wheels carry it) keeps that count per thread
+(``openblas_set_num_threads_local``): other threads, a factorization of a
+large skin among them, keep every core. A BLAS library without a per-thread
+count (found by ``threadpoolctl``) is left as it is: its process-wide count
+is not the solver's to change (and OpenBLAS ignores a process-wide change
+from a worker thread once the main thread has made one, measured). The
+machine's ``OPENBLAS_NUM_THREADS`` and the like are never touched.
 """
 
 from __future__ import annotations
 
+import ctypes
 import threading
 from contextlib import contextmanager
 
-__all__ = ["one_blas_thread"]
+__all__ = ["one_blas_thread", "local_libraries"]
 
 _lock = threading.Lock()
-_libraries = None   # threadpoolctl's controllers of the BLAS libraries loaded
-_depth = 0          # solves running now, on any thread
-_saved: list[int] = []
+_local = None   # each BLAS library's per-thread setter, found once
 
 
-def _blas():
-    global _libraries
-    if _libraries is None:
-        # imported here: threadpoolctl inspects the loaded libraries, so after numpy and scipy
-        from threadpoolctl import ThreadpoolController
+def local_libraries() -> list:
+    """The per-thread thread-count setters of the BLAS libraries loaded (``int f(int)``, returning
+    the count it replaces); empty when none has one."""
+    global _local
+    with _lock:
+        if _local is None:
+            # imported here: threadpoolctl inspects the libraries loaded, so after numpy and scipy
+            from threadpoolctl import ThreadpoolController
 
-        _libraries = ThreadpoolController().select(user_api="blas").lib_controllers
-    return _libraries
+            found = []
+            for library in ThreadpoolController().select(user_api="blas").lib_controllers:
+                setter = getattr(library.dynlib, "openblas_set_num_threads_local", None)
+                if setter is not None:
+                    setter.restype, setter.argtypes = ctypes.c_int, [ctypes.c_int]
+                    found.append(setter)
+            _local = found
+        return _local
 
 
 @contextmanager
 def one_blas_thread():
-    """Run the block with every BLAS library on one thread (module notes); reentrant and thread-safe.
+    """Run the block's BLAS calls on one thread (module notes): this thread only, nested blocks
+    too; the count before is given back on the way out, an exception included.
 
-    Costs about 16 us per outermost entry and exit (two OpenBLAS libraries,
-    measured); nested and concurrent blocks cost nothing more.
+    Costs about 5 us per block (two OpenBLAS libraries, measured).
     """
-    global _depth, _saved
-    with _lock:
-        if _depth == 0:
-            libraries = _blas()
-            _saved = [library.get_num_threads() for library in libraries]
-            for library, count in zip(libraries, _saved, strict=True):
-                if count != 1:
-                    library.set_num_threads(1)
-        _depth += 1
+    setters = local_libraries()
+    before = [setter(1) for setter in setters]
     try:
         yield
     finally:
-        with _lock:
-            _depth -= 1
-            if _depth == 0:
-                for library, count in zip(_blas(), _saved, strict=True):
-                    if count != 1:
-                        library.set_num_threads(count)
+        for setter, count in zip(setters, before, strict=True):
+            setter(count)

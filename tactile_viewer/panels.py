@@ -40,7 +40,10 @@ def status_text(solved: Solved, model: ViewerModel) -> str:
     """The status line of a solved frame: where, how fast, the parameters, the fit, the forces."""
     r = solved.result
     total = r.total_force
-    if r.normal_only:
+    if r.fallback:
+        # a load too broad for the accurate path within its budget: the solver says what it did
+        shear = f"cheaper answer, {r.fallback}"
+    elif r.normal_only:
         shear = "normal only"  # the fast preset
     elif solved.auto and not r.shear_detected:
         shear = "auto: no shear signature"

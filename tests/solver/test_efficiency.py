@@ -305,7 +305,8 @@ def test_noise_alone_is_no_contact(ratio):
     for seed in (300, 301, 302):
         result = r.solve(np.random.default_rng(seed).normal(0.0, 10.0, grid.size))
         assert result.contacts == () and not result.region.any() and np.all(result.forces == 0), seed
-    unfiltered = Reconstructor(grid, efficiency=ContactFit(min_load_evidence=-math.inf))  # decision off
+    # the load decision off (and the budget, whose pre-filter would drop noise contacts too)
+    unfiltered = Reconstructor(grid, efficiency=ContactFit(min_load_evidence=-math.inf), fit_budget=grid.size)
     assert unfiltered.solve(np.random.default_rng(300).normal(0.0, 10.0, grid.size)).contacts
 
 

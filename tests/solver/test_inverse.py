@@ -255,9 +255,11 @@ def test_constructor_checks_its_arguments():
     (dict(profile="hat"), "profile must be one of \\('uniform', 'bilinear'\\), got 'hat'"),
     (dict(separation=1.5), "separation must be in \\[0, 1\\], got 1.5"),
     (dict(separation=math.nan), "separation must be in \\[0, 1\\], got nan"),
+    (dict(fit_budget=0), "fit_budget must be a whole number of nodes >= 1, got 0"),
 ], ids=["subdivision-0", "subdivision-5", "subdivision-fraction", "subdivision-bool", "reach", "reach-nan",
         "reach-text", "max_shear_ratio-inf", "region_threshold-bool", "max_condition-nan", "subdivision-inf",
-        "subdivision-nan", "region_margin-huge", "profile", "separation", "separation-nan"])
+        "subdivision-nan", "region_margin-huge", "profile", "separation", "separation-nan",
+        "fit_budget"])
 def test_options_are_checked_before_any_matrix_is_built(kwargs, message, monkeypatch):
     import solver.inverse
 
@@ -477,3 +479,46 @@ def test_found_parameters_do_not_depend_on_the_solves_before(ratio):
         assert result.shear_direction == pytest.approx(fresh.shear_direction, abs=1e-10)
         np.testing.assert_allclose(result.forces, fresh.forces, rtol=0, atol=1e-9 * np.abs(fresh.forces).max())
         assert used._recent[1].shear_free is not None  # the next frame had a set to start from
+
+
+def test_a_load_broader_than_the_fit_budget_gets_a_cheaper_member_and_says_so():
+    from solver.inverse import WHOLE_CELLS
+
+    grid = SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3, poisson_ratio=0.49)
+    frame = loads.simulate(grid, loads.hertz((0.2e-3, -0.3e-3), 5 * 1.5e-3, 1.0, shear_ratio=0.2),
+                           noise=0.01, rng=4)  # fixed seed
+    accurate = Reconstructor(grid).solve(frame.stress)
+    covered = int(np.count_nonzero(accurate.region))
+    assert accurate.fallback == "" and covered > 40 and WHOLE_CELLS == 2
+    # up to twice the budget: the same fit on whole cells, compressive and still finding the shear
+    whole = Reconstructor(grid, fit_budget=covered // 2 + 1)
+    result = whole.solve(frame.stress)
+    assert result.fallback == (f"whole-cell fit: the contacts cover {covered} nodes, more than the sub-cell "
+                               f"fit's budget of {covered // 2 + 1} (fit_budget)")
+    assert result.forces[:, 2].min() >= 0 and result.shear_detected and not result.exact
+    np.testing.assert_allclose(result.forces, Reconstructor(grid, subdivision=1).solve(frame.stress).forces,
+                               rtol=0, atol=1e-9 * result.forces.max())
+    r = Reconstructor(grid, fit_budget=40)
+    m = grid.size
+    # beyond: the normal-only answer, Cz Fz = b, every contact without shear
+    result = r.solve(frame.stress)
+    assert result.fallback == (f"normal only: the contacts cover {covered} nodes, more than the contact "
+                               "fit's budget of 80 (2 x fit_budget)")
+    np.testing.assert_array_equal(result.forces, r.solve_normal(frame.stress).forces)
+    assert result.normal_only and result.exact and not result.shear_detected and result.contacts
+    assert all(c.shear_ratio == 0 for c in result.contacts)
+    np.testing.assert_allclose(sum(c.total_force for c in result.contacts),
+                               result.forces[result.region].sum(axis=0), rtol=1e-12)
+    # given parameters: the paper's member at them, its template from the normal-only solution
+    given = r.solve(frame.stress, shear_ratio=0.3, shear_direction=0.5)
+    assert given.fallback.startswith("the template of the normal-only solution: the contacts cover")
+    g = np.where(result.region, np.clip(result.forces[:, 2], 0, None), 0.0)
+    y = np.concatenate([0.3 * math.cos(0.5) * g, 0.3 * math.sin(0.5) * g, g])
+    np.testing.assert_allclose(given.forces.T.ravel(), r.project_null(y) + r.apply_pinv(frame.stress),
+                               rtol=0, atol=1e-9 * np.abs(y).max())
+    np.testing.assert_allclose(r.matrix @ given.forces.T.ravel(), frame.stress, rtol=0,
+                               atol=1e-9 * np.abs(frame.stress).max())
+    assert given.contacts[0].shear_ratio == pytest.approx(0.3) and not given.normal_only
+    assert m == 256
+    template = r.solve(frame.stress, shear_ratio=0.3, shear_direction=0.5, exact=False)
+    np.testing.assert_allclose(template.forces.T.ravel(), y, rtol=0, atol=1e-15)

@@ -3,6 +3,8 @@
 import io
 import re
 
+import pytest
+
 from benchmarks import viewer_speed as bench
 
 
@@ -36,3 +38,51 @@ def test_the_live_benchmark_records_without_gaps(qapp, no_plotter_leak):
     result = bench.live(seconds=1.5, rate=500, out=out)
     assert result["gaps"] == 0 and result["recorded"] >= 500
     assert "sequence gaps 0" in out.getvalue() and "CPU: viewer" in out.getvalue()
+
+
+def test_the_solve_comparison_times_the_window_against_a_plain_loop_idle_and_busy(qapp, no_plotter_leak):
+    out = io.StringIO()
+    result = bench.solve_comparison(bench.SOLVE_SAMPLES[0], seconds=0.5, wait_presets=False, out=out)
+    text = out.getvalue()
+    assert text.startswith("two_contacts.npz: 16x16 grid, 45 frames; solves in the window")
+    assert list(result) == ["idle", "busy"]
+    for load, r in result.items():
+        assert set(r) == {"window", "window_cpu", "plain", "plain_cpu", "ratio", "ratio_p95", "ratio_cpu"}
+        # the plain loop solves the very frames the window delivered, as many
+        assert r["window"]["n"] >= 1 and r["plain"]["n"] == r["window"]["n"] == r["plain_cpu"]["n"]
+        assert r["window_cpu"]["n"] >= r["window"]["n"]  # the worker may have solved frames it then dropped
+        rows = re.findall(rf"^  {load}\s+(window|plain)\s+(\d+)(?:\s+\d+\.\d\d){{4}}$", text, re.M)
+        assert [where for where, _ in rows] == ["window", "plain"]
+        assert re.search(rf"^  {load}\s+window / plain: wall median \d+\.\d\dx, p95 \d+\.\d\dx; "
+                         rf"CPU median \d+\.\d\dx$", text, re.M)
+
+
+def test_the_busy_core_spins_until_ended():
+    spinner = bench.busy_core()
+    try:
+        assert spinner.poll() is None
+    finally:
+        spinner.terminate()
+        spinner.wait(10)
+    assert spinner.poll() is not None
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (dict(loads=("idle", "hot")), r"loads must be among idle, busy, got 'hot'"),
+    (dict(seconds=0), r"seconds must be > 0, got 0"),
+])
+def test_the_solve_comparison_refuses_what_it_cannot_measure(arguments, message):
+    # refused before any window opens
+    with pytest.raises(ValueError, match=message):
+        bench.solve_comparison(bench.SOLVE_SAMPLES[1], **arguments)
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--solve-seconds", "0"], r"--solve-seconds must be > 0, got 0"),
+    (["--solve-samples", "nowhere.npz"], r"--solve-samples: no such file: nowhere.npz"),
+    (["--loads", "warm"], r"argument --loads: invalid choice: 'warm'"),
+])
+def test_the_command_refuses_bad_solve_options(arguments, message, capsys):
+    with pytest.raises(SystemExit):
+        bench.main(arguments)
+    assert re.search(message, capsys.readouterr().err)
