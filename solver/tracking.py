@@ -37,8 +37,17 @@ larger one (by its normal force when last seen); the other coasts: it is kept
 at its last centre and region for up to ``patience`` frames and resumes its
 identity when a contact reappears where it was. When the contacts of a frame
 both lie in the region of one track seen in the last frame (it split) and no
-coasting track claims them, the larger part keeps the identity and the other
-is new.
+coasting track claims them, the part nearest the track's centre from before
+the merge (:attr:`Track.origin`; its last centre when it did not merge) keeps
+the identity and the other is new; the larger part (by normal force) only
+breaks a tie. History, not size: a newcomer landing beside a broad contact,
+inside its region, does not take its number by pressing harder.
+
+Skipped frames. A viewer that draws slower than the recording plays shows
+every second or third frame; :meth:`ContactTracker.update` takes the number
+of frames since the last one it was given (``frames``, default 1) and counts
+the skipped ones as frames in which no contact was seen (``Track.missed``,
+``patience``). "The last frame" above means the last frame given.
 
 Threading: a tracker holds the state of one sequence of frames; feed it from
 one thread. Results are immutable: :meth:`update` returns a new result
@@ -93,6 +102,11 @@ class Track:
     missed : int
         Frames since it was last seen (0: seen in the last frame); it is
         ended when this exceeds the tracker's ``patience``.
+    origin : (2,) ndarray or None
+        Its centre from before it merged with another contact, metres
+        (read-only), kept while the other one coasts inside its region;
+        None when it is not merged (then :attr:`anchor` is ``centre``). A
+        split gives the identity to the part nearest :attr:`anchor`.
     """
 
     identity: int
@@ -100,6 +114,12 @@ class Track:
     nodes: np.ndarray
     force: float
     missed: int = 0
+    origin: np.ndarray | None = None
+
+    @property
+    def anchor(self) -> np.ndarray:
+        """``origin``, or ``centre`` when there is none: where a split's identity goes."""
+        return self.centre if self.origin is None else self.origin
 
 
 class ContactTracker:
@@ -169,7 +189,7 @@ class ContactTracker:
         """The number the next new contact gets."""
         return self._next
 
-    def update(self, result: Reconstruction) -> Reconstruction:
+    def update(self, result: Reconstruction, frames: int = 1) -> Reconstruction:
         """Match the contacts of the next frame and number them.
 
         Parameters
@@ -178,6 +198,11 @@ class ContactTracker:
             The next frame's solve, of this tracker's grid; its contacts'
             ``centre`` (2,) metres, ``nodes`` (m,) bool and ``total_force``
             (3,) newtons are read.
+        frames : int, optional
+            Frames elapsed since the last frame given, >= 1. Default 1 (the
+            next frame). The ``frames - 1`` skipped frames count as frames in
+            which no contact was seen: a track unseen for more than
+            ``patience`` frames in all is ended before matching.
 
         Returns
         -------
@@ -188,10 +213,12 @@ class ContactTracker:
         Raises
         ------
         ValueError
-            When ``result`` is not a Reconstruction of this tracker's grid.
+            When ``result`` is not a Reconstruction of this tracker's grid,
+            or ``frames`` is not a whole number >= 1.
         """
         if not isinstance(result, Reconstruction):
             raise ValueError(f"result must be a solver.Reconstruction, got {type(result).__name__}")
+        skipped = whole_number("frames", frames, low=1, unit="of frames ") - 1
         contacts = result.contacts
         m = self.grid.size
         for contact in contacts:
@@ -202,22 +229,27 @@ class ContactTracker:
             if not np.all(np.isfinite(contact.centre)):
                 raise ValueError(f"result's contact centres must be finite metres, got "
                                  f"{shown(np.asarray(contact.centre).tolist())}")
-        tracks = self._tracks
-        match = self._match(tracks, contacts)  # contact index -> track index
+        # the skipped frames saw nothing: what was last seen there stays "seen last" for the merge
+        # and split rules, but a track unseen for more than patience frames in all is over
+        tracks = tuple(t for t in self._tracks if t.missed + skipped <= self.patience)
+        match, merged = self._match(tracks, contacts)  # contact index -> track index; merged contacts
         identities = [0] * len(contacts)
         kept = []
         for j, contact in enumerate(contacts):
+            origin = None
             if j in match:
                 identity = tracks[match[j]].identity
+                if j in merged:  # another track coasts inside it: remember where this one came from
+                    origin = tracks[match[j]].anchor
             else:
                 identity, self._next = self._next, self._next + 1
             identities[j] = identity
             kept.append(Track(identity, read_only(contact.centre), read_only(contact.nodes, bool),
-                              float(contact.total_force[2])))
+                              float(contact.total_force[2]), origin=origin))
         matched = set(match.values())
         for i, track in enumerate(tracks):
-            if i not in matched and track.missed < self.patience:
-                kept.append(replace(track, missed=track.missed + 1))
+            if i not in matched and track.missed + skipped < self.patience:
+                kept.append(replace(track, missed=track.missed + skipped + 1))
         self._tracks = tuple(sorted(kept, key=lambda t: t.identity))
         return replace(result, contacts=tuple(replace(c, identity=k) for c, k in zip(contacts, identities,
                                                                                       strict=True)))
@@ -231,9 +263,9 @@ class ContactTracker:
         _, nearest = self._nodes.query(points)
         return regions[:, nearest].T
 
-    def _match(self, tracks, contacts) -> dict[int, int]:
+    def _match(self, tracks, contacts) -> tuple[dict[int, int], set[int]]:
         if not tracks or not contacts:
-            return {}
+            return {}, set()
         old = np.array([t.centre for t in tracks])
         new = np.array([c.centre for c in contacts], dtype=float)
         distance = np.linalg.norm(old[:, None, :] - new[None, :, :], axis=2)  # (T, C)
@@ -251,16 +283,21 @@ class ContactTracker:
                       and track_in_contact[b, j]]
             larger = max([i, *merged], key=lambda b: tracks[b].force)
             match[j] = larger
-        # splits: contacts that both lie in the region of one track seen last frame -> the larger part
-        # keeps its identity (a part another track claims was matched to it above)
+        # splits: contacts that both lie in the region of one track seen last frame -> the part nearest
+        # its centre from before the merge keeps its identity, the larger on a tie (a part another
+        # track claims was matched to it above)
+        tie = 1e-3 * self.grid.pitch
         for j, i in list(match.items()):
             if not (seen[i] and contact_in_track[i, j]):
                 continue
             parts = [k for k in range(len(contacts)) if k not in match and contact_in_track[i, k]]
-            larger = max([j, *parts], key=lambda k: force[k])
-            if larger != j:
+            if not parts:
+                continue
+            near = np.linalg.norm(new - tracks[i].anchor, axis=1)
+            nearest = min([j, *parts], key=lambda k: (round(near[k] / tie), -force[k]))
+            if nearest != j:
                 del match[j]
-                match[larger] = i
+                match[nearest] = i
         # what the two rules freed is matched again among itself
         free_tracks = [i for i in range(len(tracks)) if i not in match.values()]
         free_contacts = [j for j in range(len(contacts)) if j not in match]
@@ -268,7 +305,10 @@ class ContactTracker:
             again = _assign(distance[np.ix_(free_tracks, free_contacts)],
                             allowed[np.ix_(free_tracks, free_contacts)])
             match.update({free_contacts[j]: free_tracks[i] for j, i in again.items()})
-        return match
+        # a contact holding the centre of a track left unmatched is (still) a merge of the two
+        free = [i for i in range(len(tracks)) if i not in match.values()]
+        merged = {j for j in match if any(track_in_contact[b, j] for b in free)}
+        return match, merged
 
 
 def _assign(distance: np.ndarray, allowed: np.ndarray) -> dict[int, int]:

@@ -292,7 +292,11 @@ def load_forces(path) -> dict:
     path = Path(path)
     if path.suffix.lower() == ".npz":
         with np.load(path, allow_pickle=False) as data:
-            return {k: data[k] for k in data.files}
+            loaded = {k: data[k] for k in data.files}
+        count = len(loaded["frames"]) if "frames" in loaded else len(loaded["forces"])
+        defaults = {"contact_identity": np.zeros((count, 0), np.int64),  # an export from before them
+                    "contact_force": np.zeros((count, 0, 3)), "contact_centre": np.zeros((count, 0, 2))}
+        return defaults | loaded
     table = np.loadtxt(path, delimiter=",", skiprows=_header_lines(path), ndmin=2)  # "#" lines skipped
     frames = np.unique(table[:, 0]).astype(int)
     m = int(table[:, 2].max()) + 1

@@ -13,14 +13,19 @@ Contacts followed over time: the model owns a :class:`solver.ContactTracker`
 per source and numbers the contacts of each result as it is delivered, in the
 order the frames are shown (``Contact.identity``, from 1, in ``Solved.result``).
 A live source's frames only move on: every frame continues the tracks. A
-recording's continue while playback (or a step) moves forward by at most the
-tracker's ``patience`` frames; a seek backwards or a longer jump starts the
-numbers again at that frame (the tracker is reset), since nothing is known of
-the frames in between. The same frame solved again (new parameters, a re-tare)
+recording's continue while playback (or a step or a seek) moves forward; the
+frames it skipped (playback drops frames when drawing is slower than the
+recording, and at 2x) count as frames in which the contacts not seen were
+missing (``ContactTracker.update``'s ``frames``), so a jump further than the
+tracker's ``patience`` ends the lost tracks but keeps the numbers of the
+contacts still there. A seek backwards starts the numbers again at that frame
+(the tracker is reset). The same frame solved again (new parameters, a re-tare)
 is matched again from the tracks as they stood before it, so the numbers do not
 drift. A new source or solver (another kernel or quality) starts from 1.
 Played from its start, a recording is numbered as the whole-recording force
-export and ``--report`` number it (the same tracker over the same frames).
+export and ``--report`` number it (the same tracker over the same frames; the
+frames playback skipped can only matter where contacts merge or split). After
+a seek the window numbers from that frame and the exports keep theirs.
 """
 
 from __future__ import annotations
@@ -180,9 +185,10 @@ class Solved:
     centroid : (2,) ndarray or None
         Where the compressive normal load is centred, metres (None when
         nothing presses).
-    contact_centroids : tuple of ((2,) ndarray or None)
-        The same for each contact of ``result.contacts``, in their order
-        (over the contact's own nodes).
+    contact_centroids : tuple of (2,) ndarray
+        Each contact's :attr:`solver.Contact.centre` (the solver's formula:
+        its load's centre, its nodes' middle when nothing of it presses),
+        metres, in the order of ``result.contacts``.
 
     The contacts of a result the model delivers carry their identities
     (``result.contacts[k].identity``, from 1: module notes); ``Solved.of``
@@ -206,7 +212,7 @@ class Solved:
         forces = result.forces
         return cls(frame, time, np.asarray(stress, dtype=float), result, solve_ms, auto,
                    read_only(forces[:, 2] / grid.pitch**2), load_centroid(grid.positions, forces[:, 2]),
-                   tuple(load_centroid(grid.positions[c.nodes], forces[c.nodes, 2]) for c in result.contacts))
+                   tuple(read_only(c.centre) for c in result.contacts))
 
 
 def load_centroid(positions, fz) -> np.ndarray | None:
@@ -309,7 +315,7 @@ class ViewerModel:
         self._closed = False
         self._worker = None if dispatch is None else LatestWorker(self._work, name="tactile-solver")
         self._tracker: ContactTracker | None = None  # numbers the contacts of the source's frames
-        self._tracked = None  # (frame, time) last numbered and the tracker as it stood before it
+        self._tracked = None  # (frame, time) last numbered, the tracker before it, frames elapsed
 
     # -- building -----------------------------------------------------------------
 
@@ -580,13 +586,19 @@ class ViewerModel:
             return solved
         key = (solved.frame, solved.time)
         last = self._tracked
+        frames = 1  # live: every frame continues the tracks
         if last is not None and last[0] == key:
             tracker = self._tracker = last[1].copy()  # the same frame again: matched from before it
-        elif last is not None and not self.live and not 0 < solved.frame - last[0][0] <= tracker.patience:
-            tracker.reset()  # a seek backwards or a long jump: nothing is known of the frames between
-        self._tracked = (key, tracker.copy())
+            frames = last[2]
+        elif last is not None and not self.live:
+            frames = solved.frame - last[0][0]
+            if frames <= 0:
+                tracker.reset()  # a seek backwards: the numbers start again at this frame
+                frames = 1
+        self._tracked = (key, tracker.copy(), frames)
         try:
-            return replace(solved, result=tracker.update(solved.result))
+            # frames playback skipped (slow drawing, 2x) count as frames the lost contacts were unseen
+            return replace(solved, result=tracker.update(solved.result, frames))
         except ValueError:  # a solver whose results the tracker cannot read: shown unnumbered
             log.exception("the contacts of frame %s could not be followed", solved.frame)
             return solved

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from solver import SensorGrid, loads
-from solver.checks import one_of, whole_number
+from solver.checks import one_of, real_number, whole_number
 
 from .layout import SensorLayout, save_layout
 from .protocol import encode_binary, encode_text
@@ -240,6 +240,9 @@ class Cycle:
     before that thread reaches it is computed at once by the caller (or awaited when the thread
     is on it). Frames depend only on the scene, the grid and their index, never on which thread
     computed them or when.
+
+    A cycle shared by several users (boards) is counted: :meth:`acquire` starts the thread and
+    :meth:`release` stops it when the last user lets go; :meth:`close` stops it at once.
     """
 
     def __init__(self, scene: str, grid: SensorGrid, frames: int = CYCLE):
@@ -253,6 +256,8 @@ class Cycle:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._worker = None
+        self._life = threading.Lock()  # start / stop / users; never taken by the worker
+        self._users = 0
 
     def __len__(self) -> int:
         return self.frames
@@ -284,18 +289,64 @@ class Cycle:
         """``(frames, m)``: every frame (computing the missing ones)."""
         return np.array([self[k] for k in range(self.frames)])
 
+    @property
+    def users(self) -> int:
+        """How many users hold this cycle (:meth:`acquire` minus :meth:`release`)."""
+        return self._users
+
+    @property
+    def computing(self) -> bool:
+        """Whether the background thread is running and not told to stop."""
+        worker = self._worker
+        return worker is not None and worker.is_alive() and not self._stop.is_set()
+
     def start(self) -> Cycle:
-        """Compute the frames not yet computed in a background thread, in order; returns ``self``."""
-        with self._lock:
-            if self._worker is None or not self._worker.is_alive():
-                self._stop.clear()
-                self._worker = threading.Thread(target=self._fill, daemon=True,
-                                                 name=f"tactile-sim {self.scene.name} cycle")
-                self._worker.start()
+        """Compute the frames not yet computed in a background thread, in order; returns ``self``.
+
+        A thread still finishing its frame after :meth:`close` is waited for, then a new one starts.
+        """
+        with self._life:
+            self._start()
         return self
 
+    def _start(self):
+        worker = self._worker
+        if worker is not None and worker.is_alive():
+            if not self._stop.is_set():
+                return  # already computing
+            worker.join()  # stopping: it ends after the frame it is on
+        self._stop.clear()
+        if self.computed == self.frames:
+            return
+        self._worker = threading.Thread(target=self._fill, daemon=True,
+                                        name=f"tactile-sim {self.scene.name} cycle")
+        self._worker.start()
+
+    def acquire(self) -> Cycle:
+        """Count one more user and compute in the background (:meth:`start`); returns ``self``."""
+        with self._life:
+            self._users += 1
+            self._start()
+        return self
+
+    def release(self, timeout: float = 5.0):
+        """Count one user less; the last one to go stops the background thread (:meth:`close`)."""
+        with self._life:
+            if self._users <= 0:
+                raise RuntimeError(f"release of the {self.scene.name} cycle without a matching acquire")
+            self._users -= 1
+            if self._users == 0:
+                self._close(timeout)
+
     def close(self, timeout: float = 5.0):
-        """Stop the background thread (after the frame it is on); frames are still computed on demand."""
+        """Stop the background thread (after the frame it is on); frames are still computed on demand.
+
+        Stops it whoever else uses the cycle: users call :meth:`release` instead.
+        """
+        with self._life:
+            self._close(timeout)
+
+    def _close(self, timeout: float):
         self._stop.set()
         worker = self._worker
         if worker is not None and worker is not threading.current_thread():
@@ -345,7 +396,7 @@ def shared_cycle(scene: str, grid: SensorGrid, frames: int = CYCLE) -> Cycle:
     """This process's :class:`Cycle` of ``scene`` on ``grid``, computing in the background.
 
     Cycles are kept by scene, frame count and ``grid.key`` (everything the frames depend on);
-    the last few are kept.
+    the last few are kept (one dropped from the cache keeps computing while it has users).
     """
     key = (one_of("scene", scene, tuple(SCENES)), frames, grid.key)
     with _CYCLES_LOCK:
@@ -353,8 +404,10 @@ def shared_cycle(scene: str, grid: SensorGrid, frames: int = CYCLE) -> Cycle:
         if cycle is None:
             cycle = Cycle(scene, grid, frames)
         _CYCLES[key] = cycle
-        while len(_CYCLES) > _KEPT:
-            _CYCLES.pop(next(iter(_CYCLES))).close(timeout=0)
+        evicted = [_CYCLES.pop(next(iter(_CYCLES))) for _ in range(len(_CYCLES) - _KEPT)]
+    for old in evicted:
+        if old.users == 0:
+            old.close(timeout=0)
     return cycle.start()
 
 
@@ -386,20 +439,33 @@ class Board:
         text format only, binary frames always carry a CRC.
 
     The scene's frames come from :func:`shared_cycle`: computed in the background from the
-    moment the board is made, and each at the latest when it is first sent.
+    moment the board is made, and each at the latest when it is first sent. The board uses the
+    cycle until :meth:`close` (or the end of a ``with`` block); other boards of the same scene
+    and grid share it, and it stops computing ahead when the last of them closes.
+
+    Raises ``ValueError`` naming the argument for a format, rate, noise or probability out of range.
     """
 
     def __init__(self, layout: SensorLayout, *, scene="circle", fmt="binary", rate=100.0, noise=0.01,
                  garbage=0.0, dropout=0.0, seed=0, checksum=False):
+        one_of("fmt", fmt, ("binary", "text"))
         if checksum and fmt != "text":
             raise ValueError(f"checksum applies to the text format only (binary frames always carry a CRC), "
                              f"got fmt={fmt!r}")
+        rate = real_number("rate", rate, rule="a finite number of frames per second > 0",
+                           valid=lambda r: math.isfinite(r) and r > 0)
+        noise = real_number("noise", noise, rule="a finite number >= 0 (relative to the frame's peak)",
+                            valid=lambda n: math.isfinite(n) and n >= 0)
+        garbage, dropout = (real_number(name, value, rule="a probability in [0, 1]",
+                                        valid=lambda p: 0 <= p <= 1)
+                            for name, value in (("garbage", garbage), ("dropout", dropout)))
         self.layout, self.fmt, self.rate, self.checksum = layout, fmt, rate, checksum
-        self.cycle = shared_cycle(scene, layout.grid)
-        self.period = self.cycle.period
         self.rng = np.random.default_rng(seed)
         self.noise = noise
         self.garbage, self.dropout = garbage, dropout
+        self._closed = False
+        self.cycle = shared_cycle(scene, layout.grid).acquire()  # last: nothing to undo if anything fails
+        self.period = self.cycle.period
         self.scale = {"Pa": 1.0, "kPa": 1e-3, "MPa": 1e-6, "counts": 1.0}[layout.units]
         self.seq = 0
         self.sent = self.dropped = self.garbage_bursts = self.garbage_bytes = 0
@@ -433,8 +499,17 @@ class Board:
         return out
 
     def close(self):
-        """Stop computing frames ahead (the next ones are then computed when sent)."""
-        self.cycle.close()
+        """Let go of the cycle: the last board using it stops its computing ahead (later frames are
+        then computed when sent). Closing twice does nothing."""
+        if not self._closed:
+            self._closed = True
+            self.cycle.release()
+
+    def __enter__(self) -> Board:
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
 
 def _open_pty(link: Path | None):
@@ -498,6 +573,8 @@ def main(argv=None) -> int:
         parser.error(f"--rate must be in (0, 1000], got {args.rate:g}")
     if not (math.isfinite(args.noise) and args.noise >= 0):
         parser.error(f"--noise must be finite and >= 0, got {args.noise:g}")
+    if not args.duration >= 0:  # nan too
+        parser.error(f"--duration must be a number of seconds >= 0 (inf: no limit), got {args.duration:g}")
     if args.checksum and args.format != "text":
         parser.error(f"--checksum needs --format text (binary frames always carry a CRC), "
                      f"got --format {args.format}")

@@ -103,12 +103,79 @@ def test_a_merge_keeps_the_larger_number_and_the_smaller_resumes_after_the_split
     assert tracker.next_identity == 3
 
 
-def test_a_split_without_a_coasting_track_leaves_the_number_on_the_larger_part():
+def test_a_split_without_a_coasting_track_leaves_the_number_on_the_part_nearest_its_last_centre():
     tracker = ContactTracker(GRID, max_step=1e-3)
     tracker.update(frame((0, 0, 1.5, 7)))
-    # the smaller part's centre is nearer the last one, the larger keeps the number
+    # the smaller part's centre is nearer the last one: history, not size, keeps the number
     split = tracker.update(frame((-4, 0, 1.0, 2.5), (2, 0, 0.5, 2.5)))
-    assert numbered(split) == {1: (-4, 0), 2: (2, 0)}
+    assert numbered(split) == {1: (2, 0), 2: (-4, 0)}
+    # equally near: the larger part breaks the tie
+    tie = ContactTracker(GRID, max_step=1e-3)
+    tie.update(frame((0, 0, 1.5, 7)))
+    assert numbered(tie.update(frame((-3, 0, 0.5, 2.5), (3, 0, 1.0, 2.5)))) == {1: (3, 0), 2: (-3, 0)}
+
+
+def test_a_split_gives_the_number_to_the_part_nearest_the_centre_from_before_the_merge():
+    tracker = ContactTracker(GRID, max_step=1e-3)
+    tracker.update(frame((-4, 0, 1.0, 2.5), (4, 0, 0.5, 2.5)))
+    tracker.update(frame((-1, 0, 1.5, 7)))  # merged: number 1 (the larger) keeps it, 2 coasts
+    assert [tuple(np.round(t.anchor * 1e3, 2)) for t in tracker.tracks] == [(-4, 0), (4, 0)]
+    # the merged contact drifts while number 2 coasts: number 1 still comes from (-4, 0)
+    tracker.update(frame((0.5, 0, 1.5, 7)))
+    assert tuple(np.round(tracker.tracks[0].anchor * 1e3, 2)) == (-4, 0)
+    # it splits with the larger part on the right, near where number 2 was: 2 resumes there and 1
+    # stays on the left, where it came from
+    split = tracker.update(frame((-4, 0, 0.6, 2.5), (4, 0, 1.2, 2.5)))
+    assert numbered(split) == {1: (-4, 0), 2: (4, 0)}
+
+
+def test_a_newcomer_beside_a_broad_contact_does_not_take_its_number():
+    """The reviewer's case: a 1.2 N Hertz contact (radius 4 mm) rests at (-3, 0) mm for two frames,
+    then a 1 N finger (radius 1.5 mm) lands at (3.5, 0) mm, inside the resting contact's region."""
+    rest = loads.hertz((-3e-3, 0.0), 4e-3, 1.2)
+    finger = loads.hertz((3.5e-3, 0.0), 1.5e-3, 1.0)
+    solver = Reconstructor(GRID)
+    tracker = ContactTracker(GRID)
+    for _ in range(2):
+        alone = tracker.update(solver.solve(loads.simulate(GRID, [rest], noise=0.005, rng=10).stress))
+    both = tracker.update(solver.solve(loads.simulate(GRID, [rest, finger], noise=0.005, rng=11).stress))
+    assert [c.identity for c in alone.contacts] == [1]
+    resting = min(both.contacts, key=lambda c: c.centre[0])
+    assert resting.identity == 1 and sorted(c.identity for c in both.contacts) == [1, 2]
+    # the solver of today reconstructs the two apart, the newcomer outside the resting region and
+    # the larger (1.16 N against 0.71 N); the same numbers as Reconstruction-like results, the
+    # newcomer inside the broad region, exercise the split rule: the resting contact keeps number 1
+    synthetic = ContactTracker(GRID)
+    for _ in range(2):
+        synthetic.update(frame((-3, 0, 1.2, 7)))
+    landed = synthetic.update(frame((-3.8, -0.6, 0.71, 2), (3.6, 0, 1.16, 2)))
+    assert numbered(landed) == {1: (-3.8, -0.6), 2: (3.6, 0)}
+
+
+def test_skipped_frames_count_against_patience():
+    tracker = ContactTracker(GRID, patience=3)
+    tracker.update(frame((-6, 0, 1.0, 3), (6, 0, 0.8, 3)))
+    # three frames later (two skipped, both unseen): still within patience
+    assert numbered(tracker.update(frame((-6, 0, 1.0, 3)), frames=3)) == {1: (-6, 0)}
+    assert [(t.identity, t.missed) for t in tracker.tracks] == [(1, 0), (2, 3)]
+    assert numbered(tracker.update(frame((-6, 0, 1.0, 3), (6, 0, 0.8, 3)))) == {1: (-6, 0), 2: (6, 0)}
+    # a gap past patience ends it, as that many frames one by one would
+    assert numbered(tracker.update(frame((-6, 0, 1.0, 3)), frames=4)) == {1: (-6, 0)}
+    assert [t.identity for t in tracker.tracks] == [1]
+    assert numbered(tracker.update(frame((-6, 0, 1.0, 3), (6, 0, 0.8, 3)))) == {1: (-6, 0), 3: (6, 0)}
+    # moving contacts seen every other frame keep their numbers
+    skipping = ContactTracker(GRID)
+    for k in range(5):
+        shown = skipping.update(frame((-6 + k, 0, 1.0, 3), (6 - k, 2, 0.8 + 0.1 * k, 3)), frames=2)
+        assert {c.identity: round(c.centre[0] * 1e3) for c in shown.contacts} == {1: -6 + k, 2: 6 - k}
+
+
+@pytest.mark.parametrize("frames, got", [(0, "0"), (-1, "-1"), (1.5, "1.5"), (None, "None"), (True, "True")])
+def test_bad_frame_counts_are_named(frames, got):
+    tracker = ContactTracker(GRID)
+    with pytest.raises(ValueError, match=rf"frames must be a whole number of frames >= 1, got {got}"):
+        tracker.update(frame((0, 0, 1.0, 2)), frames=frames)
+    assert tracker.tracks == () and tracker.next_identity == 1
 
 
 def test_reset_starts_again_from_one_and_copy_is_independent():

@@ -166,6 +166,21 @@ def test_per_contact_totals_are_exported_and_read_back(two_fingers, tmp_path, na
     np.testing.assert_allclose(back["forces"], table.forces, rtol=1e-8, atol=1e-15)
 
 
+def test_an_npz_export_from_before_the_contacts_reads_back_with_none(two_fingers, tmp_path):
+    recording, solver = two_fingers
+    table = reconstruct_frames(recording, solver, [1, 2])
+    path = save_forces(table, tmp_path / "fingers.npz")
+    with np.load(path, allow_pickle=False) as data:
+        old = {k: data[k] for k in data.files if not k.startswith("contact_")}
+    assert set(old) >= {"forces", "frames", "t"}
+    np.savez(tmp_path / "old.npz", **old)  # as written before the per-contact arrays existed
+    back = load_forces(tmp_path / "old.npz")
+    assert back["contact_identity"].shape == (2, 0) and back["contact_identity"].dtype == np.int64
+    assert back["contact_force"].shape == (2, 0, 3) and back["contact_centre"].shape == (2, 0, 2)
+    np.testing.assert_array_equal(back["frames"], [1, 2])
+    np.testing.assert_allclose(back["forces"], table.forces, rtol=1e-8, atol=1e-15)
+
+
 def test_csv_contacts_are_hash_marked_lines_that_node_readers_skip(two_fingers, tmp_path):
     recording, solver = two_fingers
     table = reconstruct_frames(recording, solver, [1, 2])

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from solver import Reconstructor, SensorGrid, loads
+from solver import ContactTracker, Reconstructor, SensorGrid, loads
 from solver.kernels import KERNELS
 from tactile_viewer.model import MAX_SHEAR_RATIO, Display, Solved, ViewerModel, geometry_text
 from tactile_viewer.recording import Recording
@@ -776,6 +776,21 @@ def test_contacts_keep_their_numbers_during_playback_and_start_again_after_a_see
     assert sides(model.solve()) == {"left": 1, "right": 2}
     model.set_frame(4)
     assert sides(model.solve()) == {"left": 1, "right": 2}
+
+
+def test_frames_skipped_by_playback_continue_the_numbers_and_count_against_patience(crossing):
+    recording, solver = crossing
+    model = ViewerModel()
+    model.set_source(RecordingSource(recording), solver)
+    model._tracker = ContactTracker(recording.grid, patience=1)  # so that a skip of 2 exceeds it
+    for k in (0, 2, 4):  # slow drawing shows every other frame: more than patience apart each time
+        model.set_frame(k)
+        assert sides(model.solve()) == {"left": 2, "right": 1}, k  # not renumbered by force
+    model.set_frame(0)
+    model.solve()  # a seek back starts again: right 1 (the larger at frame 0), left 2
+    model.set_frame(3)  # two frames skipped, both unseen: more than patience, the tracks end ...
+    assert sides(model.solve()) == {"left": 3, "right": 4}  # ... but the numbers go on, never reused
+    assert model._tracker.next_identity == 5
 
 
 def test_a_new_source_numbers_its_contacts_from_one(crossing):

@@ -26,6 +26,28 @@ def layout():
     return SensorLayout(SensorGrid.regular(4, 4, 2e-3, 2e-3), "kPa")
 
 
+@pytest.fixture
+def make_board():
+    """``make_board(layout, **options)``: a :class:`Board` closed when the test ends, however it ends."""
+    boards = []
+
+    def make(*args, **kwargs):
+        boards.append(Board(*args, **kwargs))
+        return boards[-1]
+    try:
+        yield make
+    finally:
+        for board in boards:
+            board.close()
+
+
+def wait_for(condition, what, timeout=30.0):
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, what
+        time.sleep(0.01)
+
+
 def stream(board, frames):
     return b"".join(board.next_bytes() for _ in range(frames))
 
@@ -51,15 +73,25 @@ def clean(board, seq):
 
 # -- Board ----------------------------------------------------------------------------------------
 
-def test_board_cycle_is_the_contact_cycle(layout):
-    board = Board(layout)
+def test_board_cycle_is_the_contact_cycle(layout, make_board):
+    board = make_board(layout)
     assert board.period == 2.0 and len(board.cycle) == 100  # the circling contact, by default
-    np.testing.assert_array_equal(board.cycle.array(), contact_cycle(layout.grid))
+    cycle = contact_cycle(layout.grid)
+    for k in (0, 13, 50, 99):
+        # computed here, independently of any cycle: the scene's contacts through the bonded layer ...
+        contacts = scene_contacts("circle", layout.grid, k / 100)
+        coarse = simulator.loads.simulate(layout.grid, contacts, medium="layer",
+                                          subdivisions=simulator._subdivisions(layout.grid, contacts))
+        np.testing.assert_array_equal(board.cycle[k], coarse.clean_stress)
+        np.testing.assert_array_equal(cycle[k], coarse.clean_stress)
+        # ... and on loads' default (finer) sub-cells: within 0.65% of the peak, as the module says
+        fine = simulator.loads.simulate(layout.grid, contacts, medium="layer").clean_stress
+        np.testing.assert_allclose(board.cycle[k], fine, rtol=0, atol=0.0065 * np.abs(fine).max())
 
 
 @pytest.mark.parametrize("fmt", ["binary", "text"])
-def test_noiseless_board_sends_the_clean_cycle(layout, fmt):
-    board = Board(layout, fmt=fmt, rate=50.0, noise=0.0)  # 50 Hz: one cycle row per frame
+def test_noiseless_board_sends_the_clean_cycle(layout, fmt, make_board):
+    board = make_board(layout, fmt=fmt, rate=50.0, noise=0.0)  # 50 Hz: one cycle row per frame
     decoder, frames = decode(fmt, layout.count, stream(board, 250))
     assert board.sent == len(frames) == decoder.accepted == 250
     assert board.dropped == board.garbage_bursts == 0 and decoder.skipped_bytes == 0 and not decoder.rejected
@@ -74,8 +106,8 @@ def test_noiseless_board_sends_the_clean_cycle(layout, fmt):
         np.testing.assert_allclose(got, expected, rtol=5e-6, atol=0)  # six significant digits
 
 
-def test_noise_is_gaussian_relative_to_the_frames_peak(layout):
-    board = Board(layout, rate=100.0, noise=0.02, seed=11)  # fixed seed
+def test_noise_is_gaussian_relative_to_the_frames_peak(layout, make_board):
+    board = make_board(layout, rate=100.0, noise=0.02, seed=11)  # fixed seed
     _, frames = decode("binary", layout.count, stream(board, 400))
     assert [f.seq for f in frames] == list(range(400))
     # in units of each frame's own sigma: 2% of its peak clean stress (as loads.simulate has it)
@@ -87,14 +119,14 @@ def test_noise_is_gaussian_relative_to_the_frames_peak(layout):
     assert abs(residual.mean()) < 0.05
 
 
-def test_boards_with_the_same_seed_send_the_same_bytes(layout):
-    a = Board(layout, noise=0.01, garbage=0.2, dropout=0.1, seed=3)  # fixed seed
-    b = Board(layout, noise=0.01, garbage=0.2, dropout=0.1, seed=3)
+def test_boards_with_the_same_seed_send_the_same_bytes(layout, make_board):
+    a = make_board(layout, noise=0.01, garbage=0.2, dropout=0.1, seed=3)  # fixed seed
+    b = make_board(layout, noise=0.01, garbage=0.2, dropout=0.1, seed=3)
     assert stream(a, 50) == stream(b, 50)
 
 
-def test_dropout_leaves_sequence_gaps_of_exactly_the_dropped_frames(layout):
-    board = Board(layout, dropout=0.2, seed=5)  # fixed seed
+def test_dropout_leaves_sequence_gaps_of_exactly_the_dropped_frames(layout, make_board):
+    board = make_board(layout, dropout=0.2, seed=5)  # fixed seed
     decoder, frames = decode("binary", layout.count, stream(board, 300))
     seqs = [f.seq for f in frames]
     assert 30 < board.dropped < 90 and board.sent + board.dropped == 300 == board.seq
@@ -106,8 +138,8 @@ def test_dropout_leaves_sequence_gaps_of_exactly_the_dropped_frames(layout):
     assert sum(np.diff(seqs) - 1) + seqs[0] + (299 - seqs[-1]) == board.dropped
 
 
-def test_binary_garbage_is_counted_and_every_frame_recovered(layout):
-    board = Board(layout, fmt="binary", garbage=0.3, seed=9)  # fixed seed
+def test_binary_garbage_is_counted_and_every_frame_recovered(layout, make_board):
+    board = make_board(layout, fmt="binary", garbage=0.3, seed=9)  # fixed seed
     decoder, frames = decode("binary", layout.count, stream(board, 400), seed=1)
     assert 60 < board.garbage_bursts < 180 and board.garbage_bytes >= board.garbage_bursts
     assert [f.seq for f in frames] == list(range(400))  # every frame, in order
@@ -115,8 +147,8 @@ def test_binary_garbage_is_counted_and_every_frame_recovered(layout):
     assert decoder.skipped_bytes == board.garbage_bytes
 
 
-def test_text_garbage_lines_are_rejected_or_skipped(layout):
-    board = Board(layout, fmt="text", rate=50.0, noise=0.0, garbage=0.3, seed=9)  # fixed seed
+def test_text_garbage_lines_are_rejected_or_skipped(layout, make_board):
+    board = make_board(layout, fmt="text", rate=50.0, noise=0.0, garbage=0.3, seed=9)  # fixed seed
     decoder, frames = decode("text", layout.count, stream(board, 300), seed=2)
     assert board.garbage_bursts > 50
     assert len(frames) == board.sent == 300
@@ -125,9 +157,9 @@ def test_text_garbage_lines_are_rejected_or_skipped(layout):
     np.testing.assert_allclose([f.values for f in frames], [clean(board, k) for k in range(300)], rtol=5e-6)
 
 
-def test_board_checksum_ends_each_text_line_with_its_crc(layout):
-    plain = Board(layout, fmt="text", rate=50.0, noise=0.01, seed=4)  # fixed seed, the same for both
-    checked = Board(layout, fmt="text", rate=50.0, noise=0.01, seed=4, checksum=True)
+def test_board_checksum_ends_each_text_line_with_its_crc(layout, make_board):
+    plain = make_board(layout, fmt="text", rate=50.0, noise=0.01, seed=4)  # fixed seed, the same for both
+    checked = make_board(layout, fmt="text", rate=50.0, noise=0.01, seed=4, checksum=True)
     data, reference = stream(checked, 200), stream(plain, 200)
     lines = data.splitlines()
     assert len(lines) == 200
@@ -142,8 +174,8 @@ def test_board_checksum_ends_each_text_line_with_its_crc(layout):
     np.testing.assert_array_equal([f.values for f in frames], [f.values for f in expected])
 
 
-def test_board_checksum_rejects_text_garbage_lines_as_missing_their_checksum(layout):
-    board = Board(layout, fmt="text", rate=50.0, noise=0.0, garbage=0.3, seed=9, checksum=True)  # fixed seed
+def test_board_checksum_rejects_text_garbage_lines_as_missing_their_checksum(layout, make_board):
+    board = make_board(layout, fmt="text", rate=50.0, noise=0.0, garbage=0.3, seed=9, checksum=True)  # fixed seed
     decoder, frames = decode("text", layout.count, stream(board, 300), seed=2)
     assert board.garbage_bursts > 50 and len(frames) == board.sent == 300
     np.testing.assert_allclose([f.values for f in frames], [clean(board, k) for k in range(300)], rtol=5e-6)
@@ -158,14 +190,32 @@ def test_board_refuses_a_checksum_for_binary_frames(layout):
         Board(layout, fmt="binary", checksum=True)
 
 
-def test_board_sends_in_the_layout_units():
+def test_board_sends_in_the_layout_units(make_board):
     grid = SensorGrid.regular(3, 2, 2e-3, 2e-3)
-    pascals = Board(SensorLayout(grid, "Pa"), noise=0.0)
-    megapascals = Board(SensorLayout(grid, "MPa"), noise=0.0)
+    pascals = make_board(SensorLayout(grid, "Pa"), noise=0.0)
+    megapascals = make_board(SensorLayout(grid, "MPa"), noise=0.0)
     _, (pa,) = decode("binary", 6, pascals.next_bytes())
     _, (mpa,) = decode("binary", 6, megapascals.next_bytes())
     np.testing.assert_allclose(mpa.values * 1e6, pa.values, rtol=1e-6)
     np.testing.assert_allclose(pa.values, pascals.cycle[0], rtol=1e-7)
+
+
+@pytest.mark.parametrize("options, message", [
+    (dict(rate=0), r"rate must be a finite number of frames per second > 0, got 0$"),
+    (dict(rate=-5.0), r"rate must be a finite number of frames per second > 0, got -5.0$"),
+    (dict(rate=float("nan")), r"rate must be a finite number of frames per second > 0, got nan$"),
+    (dict(rate=float("inf")), r"rate must be a finite number of frames per second > 0, got inf$"),
+    (dict(noise=-0.1), r"noise must be a finite number >= 0 \(relative to the frame's peak\), got -0.1$"),
+    (dict(noise=float("nan")), r"noise must be a finite number >= 0 \(relative to the frame's peak\), got nan$"),
+    (dict(garbage=1.5), r"garbage must be a probability in \[0, 1\], got 1.5$"),
+    (dict(dropout=-0.1), r"dropout must be a probability in \[0, 1\], got -0.1$"),
+    (dict(fmt="hex"), r"fmt must be one of \('binary', 'text'\), got 'hex'$"),
+])
+def test_board_refuses_bad_arguments_naming_them(layout, options, message, monkeypatch):
+    monkeypatch.setattr(simulator, "_CYCLES", {})
+    with pytest.raises(ValueError, match=message):
+        Board(layout, **options)
+    assert simulator._CYCLES == {}  # refused up front: no cycle made, no thread started
 
 
 # -- contact_cycle --------------------------------------------------------------------------------
@@ -391,6 +441,16 @@ def test_cli_duration_bounds_the_frame_count():
     assert sent + dropped == 10 and dropped > 0
 
 
+@pytest.mark.parametrize("value", ["nan", "-1", "-inf"])
+def test_cli_refuses_a_duration_that_is_no_number_of_seconds(value, capsys, tmp_path):
+    with pytest.raises(SystemExit) as info:
+        main([f"--duration={value}", "--link", str(tmp_path / "board")])  # "=": argparse takes -1 for an option
+    assert info.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        f"tactile-sim: error: --duration must be a number of seconds >= 0 (inf: no limit), got {value}")
+    assert not (tmp_path / "board").exists()
+
+
 def fake_frames(monkeypatch, gate):
     """Make the scene frames wait: frame ``k`` of a cycle of ``CYCLE`` is computed once ``gate(k)`` returns.
 
@@ -538,6 +598,65 @@ def test_cycles_are_shared_by_scene_and_everything_of_the_grid():
                   SensorGrid.regular(2, 3, 2e-3, 2e-3)):
         assert simulator.shared_cycle("circle", other) is not cycle
     assert simulator.shared_cycle("twist", grid) is not cycle
+
+
+def test_boards_sharing_a_cycle_keep_it_computing_until_the_last_one_closes(monkeypatch):
+    fake_frames(monkeypatch, lambda k: time.sleep(0.01))  # slower: the thread is seen at work
+    layout = SensorLayout(SensorGrid.regular(3, 2, 2e-3, 2e-3), "Pa")
+    a, b = Board(layout, rate=50.0, noise=0.0), Board(layout, rate=50.0, noise=0.0)
+    try:
+        cycle = a.cycle
+        assert b.cycle is cycle and cycle.users == 2
+        a.close()
+        a.close()  # closing twice lets go once
+        assert cycle.users == 1 and cycle.computing  # b still has its frames computed ahead
+        closed_at = cycle.computed
+        wait_for(lambda: cycle.computed >= min(closed_at + 3, len(cycle)),
+                 "the thread stopped although b still uses the cycle")  # b has asked for no frame yet
+        _, frames = decode("binary", 6, stream(b, 100))  # 2 s at 50 Hz: the cycle's frames
+        assert [f.seq for f in frames] == list(range(100))
+        expected = [simulator.loads.simulate(layout.grid, contacts, medium="layer",
+                                             subdivisions=simulator._subdivisions(layout.grid, contacts)).clean_stress
+                    for contacts in (scene_contacts("circle", layout.grid, k / 100) for k in range(100))]
+        np.testing.assert_allclose([f.values for f in frames], [expected[b.index(f.seq)] for f in frames],
+                                   rtol=1e-6)
+    finally:
+        a.close()
+        b.close()
+    assert cycle.users == 0
+
+
+def test_the_last_board_to_close_stops_the_thread_and_a_new_one_restarts_it(monkeypatch):
+    fake_frames(monkeypatch, lambda k: time.sleep(0.03))  # 3 s a cycle
+    layout = SensorLayout(SensorGrid.regular(3, 2, 2e-3, 2e-3), "Pa")
+    a, b = Board(layout, noise=0.0), Board(layout, noise=0.0)
+    cycle = a.cycle
+    worker = cycle._worker
+    try:
+        a.close()
+        assert worker.is_alive()
+    finally:
+        b.close()
+    assert not worker.is_alive() and not cycle.computing and cycle.users == 0  # ended after its frame
+    stopped_at = cycle.computed
+    assert stopped_at < len(cycle)
+    with Board(layout, noise=0.0) as c:  # a board after the stop: a new thread finishes the cycle
+        assert c.cycle is cycle and cycle.users == 1 and cycle.computing
+        wait_for(lambda: cycle.computed == len(cycle), "the restarted thread did not finish the cycle")
+    assert cycle.users == 0 and not cycle._worker.is_alive()
+
+
+def test_a_cycle_started_while_its_thread_is_stopping_computes_again(monkeypatch):
+    fake_frames(monkeypatch, lambda k: time.sleep(0.03))
+    cycle = Cycle("circle", SensorGrid.regular(3, 2, 2e-3, 2e-3)).start()
+    try:
+        stopping = cycle._worker
+        cycle.close(timeout=0)  # told to stop, still on its frame
+        cycle.start()  # waits for it, then starts anew (once this did nothing, the stop flag left set)
+        assert not stopping.is_alive() and cycle.computing
+        wait_for(lambda: cycle.computed == len(cycle), "the cycle did not compute again after start()")
+    finally:
+        cycle.close()
 
 
 # -- the scenes -----------------------------------------------------------------------------------
@@ -691,8 +810,8 @@ def test_every_scene_makes_a_cycle_of_finite_compressive_frames():
 
 @pytest.mark.parametrize("scene", ["pinch", "press"])
 def test_board_streams_the_scene_it_is_given(layout, scene):
-    board = Board(layout, scene=scene, rate=50.0, noise=0.0)
-    board.close()  # the frames sent are computed when sent: no need for the rest of the cycle
+    with Board(layout, scene=scene, rate=50.0, noise=0.0) as board:
+        pass  # the frames sent are computed when sent: no need for the rest of the cycle
     assert board.period == SCENES[scene].period and board.cycle.scene.name == scene
     _, frames = decode("binary", layout.count, stream(board, 20))
     expected = Cycle(scene, layout.grid)  # computes only the frames asked for
