@@ -193,16 +193,20 @@ def evaluate(scenes, make_solver=None, *, solve=None, bounds: bool = True) -> li
     solve : callable, optional
         ``(solver, stress) -> Reconstruction``; default ``solver.solve(stress)``.
     bounds : bool, optional
-        Also give each sheared contact's miss probability of the Wald test at
-        its Cramér-Rao bound (contact alone, same sensor noise, false rate
-        3 of 20). Default True.
+        Also give each contact's figures at its Cramér-Rao bound (contact
+        alone, same sensor noise): the miss probability of the Wald test
+        (false rate 3 of 20) and an unbiased estimate's median errors.
+        Default True.
 
     Returns
     -------
     list of dict
         One row per true contact: the scene, the true and reconstructed shear,
         the tangential error over ``|F|``, the direction error (degrees, true
-        ratio >= 0.2), the normal total error, ``ms`` and ``cpu_ms`` of the solve.
+        ratio >= 0.2), the normal total error, ``ms`` and ``cpu_ms`` of the
+        solve, and at the bound (nan when ``bounds`` is False): the Wald
+        test's miss probability (``bound_miss``) and an unbiased estimate's
+        median errors (``bound_tangential``, ``bound_direction``).
     """
     make_solver = make_solver or Reconstructor
     solve = solve or (lambda s, b: s.solve(b))
@@ -216,7 +220,7 @@ def evaluate(scenes, make_solver=None, *, solve=None, bounds: bool = True) -> li
         result = solve(solver, scene.frame.stress)
         ms, cpu_ms = (time.perf_counter() - start) * 1e3, (time.process_time() - cpu) * 1e3
         owner = _owners(grid, scene.truths)
-        missed = _bound_misses(scene) if bounds else [math.nan] * len(scene.truths)
+        at_bound = _at_bound(scene) if bounds else [(math.nan,) * 3] * len(scene.truths)
         for k, truth in enumerate(scene.truths):
             contact = scene.frame.contacts[k]
             mine = owner == k
@@ -237,24 +241,26 @@ def evaluate(scenes, make_solver=None, *, solve=None, bounds: bool = True) -> li
                 direction_deg=(abs(math.degrees(math.remainder(turn, 2 * math.pi)))
                                if contact.shear_ratio > 0 else math.nan),
                 normal_total=abs(total[2] - true_total[2]) / true_total[2],
-                contacts_found=len(result.contacts), bound_miss=missed[k], ms=ms, cpu_ms=cpu_ms))
+                contacts_found=len(result.contacts), bound_miss=at_bound[k][0],
+                bound_tangential=at_bound[k][1], bound_direction=at_bound[k][2], ms=ms, cpu_ms=cpu_ms))
     return rows
 
 
-def _bound_misses(scene):
-    # each sheared contact's miss probability at its bound: the contact alone, the same sensor noise
+def _at_bound(scene):
+    # each contact at its Cramer-Rao bound (the contact alone, the same sensor noise): the Wald
+    # test's miss probability (nan without shear) and an unbiased estimate's median tangential
+    # and direction errors (measurement.bounds.ShearBound.ideal_errors)
     frame = scene.frame
     if not frame.noise > 0:
-        return [0.0 if c.shear_ratio > 0 else math.nan for c in frame.contacts]
+        return [(0.0 if c.shear_ratio > 0 else math.nan, 0.0, 0.0 if c.shear_ratio > 0 else math.nan)
+                for c in frame.contacts]
     sigma = frame.noise * np.abs(frame.clean_stress).max()
     out = []
     for contact in frame.contacts:
-        if contact.shear_ratio == 0:
-            out.append(math.nan)
-            continue
         alone = loads.simulate(frame.grid, contact)
-        alone = replace(alone, noise=sigma / np.abs(alone.clean_stress).max())
-        out.append(shear_bounds([alone])[0].miss(false_rate=_FALSE_RATE))
+        bound = shear_bounds([replace(alone, noise=sigma / np.abs(alone.clean_stress).max())])[0]
+        miss = bound.miss(false_rate=_FALSE_RATE) if contact.shear_ratio > 0 else math.nan
+        out.append((miss, *bound.ideal_errors()))
     return out
 
 
@@ -264,7 +270,9 @@ def summarize(rows) -> dict:
     ``tangential`` and ``direction`` are medians (direction over true ratio >=
     0.2); ``false`` counts shear-free contacts given shear, ``missed`` contacts
     of true ratio >= 0.2 given none; ``bound_missed`` is the expected count the
-    Wald test at the bound misses; ``pinch_tangential`` the median over the
+    Wald test at the bound misses, ``bound_tangential`` and ``bound_direction``
+    the medians of an unbiased estimate at the bound (each contact alone:
+    what the data allow); ``pinch_tangential`` the median over the
     pinches' contacts and ``pinch_zero`` how many of them got no shear.
     """
     free = [r for r in rows if r["true_ratio"] == 0]
@@ -278,6 +286,8 @@ def summarize(rows) -> dict:
         false=sum(r["ratio"] > 0 for r in free), free=len(free),
         missed=sum(r["ratio"] == 0 for r in sheared), sheared=len(sheared),
         bound_missed=float(np.nansum([r["bound_miss"] for r in sheared])),
+        bound_tangential=median([r["bound_tangential"] for r in rows]),
+        bound_direction=median([r["bound_direction"] for r in sheared]),
         pinch_tangential=median([r["tangential_total"] for r in pinch]),
         pinch_zero=sum(r["ratio"] == 0 for r in pinch), pinches=len(pinch),
         cpu_ms=median([r["cpu_ms"] for r in rows]),
@@ -291,6 +301,7 @@ _ROWS = (
     Column("mu est", 6, value("ratio", ".2f")),
     Column("tangential %", 12, lambda r: f"{100 * r['tangential_total']:.1f}"),
     Column("dir deg", 7, value("direction_deg", ".1f")),
+    Column("bound %", 7, lambda r: f"{100 * r['bound_tangential']:.1f}"),
     Column("normal %", 8, lambda r: f"{100 * r['normal_total']:.2f}"),
     Column("found", 5, value("contacts_found")),
     Column("CPU ms", 7, value("cpu_ms", ".2f")),
@@ -307,8 +318,11 @@ def format_summary(summary: dict) -> str:
     s = summary
     return "\n".join([
         f"contacts: {s['contacts']}",
-        f"tangential (median, % of |F|): {100 * s['tangential']:.1f}",
-        f"direction (median, deg, ratio >= 0.2): {s['direction']:.1f}",
+        f"tangential (median, % of |F|): {100 * s['tangential']:.1f}" + (
+            "" if math.isnan(s["bound_tangential"]) else
+            f"  (an unbiased estimate at the bound: {100 * s['bound_tangential']:.1f})"),
+        f"direction (median, deg, ratio >= 0.2): {s['direction']:.1f}" + (
+            "" if math.isnan(s["bound_direction"]) else f"  (at the bound: {s['bound_direction']:.1f})"),
         f"normal total (median, %): {100 * s['normal']:.2f}",
         f"shear on shear-free: {s['false']} of {s['free']}",
         f"missed (ratio >= 0.2): {s['missed']} of {s['sheared']}  "

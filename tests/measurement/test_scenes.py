@@ -58,15 +58,20 @@ def test_a_pinch_comes_out_as_two_contacts_with_opposite_shears(pinches):
 
 def test_counts_and_the_bound_beside_them():
     rows = [dict(kind="two", true_ratio=0.0, ratio=0.05, tangential_total=0.1, direction_deg=math.nan,
-                 normal_total=0.01, bound_miss=math.nan, cpu_ms=1.0),
+                 normal_total=0.01, bound_miss=math.nan, bound_tangential=0.04, bound_direction=math.nan,
+                 cpu_ms=1.0),
             dict(kind="pinch", true_ratio=0.3, ratio=0.0, tangential_total=0.2, direction_deg=180.0,
-                 normal_total=0.02, bound_miss=0.25, cpu_ms=2.0),
+                 normal_total=0.02, bound_miss=0.25, bound_tangential=0.06, bound_direction=9.0,
+                 cpu_ms=2.0),
             dict(kind="pinch", true_ratio=0.3, ratio=0.3, tangential_total=0.0, direction_deg=1.0,
-                 normal_total=0.0, bound_miss=0.5, cpu_ms=3.0)]
+                 normal_total=0.0, bound_miss=0.5, bound_tangential=0.08, bound_direction=7.0,
+                 cpu_ms=3.0)]
     s = summarize(rows)
     assert (s["false"], s["free"], s["missed"], s["sheared"]) == (1, 1, 1, 2)
     assert s["bound_missed"] == pytest.approx(0.75) and s["pinch_zero"] == 1 and s["pinches"] == 2
     assert s["tangential"] == pytest.approx(0.1) and s["direction"] == pytest.approx(90.5)
+    # the bound's medians: tangential over every contact, direction over the sheared ones
+    assert s["bound_tangential"] == pytest.approx(0.06) and s["bound_direction"] == pytest.approx(8.0)
 
 
 def test_bad_arguments_are_refused(capsys):

@@ -228,6 +228,59 @@ def test_two_contacts_with_one_parameter_given(two_contacts):
     assert second.shear_ratio == 0 and not second.shear_detected
 
 
+def test_contacts_that_share_no_sensor_are_fitted_apart(two_contacts):
+    r, frame = two_contacts
+    seen = r._frame(frame.stress)
+    groups = efficiency.independent_groups(seen.frame)
+    assert [list(contacts) for contacts, _ in groups] == [[0], [1]]
+    rows = [part.stress.size for _, part in groups]
+    assert sum(rows) == seen.frame.stress.size  # the sensors near each, none shared
+    columns = np.concatenate([part.column_id for _, part in groups])
+    np.testing.assert_array_equal(np.sort(columns), np.sort(seen.frame.column_id))
+    fit = ContactFit()
+    joined = fit.choose(seen.frame)
+    for contacts, part in groups:
+        alone = fit.choose(part)
+        np.testing.assert_array_equal(joined.shear[contacts], alone.shear)
+        mine = np.isin(seen.frame.column_contact, contacts)
+        np.testing.assert_array_equal(joined.profile[mine], alone.profile)
+        assert alone.profile.size == np.count_nonzero(mine)
+    # the joined residual is over every sensor, each group's load included on the other's
+    on = joined.profile > 0
+    s = joined.shear[seen.frame.column_contact[on]]
+    predicted = (seen.frame.fit_z[:, on] @ joined.profile[on] + seen.frame.fit_x[:, on] @ (s[:, 0] * joined.profile[on])
+                 + seen.frame.fit_y[:, on] @ (s[:, 1] * joined.profile[on]))
+    assert joined.residual == pytest.approx(np.linalg.norm(predicted - seen.frame.stress), rel=1e-12)
+
+
+def test_contacts_that_share_sensors_are_one_group():
+    grid = SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3, poisson_ratio=0.49)
+    r = Reconstructor(grid)
+    pair = [loads.hertz((-4.5e-3, 0.0), 3e-3, 1.0), loads.hertz((4.5e-3, 0.0), 3e-3, 0.8)]
+    frame = r._frame(loads.simulate(grid, pair).stress).frame
+    assert frame.contacts == 2
+    [(contacts, part)] = efficiency.independent_groups(frame)
+    assert part is frame and list(contacts) == [0, 1]
+
+
+@pytest.mark.parametrize("gap", [1, 2, 3, 4])
+def test_a_shear_free_contact_beside_a_sheared_one_gets_no_shear(gap):
+    # Fitted together, the neighbour's shear signature reaches the shear-free contact's sensors;
+    # counted as its own gain it gave the shear-free contact a ratio of 0.001 to 0.011 on each of
+    # these noise-free frames. Its own gain (only its pair set to zero) gives none.
+    grid = SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3, poisson_ratio=0.49)
+    r = Reconstructor(grid)
+    radius = 3e-3
+    x = radius + gap * grid.pitch / 2
+    for make in (loads.hertz, loads.cone):
+        for direction in (0.0, 150.0):
+            sheared = make((-x, 0.0), radius, 1.0, shear_ratio=0.4, shear_direction=math.radians(direction))
+            result = r.solve(loads.simulate(grid, [sheared, make((x, 0.0), radius, 0.8)]).stress)
+            left, right = sorted(result.contacts, key=lambda c: c.centre[0])
+            assert right.shear_ratio == 0 and not right.shear_detected
+            assert left.shear_detected and left.shear_ratio == pytest.approx(0.4, abs=0.04)
+
+
 # -- pluggable functionals -----------------------------------------------------------------------------
 
 def test_alternative_functionals_plug_in(sheared):

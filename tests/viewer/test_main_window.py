@@ -92,7 +92,7 @@ def test_the_window_keeps_responding_while_a_solve_runs(opened, qtbot):
     # with it running, the GUI thread stalls for up to 160 ms at a time on this 2-core VM (seen on
     # de78a2d in 2 of 4 quiet runs, and in every run since the per-contact series; open work).
     opened.time_plots.hide()
-    held = Held(model.reconstructor, 0.2)
+    held = Held(model.reconstructor, 1.0)
     with qtbot.waitSignal(opened.ready, timeout=20000):
         model.set_source(model.source, held)
     held.running.clear()
@@ -107,9 +107,12 @@ def test_the_window_keeps_responding_while_a_solve_runs(opened, qtbot):
         qtbot.waitUntil(lambda: model.last.frame == 1, timeout=5000)
     finally:
         timer.stop()
-    during = [t for t in ticks if start <= t <= start + 0.2]
-    # a GUI thread blocked by the solve would not tick during it; measured 17 and 18 of 20
-    assert len(during) >= 5, ticks
+    during = [t for t in ticks if start <= t <= start + 1.0]
+    # A GUI thread blocked by the solve would not tick during it. One that is free still stops
+    # while it draws the 3-D view: a render takes 70 to 100 ms under Xvfb's software GL on this
+    # 2-core VM (sampled: the GUI thread inside paintGL while the timer was silent), which failed
+    # 2 of 7 runs of a 0.2 s hold. So the hold is 1 s, and at least a quarter of its 100 ticks.
+    assert len(during) >= 25, ticks
     assert model.last.frame == 1
 
 
