@@ -36,6 +36,23 @@ def _quietly(widgets, apply):
             w.blockSignals(False)
 
 
+def _number_field(**options) -> QtWidgets.QDoubleSpinBox:
+    # A typed number takes effect on Enter or on leaving the field (arrows and the wheel at once):
+    # with keyboard tracking every key set the model, which wrote its value back into the field
+    # while the user typed (0.8 became 0.00).
+    field = QtWidgets.QDoubleSpinBox(**options)
+    field.setKeyboardTracking(False)
+    return field
+
+
+def _show_number(field: QtWidgets.QDoubleSpinBox, value: float):
+    # model -> field, except over what the user is typing there and has not entered yet (in Auto
+    # every solved frame shows its parameters)
+    if field.hasFocus() and field.cleanText() != field.textFromValue(field.value()):
+        return
+    field.setValue(value)
+
+
 def status_text(solved: Solved, model: ViewerModel) -> str:
     """The status line of a solved frame: where, how fast, the parameters, the fit, the forces."""
     r = solved.result
@@ -89,10 +106,10 @@ class ParametersPanel(QtWidgets.QGroupBox):
         grid.addWidget(self.auto_box, 0, 0, 1, 3)
         self.ratio_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
         self.ratio_slider.setRange(0, round(MAX_SHEAR_RATIO * 100))
-        self.ratio_spin = QtWidgets.QDoubleSpinBox(decimals=2, singleStep=0.01, maximum=MAX_SHEAR_RATIO)
+        self.ratio_spin = _number_field(decimals=2, singleStep=0.01, maximum=MAX_SHEAR_RATIO)
         self.direction_slider = QtWidgets.QSlider(QtCore.Qt.Orientation.Horizontal)
         self.direction_slider.setRange(-180, 180)
-        self.direction_spin = QtWidgets.QDoubleSpinBox(decimals=1, singleStep=1.0, minimum=-180.0,
+        self.direction_spin = _number_field(decimals=1, singleStep=1.0, minimum=-180.0,
                                                        maximum=180.0, wrapping=True, suffix=" deg")
         grid.addWidget(QtWidgets.QLabel("shear ratio"), 1, 0)
         grid.addWidget(self.ratio_slider, 1, 1)
@@ -181,9 +198,9 @@ class ParametersPanel(QtWidgets.QGroupBox):
         def apply():
             self.auto_box.setChecked(self.model.auto)
             self.ratio_slider.setValue(round(ratio * 100))
-            self.ratio_spin.setValue(ratio)
+            _show_number(self.ratio_spin, ratio)
             self.direction_slider.setValue(round(degrees))
-            self.direction_spin.setValue(degrees)
+            _show_number(self.direction_spin, degrees)
         _quietly([self.auto_box, self.ratio_slider, self.ratio_spin, self.direction_slider,
                   self.direction_spin], apply)
 
@@ -230,24 +247,24 @@ class DisplayPanel(QtWidgets.QGroupBox):
         self.resultant_box = QtWidgets.QCheckBox("resultant")
         self.resultant_box.setChecked(True)
         self.resultant_box.toggled.connect(lambda on: model.set_display(resultant=on))
-        self.scale_spin = QtWidgets.QDoubleSpinBox(decimals=1, maximum=1e6, singleStep=5.0, suffix=" mm/N")
+        self.scale_spin = _number_field(decimals=1, maximum=1e6, singleStep=5.0, suffix=" mm/N")
         self.scale_spin.valueChanged.connect(lambda v: model.set_display(arrow_scale=v / 1e3))
-        self.threshold_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=1.0, suffix=" mN")
+        self.threshold_spin = _number_field(decimals=2, maximum=1e6, singleStep=1.0, suffix=" mN")
         self.threshold_spin.valueChanged.connect(lambda v: model.set_display(threshold=v / 1e3))
         self.range_box = QtWidgets.QCheckBox("automatic colour range")
         self.range_box.setChecked(True)
         self.range_box.toggled.connect(lambda on: model.set_display(auto_range=on))
-        self.range_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=1.0, suffix=" kPa")
+        self.range_spin = _number_field(decimals=2, maximum=1e6, singleStep=1.0, suffix=" kPa")
         self.range_spin.valueChanged.connect(lambda v: model.set_display(range_max=v * 1e3))
         self.arrow_range_box = QtWidgets.QCheckBox("automatic arrow colour range")
         self.arrow_range_box.setChecked(True)
         self.arrow_range_box.toggled.connect(lambda on: model.set_display(arrow_auto_range=on))
-        self.arrow_range_spin = QtWidgets.QDoubleSpinBox(decimals=2, maximum=1e6, singleStep=5.0,
+        self.arrow_range_spin = _number_field(decimals=2, maximum=1e6, singleStep=5.0,
                                                          suffix=" mN")
         self.arrow_range_spin.valueChanged.connect(lambda v: model.set_display(arrow_range_max=v / 1e3))
         self.in_plane_box = QtWidgets.QCheckBox("in-plane arrows")
         self.in_plane_box.toggled.connect(lambda on: model.set_display(in_plane=on))
-        self.gain_spin = QtWidgets.QDoubleSpinBox(decimals=1, minimum=0.1, maximum=100.0, singleStep=0.5,
+        self.gain_spin = _number_field(decimals=1, minimum=0.1, maximum=100.0, singleStep=0.5,
                                                   prefix="x ")
         self.gain_spin.setValue(model.display.in_plane_gain)
         self.gain_spin.valueChanged.connect(lambda v: model.set_display(in_plane_gain=v))
@@ -331,14 +348,14 @@ class DisplayPanel(QtWidgets.QGroupBox):
             self.colormap_box.setCurrentText(d.colormap)
             self.arrows_box.setChecked(d.arrows)
             self.resultant_box.setChecked(d.resultant)
-            self.scale_spin.setValue(d.arrow_scale * 1e3)
-            self.threshold_spin.setValue(d.threshold * 1e3)
+            _show_number(self.scale_spin, d.arrow_scale * 1e3)
+            _show_number(self.threshold_spin, d.threshold * 1e3)
             self.range_box.setChecked(d.auto_range)
-            self.range_spin.setValue(d.range_max / 1e3)
+            _show_number(self.range_spin, d.range_max / 1e3)
             self.arrow_range_box.setChecked(d.arrow_auto_range)
-            self.arrow_range_spin.setValue(d.arrow_range_max * 1e3)
+            _show_number(self.arrow_range_spin, d.arrow_range_max * 1e3)
             self.in_plane_box.setChecked(d.in_plane)
-            self.gain_spin.setValue(d.in_plane_gain)
+            _show_number(self.gain_spin, d.in_plane_gain)
             self.axes_box.setChecked(d.axes)
             self.ids_box.setChecked(d.taxel_ids)
         _quietly([self.map_box, self.colormap_box, self.arrows_box, self.resultant_box, self.scale_spin,

@@ -218,6 +218,72 @@ def test_a_text_field_keeps_its_keys(opened, qtbot):
     assert opened.model.frame == 0 and opened.model.auto
 
 
+# every numeric field, the model value it sets (SI), and what is typed
+TYPED = [
+    ("parameters", "ratio_spin", "0.8", 0.8, lambda m: m.shear_ratio),
+    ("parameters", "ratio_spin", "1.2", 1.2, lambda m: m.shear_ratio),
+    ("parameters", "direction_spin", "-45", -45.0, lambda m: math.degrees(m.shear_direction)),
+    ("display_panel", "scale_spin", "25", 25.0, lambda m: 1e3 * m.display.arrow_scale),
+    ("display_panel", "threshold_spin", "1.5", 1.5, lambda m: 1e3 * m.display.threshold),
+    ("display_panel", "range_spin", "12.5", 12.5, lambda m: m.display.range_max / 1e3),
+    ("display_panel", "arrow_range_spin", "300", 300.0, lambda m: 1e3 * m.display.arrow_range_max),
+    ("display_panel", "gain_spin", "3.5", 3.5, lambda m: m.display.in_plane_gain),
+]
+
+
+@pytest.mark.parametrize("panel, name, typed, value, read", TYPED, ids=[f"{t[1]}={t[2]}" for t in TYPED])
+def test_a_number_typed_into_a_field_is_the_number_used(opened, qtbot, panel, name, typed, value, read):
+    # Real keys, as a user types them: select all, the digits one by one, Enter. The model's value
+    # was written back into the box after each key (0.8 became 0.00: the "0" reformatted the box to
+    # "0.00", the "." stepped over its point, the "8" was refused).
+    spin = getattr(getattr(opened, panel), name)
+    if name == "range_spin":
+        opened.display_panel.range_box.setChecked(False)
+    if name == "arrow_range_spin":
+        opened.display_panel.arrow_range_box.setChecked(False)
+    if name == "gain_spin":
+        opened.display_panel.in_plane_box.setChecked(True)
+    opened.activateWindow()
+    qtbot.waitUntil(opened.isActiveWindow, timeout=5000)
+    spin.setFocus()
+    qtbot.waitUntil(spin.hasFocus, timeout=5000)
+    edit = spin.lineEdit()
+    qtbot.keyClick(edit, QtCore.Qt.Key.Key_A, QtCore.Qt.KeyboardModifier.ControlModifier)
+    qtbot.keyClicks(edit, typed)
+    qtbot.keyClick(edit, QtCore.Qt.Key.Key_Return)
+    assert spin.value() == pytest.approx(value)
+    assert read(opened.model) == pytest.approx(value)
+    if panel == "parameters":
+        # the number typed is the one solved, and Auto is off
+        assert not opened.model.auto
+        qtbot.waitUntil(lambda: opened.model.last is not None and not opened.model.last.auto, timeout=10000)
+        got = opened.model.last.result
+        assert (got.shear_ratio if name == "ratio_spin" else math.degrees(got.shear_direction)) == \
+            pytest.approx(value)
+
+
+def test_auto_frames_arriving_while_a_number_is_typed_leave_it_alone(opened, qtbot):
+    # in Auto every solved frame shows its parameters in the fields; not over a half-typed number
+    spin, model = opened.parameters.ratio_spin, opened.model
+    assert model.auto
+    opened.activateWindow()
+    qtbot.waitUntil(opened.isActiveWindow, timeout=5000)
+    spin.setFocus()
+    qtbot.waitUntil(spin.hasFocus, timeout=5000)
+    edit = spin.lineEdit()
+    qtbot.keyClick(edit, QtCore.Qt.Key.Key_A, QtCore.Qt.KeyboardModifier.ControlModifier)
+    qtbot.keyClicks(edit, "0.")
+    opened.playback.play_button.setChecked(True)
+    for _ in range(3):  # Auto's frames go on arriving
+        with qtbot.waitSignal(model.solved, timeout=10000):
+            pass
+    assert model.auto and edit.text() == "0."
+    opened.playback.play_button.setChecked(False)
+    qtbot.keyClicks(edit, "8")
+    qtbot.keyClick(edit, QtCore.Qt.Key.Key_Return)
+    assert not model.auto and model.shear_ratio == pytest.approx(0.8) and spin.value() == pytest.approx(0.8)
+
+
 def test_playback_keys_do_nothing_without_a_recording(window, qtbot):
     assert not any(a.isEnabled() for a in window.playback_actions.values())
     assert not window.auto_action.isEnabled()
