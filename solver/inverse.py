@@ -772,8 +772,17 @@ def check_parameters(shear_ratio, shear_direction, exact):
     return exact
 
 
+# The largest sensor stress a solve takes, pascals: far above any reading (1e12 Pa is a thousand
+# times the strength of steel), far enough below the float limit that the solve's sums of squares
+# cannot overflow (a frame holding 1e308 Pa made every one of them inf).
+MAX_STRESS = 1e100
+
+
 def check_stress(stress, grid: SensorGrid) -> np.ndarray:
-    """``stress`` as a flat ``(m,)`` float array for ``grid``; ValueError says what is wrong with it."""
+    """``stress`` as a flat ``(m,)`` float array for ``grid``; ValueError says what is wrong with it.
+
+    Every value must be finite and at most :data:`MAX_STRESS` in magnitude.
+    """
     m = grid.size
     if np.iscomplexobj(stress):
         raise ValueError("stress must be real pascals, got complex values")
@@ -793,6 +802,10 @@ def check_stress(stress, grid: SensorGrid) -> np.ndarray:
             f"stress must be finite, got {' and '.join(kinds)} at taxel(s) "
             f"{np.flatnonzero(bad)[:10].tolist()}"
         )
+    huge = np.abs(b) > MAX_STRESS
+    if huge.any():
+        raise ValueError(f"stress must be at most {MAX_STRESS:g} Pa in magnitude, got {b[huge][0]:g} at "
+                         f"taxel(s) {np.flatnonzero(huge)[:10].tolist()}")
     return b
 
 

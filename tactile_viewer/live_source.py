@@ -23,6 +23,8 @@ from collections import Counter, deque
 
 import numpy as np
 
+from solver.inverse import MAX_STRESS
+
 from .device import DeviceCheck, DeviceMismatch, identify, unknown_identity_notice
 from .layout import SensorLayout
 from .protocol import make_decoder
@@ -47,7 +49,6 @@ class Calibration:
         self._taring: list | None = None
         self._tare_count = 0
         self._completed: Tare | None = None
-        self._failed: str | None = None
 
     def tare(self, frames: int = 50) -> None:
         """Average the next ``frames`` frames and subtract that baseline from then on."""
@@ -64,41 +65,42 @@ class Calibration:
         """What a recording keeps: the layout's conversion and the baseline in force (from frame 0)."""
         return self.layout.calibration.retared(Tare(0, self.baseline) if np.any(self.baseline) else None)
 
-    def take_failed(self) -> str | None:
-        """Why the last tare was not taken, once (None when none failed)."""
-        with self._lock:
-            failed, self._failed = self._failed, None
-        return failed
-
     def take_completed(self) -> Tare | None:
         """The tare completed by the last frame calibrated, once (None when none was)."""
         with self._lock:
             tare, self._completed = self._completed, None
         return tare
 
-    def __call__(self, raw: np.ndarray, t: float = math.nan) -> np.ndarray:
-        """Pascals of one frame of raw values received at ``t`` seconds."""
+    def __call__(self, raw: np.ndarray, t: float = math.nan) -> np.ndarray | None:
+        """Pascals of one frame of raw values received at ``t`` seconds.
+
+        None when the frame is no stress the solver takes: a value not finite
+        once in pascals (a text board's 1e308 in kPa), or beyond
+        :data:`solver.inverse.MAX_STRESS`; such a frame is not averaged into a tare.
+        """
         pascals = self.layout.to_pascals(raw)
+        if not np.all(np.abs(pascals) <= MAX_STRESS):  # NaN fails it too
+            return None
         with self._lock:
             if self._taring is not None:
                 self._taring.append(pascals)
                 if len(self._taring) >= self._tare_count:
-                    samples, self._taring = np.array(self._taring), None  # ends the taring, whatever follows
-                    with np.errstate(over="ignore"):  # checked just below
-                        baseline = samples.mean(axis=0)
-                    if np.all(np.isfinite(baseline)):  # values near the float limit overflow the mean
-                        self.warning = loaded_while_taring(samples, self.baseline)
-                        self.baseline = baseline
-                        self._completed = Tare(0, baseline, t, len(samples))
-                    else:
-                        self._failed = "the tare was not taken: its frames overflow when averaged"
-            return pascals - self.baseline
+                    # (frames within MAX_STRESS: their mean cannot overflow)
+                    samples, self._taring = np.array(self._taring), None
+                    self.warning = loaded_while_taring(samples, self.baseline)
+                    self.baseline = samples.mean(axis=0)
+                    self._completed = Tare(0, self.baseline, t, len(samples))
+            stress = pascals - self.baseline
+        return stress if np.all(np.abs(stress) <= MAX_STRESS) else None
 
 
 # A contact under the skin raises a group of taxels by many times their noise; an unloaded skin
 # moves its tared zero by a fraction of it. Five times the noise is far above what 50 averaged
 # noisy frames give (about 3/sqrt(50) of it at the highest of 256 taxels).
 LOADED_TARE_NOISE = 5.0
+
+# why a decoded frame is rejected after calibration (Calibration returns None for it)
+NOT_A_STRESS = f"not a stress once calibrated (inf, or beyond {MAX_STRESS:g} Pa)"
 
 
 def loaded_while_taring(samples: np.ndarray, previous: np.ndarray) -> str | None:
@@ -355,9 +357,11 @@ class LiveSource(Source):
         batch = []
         for frame in self.decoder.feed(data):
             stress = self.calibration(frame.values, t)
-            failed = self.calibration.take_failed()
-            if failed is not None:
-                self.message.emit("warning", "Tare not taken", failed)
+            if stress is None:
+                # counted beside the decoder's own rejections (the live panel lists them), not
+                # recorded: the frame is no stress (it was recorded, and failed every solve)
+                self.decoder.rejected[NOT_A_STRESS] += 1
+                continue
             tare = self.calibration.take_completed()
             if tare is not None:
                 # frames before it go out untared, so the recording says from which frame it applies

@@ -43,6 +43,7 @@ import numpy as np
 from solver import ContactTracker, Reconstruction, Reconstructor, SensorGrid, make_solver
 from solver.arrays import read_only
 from solver.checks import one_of
+from solver.inverse import MAX_STRESS
 from solver.kernels import KERNELS
 
 from .recording import Recording, Tare
@@ -380,6 +381,9 @@ class ViewerModel:
         if reconstructor.grid.key != source.grid.key:
             raise ValueError("reconstructor was built for another geometry than the source's")
         old, same = self.source, source is self.source
+        # all or nothing: what can fail comes before the source shown is stopped (a failure after
+        # it left the window without a source and every later open failing)
+        scales = None if same else _display_scales(source, reconstructor)
         if old is not None and not same:
             old.frame_arrived.disconnect(self._frame_arrived)
             self._stop(old)  # its last news (a recording saved) still reaches the user
@@ -392,7 +396,7 @@ class ViewerModel:
         self._unshown = self._waiting = False
         if not same:
             self.current = None
-            self.display = replace(self.display, **_display_scales(source, reconstructor))
+            self.display = replace(self.display, **scales)
             source.frame_arrived.connect(self._frame_arrived)
             source.message.connect(self._source_message)
         self._generation += 1
@@ -698,6 +702,8 @@ def _display_scales(source: Source, reconstructor) -> dict:
     else:
         spread = np.linspace(0, len(recording) - 1, min(len(recording), 2048)).astype(int)
         frames = recording.frames[np.unique(spread)]
+    # a frame the solver refuses (a value beyond MAX_STRESS) is reported when it is shown, not here
+    frames = frames[np.all(np.abs(frames) <= MAX_STRESS, axis=1)]
     if not len(frames):
         return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 2, threshold=HIDE_BELOW * 0.05,
                     arrow_range_max=0.05)

@@ -129,9 +129,12 @@ def raw_to_pascals(raw, units: str, gain, offset) -> np.ndarray:
     """``gain * (raw - offset) * scale(units)``: a board's raw values in pascals.
 
     ``scale`` is 1, 1e3, 1e6 for ``"Pa"``, ``"kPa"``, ``"MPa"`` and 1 for
-    ``"counts"`` (the gain then is pascals per count).
+    ``"counts"`` (the gain then is pascals per count). A value beyond a float
+    once converted (1e308 in kPa) comes out inf, without a warning: the live
+    calibration refuses such frames, and the solver any frame it is handed.
     """
-    return np.asarray(gain) * (np.asarray(raw, dtype=float) - offset) * UNIT_SCALES.get(units, 1.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return np.asarray(gain) * (np.asarray(raw, dtype=float) - offset) * UNIT_SCALES.get(units, 1.0)
 
 
 def json_ready(fields: dict) -> dict:
@@ -425,11 +428,17 @@ def _checked_shape(shape, grid, path) -> int:
     return shape[0]
 
 
-def _checked_frames(frames, grid, path):
+def _checked_frames(frames, grid, path, scale: float = 1.0):
+    # the frames in pascals; a value that is no number, or none once converted (1e308 kPa), is refused
     _checked_shape(frames.shape, grid, path)
     bad = np.argwhere(~np.isfinite(frames))
     if bad.size:
         raise RecordingError(f"{path}: frame {bad[0][0]} taxel {bad[0][1]} is not a finite number")
+    with np.errstate(over="ignore"):  # checked just below
+        frames = frames * scale
+    bad = np.argwhere(~np.isfinite(frames))
+    if bad.size:
+        raise RecordingError(f"{path}: frame {bad[0][0]} taxel {bad[0][1]} is not a finite number in pascals")
     return frames
 
 
@@ -499,7 +508,7 @@ def _load_npz(path) -> Recording:
         arrays = {key: data[names[0]] if len(names) == 1 else np.concatenate([data[name] for name in names])
                   for key, names in parts.items() if key in ("frames", "t", "seq")}
         units = str(data["units"]) if "units" in data else "Pa"
-        frames = _checked_frames(np.asarray(arrays["frames"], dtype=float), grid, path) * _scale(units, path)
+        frames = _checked_frames(np.asarray(arrays["frames"], dtype=float), grid, path, _scale(units, path))
         t = np.asarray(arrays["t"], dtype=float) if "t" in arrays else np.arange(len(frames), dtype=float)
         seq = arrays.get("seq")
         truth = np.asarray(data["truth_forces"], dtype=float) if "truth_forces" in data else None
@@ -729,7 +738,7 @@ def _load_csv(path) -> Recording:
         except ValueError:
             raise RecordingError(f"{path}: positions must be x,y pairs of metres separated by ';'") from None
     grid = _grid(meta, path, positions, width=table.shape[1] - first)
-    frames = _checked_frames(table[:, first:], grid, path) * _scale(meta.get("units", "Pa"), path)
+    frames = _checked_frames(table[:, first:], grid, path, _scale(meta.get("units", "Pa"), path))
     seq = table[:, 0] if first == 2 else None
     try:
         return Recording(grid, frames, table[:, first - 1], None, meta.get("description", ""), seq)

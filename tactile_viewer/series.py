@@ -50,7 +50,7 @@ import numpy as np
 from solver import ContactTracker
 from solver.arrays import read_only
 from solver.checks import one_of, real_number, shown
-from solver.inverse import check_parameters
+from solver.inverse import MAX_STRESS, check_parameters
 from solver.metrics import direction_error, normal_total_error, tangential_total_error
 
 from .model import Solved, load_centroid
@@ -192,6 +192,10 @@ class Series:
         Each followed contact's quantities over the ``n`` frames (nan where
         it is absent), by increasing identity (from 1); :meth:`contact` finds
         one. Empty when no contact was followed.
+    refused : tuple of int
+        Frames asked for that the solver refuses (a value beyond
+        :data:`solver.inverse.MAX_STRESS`): not in the series, and not counted
+        in ``total``.
     """
 
     frame: np.ndarray
@@ -206,6 +210,7 @@ class Series:
     source: str = ""
     total: int = -1
     contacts: tuple = ()
+    refused: tuple = ()
 
     def __post_init__(self):
         frame = np.asarray(self.frame)
@@ -242,6 +247,10 @@ class Series:
             raise ValueError(f"contacts must be (identity, Quantities of {n} frames) pairs by increasing "
                              f"identity from 1, got identities {identities}")
         object.__setattr__(self, "contacts", tuple((int(i), q) for i, q in contacts))
+        refused = tuple(self.refused)
+        if not all(isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 0 for k in refused):
+            raise ValueError(f"refused must be frame numbers, got {shown(self.refused)}")
+        object.__setattr__(self, "refused", tuple(int(k) for k in refused))
 
     def __len__(self) -> int:
         return self.frame.size
@@ -441,6 +450,7 @@ class SeriesBuilder:
         self._total = total
         self._rows: deque = deque()
         self._contacts: deque = deque()  # per row: {identity: the contact's six quantities}
+        self._refused: list[int] = []
 
     def __len__(self) -> int:
         return len(self._rows)
@@ -489,6 +499,12 @@ class SeriesBuilder:
                 self._rows.popleft()
                 self._contacts.popleft()
 
+    def refuse(self, frame: int) -> None:
+        """Count ``frame`` as refused by the solver: the complete series holds one frame fewer."""
+        self._refused.append(int(frame))
+        if self._total is not None:
+            self._total -= 1
+
     def series(self) -> Series:
         """The rows so far as a :class:`Series`."""
         width = 2 + 6 + (6 + 3 if self.truth else 0)
@@ -500,7 +516,7 @@ class SeriesBuilder:
         contacts = tuple((i, Quantities(*np.array([frame.get(i, _NOTHING) for frame in self._contacts],
                                                   dtype=float).reshape(-1, 6).T)) for i in identities)
         return Series(table[:, 0].astype(np.int64), table[:, 1], Quantities(*table[:, 2:8].T), truth, errors,
-                      total=total, contacts=contacts, **self._meta)
+                      total=total, contacts=contacts, refused=tuple(self._refused), **self._meta)
 
 
 def spread_frames(count: int, limit: int = MAX_FRAMES) -> np.ndarray:
@@ -618,10 +634,15 @@ def compute_series(recording: Recording, solver, *, shear_ratio=None, shear_dire
     tracker = ContactTracker(grid)
     for done, k in enumerate(frames.tolist(), start=1):
         stress = recording.frames[k]
-        result = tracker.update(solver.solve(stress, **given))
-        # Solved.of: the load centroid by the very rule of the frame the window draws
-        builder.add(Solved.of(grid, stress, result, frame=k, time=float(recording.t[k]), auto=auto),
-                    None if truth is None else truth[k])
+        if not np.all(np.abs(stress) <= MAX_STRESS):
+            # the solver would refuse it (the window says so when the frame is shown): one frame
+            # must not cost the whole series
+            builder.refuse(k)
+        else:
+            result = tracker.update(solver.solve(stress, **given))
+            # Solved.of: the load centroid by the very rule of the frame the window draws
+            builder.add(Solved.of(grid, stress, result, frame=k, time=float(recording.t[k]), auto=auto),
+                        None if truth is None else truth[k])
         if progress is not None and progress(done, frames.size) is False:
             raise Cancelled(f"cancelled after {done} of {frames.size} frames")
         if partial is not None and done < frames.size and time.perf_counter() - handed >= every:

@@ -36,6 +36,7 @@ import pyqtgraph as pg  # takes the Qt binding already imported (the window's Py
 from PyQt6 import QtCore, QtWidgets
 
 from solver.checks import real_number
+from solver.inverse import MAX_STRESS
 
 from .export import derived_name
 from .model import ViewerModel
@@ -464,7 +465,9 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         mode = "Auto" if series.mode == "auto" else (
             f"shear ratio {series.shear_ratio:.2f}, direction {math.degrees(series.shear_direction):.0f} deg")
         sampled = "" if len(series) == len(self.model.recording) else f" (of {len(self.model.recording)})"
-        self.status.setText(f"{len(series)} frames{sampled}, {series.kernel} kernel, {mode}")
+        refused = (f"; {len(series.refused)} refused by the solver (values beyond {MAX_STRESS:g} Pa), "
+                   f"first frame {series.refused[0]}" if series.refused else "")
+        self.status.setText(f"{len(series)} frames{sampled}, {series.kernel} kernel, {mode}{refused}")
         self._set_exports()
         self.computed.emit()
 

@@ -476,7 +476,11 @@ def test_automatic_search_stays_within_its_bound(kernel, ten_by_ten):
     (lambda m: np.ones(0), r"stress must have shape .* got \(0,\)"),
     (lambda m: "abc", "stress must be numeric, got str"),
     (lambda m: np.ones(m) * (1 + 1j), "stress must be real pascals, got complex values"),
-], ids=["nan", "inf", "minus-inf", "nan-and-inf", "long", "short", "2d", "3d", "empty", "text", "complex"])
+    # finite, but a solve's sums of squares of it overflow
+    (lambda m: np.r_[np.ones(m - 3), 1e308, 1.0, -2e100],
+     r"stress must be at most 1e\+100 Pa in magnitude, got 1e\+308 at taxel\(s\) \[13, 15\]"),
+], ids=["nan", "inf", "minus-inf", "nan-and-inf", "long", "short", "2d", "3d", "empty", "text", "complex",
+        "huge"])
 def test_bad_stress_says_what_is_wrong(bad, message):
     r = Reconstructor(SensorGrid.regular(4, 4, PITCH, PITCH))
     for solve in (r.solve, r.solve_normal, lambda s: r.solve(s, shear_ratio=0.2, shear_direction=0.0)):

@@ -13,7 +13,7 @@ import serial
 from tactile_viewer import live_source, recording
 from tactile_viewer.device import SAME_DEVICE_RULE, DeviceIdentity
 from tactile_viewer.layout import SensorLayout
-from tactile_viewer.live_source import Calibration, LiveStats, SerialReader
+from tactile_viewer.live_source import NOT_A_STRESS, Calibration, LiveStats, SerialReader
 from tactile_viewer.protocol import encode_binary
 from tests.viewer.skins import grid32, wait_for
 
@@ -217,6 +217,29 @@ def test_reader_skips_garbage(pty, make_reader):
     wait_for(lambda: reader.stats.received == 2, what="both frames past the garbage")
     assert reader.decoder.skipped_bytes == len(garbage) + 50
     assert reader.take_latest().index == 1
+
+
+def test_a_frame_that_is_no_stress_once_calibrated_is_rejected_and_counted(pty, make_reader, tmp_path):
+    # a text board's 1e308 is a float, but 1e308 kPa is inf Pa: it was recorded, and failed every solve
+    reader = make_reader(fmt="text")
+    reader.start()
+    recorder = reader.start_recording(tmp_path / "rec.mcap", flush_interval=0.05)
+    rows = [values(0), [1e308, *values(1)[1:]], [1e98, *values(2)[1:]], values(3)]  # 1e101 Pa: beyond
+    lines = [", ".join(repr(float(v)) for v in row) for row in rows]
+    write_all(pty[0], ("\n".join(lines) + "\n").encode())
+    wait_for(lambda: reader.published == 2, what="the two stresses")
+    assert reader.rejected() == {NOT_A_STRESS: 2} and reader.failures == 0
+    np.testing.assert_array_equal(reader.take_latest().stress, values(3) * 1000)
+    assert recorder is reader.recorder
+    loaded = recording.load(reader.stop_recording())
+    np.testing.assert_allclose(loaded.frames[:], [values(0) * 1000, values(3) * 1000], rtol=1e-12)
+    # nor is such a frame averaged into a tare
+    calibration = Calibration(SensorLayout(grid32(), "kPa"))
+    calibration.tare(2)
+    assert calibration(np.array([1e308, *values(0)[1:]])) is None and calibration.taring
+    calibration(values(0))
+    calibration(values(0))
+    np.testing.assert_array_equal(calibration(values(0)), np.zeros(6))
 
 
 def test_reader_records_every_frame(pty, make_reader, tmp_path):
@@ -583,13 +606,11 @@ def test_without_a_device_identity_a_reconnection_without_recording_says_nothing
     assert board.messages == [] and reader.error == ""
 
 
-def test_a_tare_whose_frames_overflow_is_not_taken_and_says_so():
+def test_frames_too_large_to_average_are_no_part_of_a_tare():
+    # 1.5e308 Pa each is finite, but their sum is not: such frames are refused before any tare sees them
     calibration = Calibration(SensorLayout(grid32(), "kPa"))
     calibration.tare(2)
-    huge = np.full(6, 1.5e305)  # kPa: 1.5e308 Pa each, finite; their sum is not
-    calibration(huge, 0.0)
-    calibration(huge, 0.0)
-    assert not calibration.taring and calibration.take_completed() is None
-    assert calibration.take_failed() == "the tare was not taken: its frames overflow when averaged"
-    assert calibration.take_failed() is None  # said once
+    huge = np.full(6, 1.5e305)  # kPa
+    assert calibration(huge, 0.0) is None and calibration(huge, 0.0) is None
+    assert calibration.taring and calibration.take_completed() is None
     np.testing.assert_array_equal(calibration.baseline, 0.0)  # the zero in force is kept

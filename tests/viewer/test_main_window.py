@@ -142,6 +142,44 @@ def test_a_malformed_file_shows_the_error_and_keeps_the_state(opened, tmp_path):
     assert opened.model.recording is shown and opened.scene.arrows.n_points > 0
 
 
+def overflowing_csv(path, units):
+    # a 4x4 recording whose frame 2 holds 1e308 in one taxel: beyond a float once in pascals (kPa),
+    # or finite but overflowing every product the solver makes with it (Pa)
+    rows = ["# nx=4", "# ny=4", "# pitch=0.002", "# thickness=0.002", f"# units={units}"]
+    for k in range(5):
+        values = [1.0] * 16
+        if k == 2:
+            values[3] = 1e308
+        rows.append(", ".join(map(repr, [0.01 * k, *values])))
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def test_a_recording_whose_values_overflow_leaves_the_window_working(opened, qtbot, tmp_path):
+    # In kPa the value is no number once in pascals: the file is refused, naming frame and taxel.
+    shown = opened.model.recording
+    assert not opened.open(overflowing_csv(tmp_path / "kpa.csv", "kPa"))
+    assert "frame 2 taxel 3 is not a finite number in pascals" in opened.errors[-1][1]
+    assert opened.model.recording is shown
+    # In Pa it is finite: the window shows the recording (its display scales from the frames that
+    # stay finite), and the next recording opens as any other (it failed with "list.remove(x): x
+    # not in list" on every later open: the old source was dropped before the scales were made)
+    errors = len(opened.errors)
+    with qtbot.waitSignal(opened.ready, timeout=20000):
+        assert opened.open(overflowing_csv(tmp_path / "pa.csv", "Pa"))
+    assert opened.model.recording is not shown and opened.model.grid.size == 16
+    assert np.isfinite(opened.model.display.arrow_scale) and opened.model.display.arrow_scale > 0
+    # the frame itself: refused by the solver, said in the status bar; the time plots leave it out
+    with qtbot.waitSignal(opened.model.solve_failed, timeout=10000) as failed:
+        opened.model.set_frame(2)
+    assert "stress must be at most 1e+100 Pa in magnitude, got 1e+308 at taxel(s) [3]" in failed.args[0]
+    qtbot.waitUntil(lambda: "refused by the solver" in opened.time_plots.status.text(), timeout=20000)
+    assert "4 frames" in opened.time_plots.status.text() and "first frame 2" in opened.time_plots.status.text()
+    with qtbot.waitSignal(opened.ready, timeout=20000):
+        assert opened.open(Path(__file__).resolve().parents[2] / "sample_data" / "hertz_static.npz")
+    assert opened.model.grid.size == 256 and len(opened.errors) == errors
+
+
 def read_png(path):
     image = pv.read(path)
     name = image.point_data.keys()[0]
