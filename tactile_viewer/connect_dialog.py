@@ -7,6 +7,7 @@ from pathlib import Path
 
 from PyQt6 import QtCore, QtWidgets
 
+from .preferences import Settings
 from .protocol import FORMATS
 
 __all__ = ["Connection", "ConnectDialog", "settings"]
@@ -24,10 +25,9 @@ class Connection:
     layout: str
 
 
-def settings() -> QtCore.QSettings:
-    """Where the dialog remembers its last values (an INI file in the user's config folder)."""
-    return QtCore.QSettings(QtCore.QSettings.Format.IniFormat, QtCore.QSettings.Scope.UserScope,
-                            "tactile-viewer", "live")
+def settings() -> Settings:
+    """Where the dialog remembers its last values (``live.json`` beside the window's settings)."""
+    return Settings("live")
 
 
 def available_ports() -> list[tuple[str, str]]:
@@ -94,10 +94,14 @@ class ConnectDialog(QtWidgets.QDialog):
 
     def _restore(self):
         store = settings()
-        self.port_box.setEditText(store.value("url", "", str))
-        self.baud_box.setEditText(store.value("baudrate", "115200", str))
-        self.format_box.setCurrentText(store.value("format", "binary", str))
-        self.layout_edit.setText(store.value("layout", "", str))
+
+        def text(name, default):  # an edited file's number or list is no text: the default
+            value = store.value(name)
+            return value if isinstance(value, str) else default
+        self.port_box.setEditText(text("url", ""))
+        self.baud_box.setEditText(text("baudrate", "115200"))
+        self.format_box.setCurrentText(text("format", "binary"))
+        self.layout_edit.setText(text("layout", ""))
 
     def connection(self) -> Connection:
         """The values entered; ValueError names what is missing or wrong."""
@@ -124,12 +128,8 @@ class ConnectDialog(QtWidgets.QDialog):
         except ValueError as exc:
             self.message.setText(str(exc))
             return
-        store = settings()
-        store.setValue("url", chosen.url)
-        store.setValue("baudrate", str(chosen.baudrate))
-        store.setValue("format", chosen.fmt)
-        store.setValue("layout", chosen.layout)
-        store.sync()
+        settings().update(dict(url=chosen.url, baudrate=str(chosen.baudrate), format=chosen.fmt,
+                               layout=chosen.layout))
         self.accept()
 
 

@@ -23,14 +23,10 @@ def no_plotter_leak():
 
 
 @pytest.fixture
-def window(qtbot, no_plotter_leak, monkeypatch, tmp_path_factory):
-    from PyQt6 import QtCore, QtWidgets
+def window(qtbot, no_plotter_leak, monkeypatch):
+    from PyQt6 import QtWidgets
 
     from tactile_viewer.main_window import MainWindow
-
-    # the user's own settings (window size, last port) stay out of every test
-    QtCore.QSettings.setPath(QtCore.QSettings.Format.IniFormat, QtCore.QSettings.Scope.UserScope,
-                             str(tmp_path_factory.mktemp("settings")))
 
     errors = []
     # dialogs would block a test: record them instead

@@ -1,6 +1,7 @@
 """What a lab user expects of a desktop tool: recent files, the last folder, the view kept between runs,
 drag and drop, keyboard shortcuts, tooltips, help; and the per-contact table (issue 13)."""
 
+import json
 import math
 import shutil
 from pathlib import Path
@@ -111,14 +112,14 @@ def test_view_settings_survive_a_restart_but_each_source_gets_its_own_scales(win
 def test_a_damaged_settings_file_is_ignored_value_by_value(window, qtbot, caplog):
     from tactile_viewer.main_window import MainWindow
 
-    store = window_settings()
-    store.setValue("view/map", "bogus")          # Display refuses it
-    store.setValue("view/arrows", "maybe")       # not a bool
-    store.setValue("view/resultant", "false")    # fine
-    store.setValue("view/playback_speed", "fast")
-    store.setValue("geometry", "garbage")        # not what Qt saved: the default size
-    store.setValue("docks", "garbage")
-    store.sync()
+    window_settings().update({
+        "view/map": "bogus",           # Display refuses it
+        "view/arrows": "maybe",        # not a bool
+        "view/resultant": False,       # fine
+        "view/playback_speed": "fast",
+        "geometry": "garbage",         # not what Qt saved: the default size
+        "docks": [1, 2],
+    })
     again = MainWindow()
     qtbot.addWidget(again)
     try:
@@ -130,6 +131,35 @@ def test_a_damaged_settings_file_is_ignored_value_by_value(window, qtbot, caplog
         assert again.time_plots.isVisibleTo(again)  # the default layout
     finally:
         again.close()
+
+
+@pytest.mark.parametrize("content", [
+    # the line that made Qt's own settings abort the app at every start (exit 134): in the old
+    # file, which is no longer read
+    ("window.ini", b"[General]\nrecent_files=@Variant(\\0\\0\\0\\t\\x7f\\xff\\xff\\xff)\n"),
+    ("window.json", b"[" * 100000 + b"]" * 100000),                # nested past the parser's depth
+    ("window.json", b'{"recent_files": ' + b'"x", ' * 300000 + b"}"),  # over 1 MB
+    ("window.json", b"\xff\xfe not text"),
+    ("window.json", b'{"recent_files": {"a": 1}, "last_folder": 7, "geometry": "@@@"}'),
+], ids=["qt-variant", "deep", "huge", "binary", "wrong-types"])
+def test_no_settings_file_keeps_the_window_from_opening(qtbot, caplog, content, monkeypatch, tmp_path):
+    from tactile_viewer.main_window import MainWindow
+
+    monkeypatch.setenv("TACTILE_VIEWER_CONFIG", str(tmp_path))
+    name, data = content
+    (tmp_path / name).write_bytes(data)
+    window = MainWindow()
+    qtbot.addWidget(window)
+    try:
+        window.show()
+        qtbot.waitExposed(window)
+        assert recent_entries(window) == [] and window.model.display == type(window.model.display)()
+        if name == "window.json":
+            assert "settings: ignoring" in caplog.text
+    finally:
+        window.close()
+    # and what the window keeps from now on reads back
+    assert json.loads((tmp_path / "window.json").read_text())["view/map"] == "pressure"
 
 
 # -- drag and drop -----------------------------------------------------------------------------

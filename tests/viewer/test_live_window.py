@@ -113,13 +113,8 @@ def test_opening_a_recording_disconnects(live, qtbot):
 
 
 def test_the_connect_dialog_remembers_and_checks(qtbot, tmp_path, monkeypatch):
-    from PyQt6 import QtCore
-
     from tactile_viewer.connect_dialog import ConnectDialog
 
-    # keep the user's real settings out of it
-    QtCore.QSettings.setPath(QtCore.QSettings.Format.IniFormat, QtCore.QSettings.Scope.UserScope,
-                             str(tmp_path))
     layout = tmp_path / "layout.json"
     layout.write_text("{}")
     dialog = ConnectDialog()
