@@ -52,7 +52,7 @@ import numpy as np
 from solver import ContactTracker, Reconstructor
 from solver.arrays import read_only
 
-from .recording import Recording
+from .recording import Recording, written_whole
 from .worker import Cancelled
 
 __all__ = ["ForceTable", "reconstruct_frames", "force_table", "save_forces", "load_forces", "contact_arrays",
@@ -244,7 +244,8 @@ def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
     ny, nx = table.shape if len(table.shape) == 2 else (1, table.shape[0])
     source = source or table.source
     if path.suffix.lower() == ".npz":
-        with open(path, "wb") as handle:  # a handle: np.savez would turn "x.NPZ" into "x.NPZ.npz"
+        # a handle: np.savez would turn "x.NPZ" into "x.NPZ.npz"
+        with written_whole(path) as temporary, open(temporary, "wb") as handle:
             np.savez_compressed(handle, forces=table.forces, frames=table.frames, t=table.t,
                                 shear_ratio=table.shear_ratio, shear_direction=table.shear_direction,
                                 efficiency=table.efficiency, residual=table.residual,
@@ -276,7 +277,8 @@ def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
             values = (*table.contact_force[row, slot], *table.contact_centre[row, slot])
             buffer.write(f"# {CONTACT_TAG}={table.frames[row]:d},{table.t[row]:.6f},"
                          f"{table.contact_identity[row, slot]:d},{','.join(f'{v:.9g}' for v in values)}\n")
-        path.write_text(buffer.getvalue(), encoding="utf-8")
+        with written_whole(path) as temporary:
+            temporary.write_text(buffer.getvalue(), encoding="utf-8")
     else:
         raise ValueError(f"{path}: unknown export type {path.suffix!r}, expected .npz or .csv")
     return path

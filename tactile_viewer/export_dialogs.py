@@ -27,6 +27,7 @@ from PyQt6 import QtCore, QtWidgets
 
 from . import export, movie
 from .model import ViewerModel
+from .recording import written_whole
 from .scene import Scene
 from .tasks import TaskRunner
 from .worker import Cancelled
@@ -154,8 +155,9 @@ class ExportActions:
             if (scale, transparent) != (1, False):
                 raise ValueError(f"a window image is taken as shown: scale must be 1 and transparent False, "
                                  f"got scale={scale!r}, transparent={transparent!r}")
-            if not self.parent.grab().save(str(path), "PNG"):
-                raise OSError(errno.EIO, "the image could not be written", str(path))
+            with written_whole(path) as temporary:
+                if not self.parent.grab().save(str(temporary), "PNG"):
+                    raise OSError(errno.EIO, "the image could not be written", str(path))
         else:
             self.scene.screenshot(path, scale=scale, transparent=transparent)
         export.write_sidecar(path, **self.model.describe(), scale=scale, transparent=transparent,

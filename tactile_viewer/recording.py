@@ -32,8 +32,11 @@ No Qt here: the command line, the tests and the solver tools use it too.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import math
+import os
+import secrets
 import zipfile
 import zlib
 from dataclasses import dataclass, replace
@@ -135,6 +138,29 @@ def raw_to_pascals(raw, units: str, gain, offset) -> np.ndarray:
     """
     with np.errstate(over="ignore", invalid="ignore"):
         return np.asarray(gain) * (np.asarray(raw, dtype=float) - offset) * UNIT_SCALES.get(units, 1.0)
+
+
+@contextlib.contextmanager
+def written_whole(path):
+    """A temporary name beside ``path`` to write a file to, renamed to ``path`` once it is whole.
+
+    The rename happens when the block ends without an error; otherwise the
+    temporary file is removed. A failed write (a full disk, a renderer that
+    fails) leaves no partial file, and an earlier file of that name as it was.
+    The temporary name is hidden (``.name.<random>.partial<suffix>``) and keeps
+    the suffix, by which writers such as pyvista choose the format.
+
+    Yields
+    ------
+    Path
+    """
+    path = Path(path)
+    temporary = path.with_name(f".{path.name}.{secrets.token_hex(4)}.partial{path.suffix.lower()}")
+    try:
+        yield temporary
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
 
 
 def json_ready(fields: dict) -> dict:

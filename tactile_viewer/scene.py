@@ -25,6 +25,7 @@ from vtkmodules.vtkRenderingFreeType import vtkVectorText
 from solver import SensorGrid
 
 from .model import Display, Solved
+from .recording import written_whole
 
 __all__ = ["Scene", "taxel_text", "MAX_TAXEL_IDS"]
 
@@ -476,6 +477,10 @@ class Scene:
         """
         if scale not in (1, 2, 3, 4):
             raise ValueError(f"scale must be 1, 2, 3 or 4, got {scale!r}")
+        with written_whole(path) as temporary:  # a render or write that fails leaves no partial PNG
+            return self._render(temporary, scale, transparent)
+
+    def _render(self, path, scale, transparent):
         if self.grid is None or (scale == 1 and getattr(self.plotter, "off_screen", False)):
             return self.plotter.screenshot(str(path), transparent_background=transparent, return_img=True)
         width, height = self.plotter.ren_win.GetSize()

@@ -54,7 +54,7 @@ from solver.inverse import MAX_STRESS, check_parameters
 from solver.metrics import direction_error, normal_total_error, tangential_total_error
 
 from .model import Solved, load_centroid
-from .recording import Recording
+from .recording import Recording, written_whole
 from .worker import Cancelled
 
 __all__ = ["Quantities", "TruthErrors", "Series", "SeriesBuilder", "compute_series", "spread_frames",
@@ -314,7 +314,8 @@ class Series:
         table = np.column_stack(columns) if len(self) else np.zeros((0, len(names)))
         lines = [f"# {line}" for line in header] + [",".join(names)]
         lines += [",".join([str(int(row[0])), *(repr(float(v)) for v in row[1:])]) for row in table]
-        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        with written_whole(path) as temporary:
+            temporary.write_text("\n".join(lines) + "\n", encoding="utf-8")
         return path
 
     @classmethod

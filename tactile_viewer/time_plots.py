@@ -40,6 +40,7 @@ from solver.inverse import MAX_STRESS
 
 from .export import derived_name
 from .model import ViewerModel
+from .recording import written_whole
 from .series import MAX_FRAMES, Series, SeriesBuilder, compute_series, nearest_frame, spread_frames
 from .tasks import TaskRunner
 from .worker import Cancelled
@@ -625,7 +626,11 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         """Write the plots as a PNG image; None (and the error shown) when it cannot."""
         path = Path(path)
         image = self.graphics.grab()
-        if image.isNull() or not image.save(str(path), "PNG"):
+        try:
+            with written_whole(path) as temporary:
+                if image.isNull() or not image.save(str(temporary), "PNG"):
+                    raise OSError("the image could not be written")
+        except OSError:
             self._error("Cannot save the plots", f"{path}: the image could not be written (check the folder "
                         "exists and may be written to)")
             return None

@@ -85,6 +85,31 @@ def test_frames_outside_the_recording_are_rejected(recording, reconstructor, fra
         reconstruct_frames(recording, reconstructor, frames)
 
 
+@pytest.mark.parametrize("name", ["forces.npz", "forces.csv"])
+@pytest.mark.parametrize("earlier", [False, True])
+def test_a_failed_force_export_leaves_no_partial_file(recording, reconstructor, tmp_path, monkeypatch, name,
+                                                       earlier):
+    # the disk fills halfway through the write: nothing of it stays, and an earlier file of that name
+    # is as it was (an empty NPZ that np.load opened was left before)
+    table = reconstruct_frames(recording, reconstructor, [0, 1])
+    path = tmp_path / name
+    if earlier:
+        path.write_bytes(b"the earlier export")
+
+    def full_disk(handle_or_text, *args, **kwargs):
+        if hasattr(handle_or_text, "write"):
+            handle_or_text.write(b"PK\x03\x04 half an archive")
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(np, "savez_compressed", full_disk)
+    monkeypatch.setattr(type(tmp_path), "write_text",
+                        lambda self, text, **kw: (open(self, "w").write(text[:100]), full_disk(None))[1])
+    with pytest.raises(OSError, match="No space left on device"):
+        save_forces(table, path)
+    assert [p.name for p in tmp_path.iterdir()] == ([name] if earlier else [])
+    if earlier:
+        assert path.read_bytes() == b"the earlier export"
+
+
 @pytest.mark.parametrize("name", ["forces.npz", "forces.csv", "UPPER.NPZ", "Mixed.Csv"])
 def test_saved_forces_read_back(recording, reconstructor, tmp_path, name):
     table = reconstruct_frames(recording, reconstructor, [0, 2, 3])

@@ -495,6 +495,25 @@ def test_screenshot_is_scale_times_the_window(scene, regular_frame, tmp_path, sc
     assert image[..., :3].std() > 10  # the scene was drawn, not a flat background
 
 
+@pytest.mark.parametrize("scale", [1, 2])
+def test_a_screenshot_that_fails_leaves_no_partial_png(scene, regular_frame, tmp_path, monkeypatch, scale):
+    # the PNG is half written when the disk fills: no file of that name stays (nor the half one)
+    show(scene, regular_frame)
+    (tmp_path / "earlier.png").write_bytes(b"kept")
+
+    def fails(self, filename=None, **kwargs):
+        with open(filename, "wb") as handle:
+            handle.write(b"\x89PNG\r\n\x1a\n half an image")
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(pv.Plotter, "screenshot", fails)
+    with pytest.raises(OSError, match="No space left on device"):
+        scene.screenshot(tmp_path / "scene.png", scale=scale)
+    with pytest.raises(OSError, match="No space left on device"):
+        scene.screenshot(tmp_path / "earlier.png", scale=scale)
+    assert [p.name for p in tmp_path.iterdir()] == ["earlier.png"]
+    assert (tmp_path / "earlier.png").read_bytes() == b"kept"
+
+
 @pytest.mark.parametrize("scale", [5, 0])
 def test_screenshot_rejects_other_scales(scene, regular_frame, tmp_path, scale):
     show(scene, regular_frame)

@@ -167,6 +167,20 @@ def test_some_frames_spread_over_the_whole_recording(skin):
     assert spread_frames(10, 20).tolist() == list(range(10))
 
 
+def test_a_series_export_that_fails_leaves_no_partial_file(skin, tmp_path, monkeypatch):
+    recording, solver = skin
+    series = compute_series(recording, solver, frames=[0, 1])
+
+    def half_then_full(self, text, **kwargs):
+        with open(self, "w") as handle:
+            handle.write(text[: len(text) // 2])
+        raise OSError(28, "No space left on device")
+    monkeypatch.setattr(type(tmp_path), "write_text", half_then_full)
+    with pytest.raises(OSError, match="No space left on device"):
+        series.to_csv(tmp_path / "series.csv")
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("truth", [True, False])
 @pytest.mark.parametrize("given", [{}, dict(shear_ratio=0.25, shear_direction=-2.0)], ids=["auto", "manual"])
 def test_csv_round_trips_with_its_header(skin, tmp_path, truth, given):
