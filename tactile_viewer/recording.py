@@ -515,6 +515,7 @@ def _load_npz(path) -> Recording:
     if not isinstance(data, np.lib.npyio.NpzFile):
         raise RecordingError(f"{path}: not an NPZ archive (a single array, as .npy writes)")
     with data:
+        _check_member_names(data, path)
         # the members each field is read from: its own, or those of the chunks of a live recording
         parts = ({key: [key] for key in ("frames", "t", "seq") if key in data} if "frames" in data
                  else _joined_chunks(data))
@@ -680,6 +681,35 @@ def _bytes_text(count) -> str:
         if count >= scale:
             return f"{count / scale:.1f} {unit}"
     return f"{count} B"
+
+
+def _check_member_names(data, path):
+    """Refuse an archive whose directory names a member one character away from a missing field.
+
+    The members' contents are under the zip's checksums; their names are not. One flipped bit in
+    the directory turns ``t.npy`` into ``u.npy``, and the recording would load with times 0, 1,
+    2 s (``units`` read as Pa, ``positions`` as a regular grid ...). So a member that is no field
+    of a recording and differs by one character from a field that is missing is a damaged name;
+    and every chunk of a live recording must hold the same fields.
+    """
+    names = data.zip.namelist()
+    chunks = sorted({name.split("_", 1)[0] for name in names if name.startswith("chunk")})
+    fields = [*_NPZ_ARRAYS, *_NPZ_SINGLES, "forces"]
+    fields += [f"{c}_{key}" for c in chunks for key in ("frames", "t", "seq")]
+    expected = {f"{field}.npy" for field in fields}
+    missing = expected - set(names)
+    for name in sorted(set(names) - expected):
+        for field in sorted(missing):
+            if len(name) == len(field) and sum(a != b for a, b in zip(name, field, strict=True)) == 1:
+                raise RecordingError(f"{path}: member {name!r} is no field of a recording and {field!r} is "
+                                     "missing: the archive's directory is damaged (one character of a name "
+                                     "changed)")
+    for key in ("t", "seq"):
+        holding = [c for c in chunks if f"{c}_{key}.npy" in names]
+        if holding and len(holding) != len(chunks):
+            lacking = sorted(set(chunks) - set(holding))
+            raise RecordingError(f"{path}: chunk(s) {', '.join(lacking)} have no {key!r} while the others "
+                                 "have it: the archive is damaged")
 
 
 def _joined_chunks(data) -> dict:

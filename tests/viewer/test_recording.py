@@ -295,6 +295,48 @@ def test_corrupted_npz_member(tmp_path):
     assert str(info.value).startswith(f"{path}: ")
 
 
+def flip_name_bit(path, name, bit):
+    # one bit of a member's name in the zip's directory (its local header keeps the old name: numpy reads
+    # the directory), as a damaged file may have it
+    raw = bytearray(path.read_bytes())
+    at = raw.index(name.encode(), raw.index(b"PK\x01\x02"))  # in the central directory
+    raw[at] ^= 1 << bit
+    path.write_bytes(bytes(raw))
+
+
+@pytest.mark.parametrize("field, value, renamed", [
+    ("t", [0.0, 0.1], "u"), ("units", "kPa", "tnits"), ("seq", [7, 8], "req"),
+    ("positions", [[0, 0], [1e-3, 0], [0, 1e-3], [1e-3, 1e-3]], "qositions"),
+    ("poisson_ratio", 0.45, "qoisson_ratio"), ("sensor_size", 1e-4, "rensor_size"),
+])
+def test_a_damaged_member_name_is_refused_not_read_as_a_missing_field(tmp_path, field, value, renamed):
+    # a flipped bit in the directory's 't.npy' gave times 0, 1, 2 s; 'units' read kPa as Pa
+    path = write_npz(tmp_path / "named.npz", **{field: value})
+    flip_name_bit(path, f"{field}.npy", 0)
+    assert f"{renamed}.npy" in zipfile.ZipFile(path).namelist()
+    with pytest.raises(RecordingError, match=rf"member '{renamed}.npy' is no field of a recording and "
+                                             rf"'{field}.npy' is missing: the archive's directory is damaged"):
+        load(path)
+
+
+def test_extra_members_beside_every_field_still_load(tmp_path):
+    # a member of the user's own (notes) is no damaged name: nothing it could be is missing
+    path = write_npz(tmp_path / "extra.npz", notes="run 4", u=[1.0])
+    assert len(load(path)) == 2
+
+
+def test_a_chunk_without_a_field_the_others_have_is_refused(tmp_path):
+    path = tmp_path / "chunks.npz"
+    np.savez(path, nx=2, ny=2, pitch=1e-3, thickness=1e-3, chunk000000_frames=np.ones((2, 4)),
+             chunk000000_t=[0.0, 0.1], chunk000001_frames=np.ones((1, 4)), chunk000001_x=[0.2])
+    with pytest.raises(RecordingError, match="chunk000001_x.npy' is no field .* 'chunk000001_t.npy' is missing"):
+        load(path)
+    np.savez(path, nx=2, ny=2, pitch=1e-3, thickness=1e-3, chunk000000_frames=np.ones((2, 4)),
+             chunk000000_t=[0.0, 0.1], chunk000001_frames=np.ones((1, 4)), chunk000001_when=[0.2])
+    with pytest.raises(RecordingError, match=r"chunk\(s\) chunk000001 have no 't' while the others have it"):
+        load(path)
+
+
 def test_a_bare_npy_array_named_npz_is_rejected(tmp_path):
     path = tmp_path / "array.npz"
     with open(path, "wb") as handle:
