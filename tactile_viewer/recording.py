@@ -37,6 +37,7 @@ import io
 import math
 import os
 import secrets
+import stat
 import zipfile
 import zlib
 from dataclasses import dataclass, replace
@@ -382,6 +383,14 @@ def load(path) -> Recording:
     if suffix not in SUFFIXES:
         raise RecordingError(f"{path}: unknown recording type {path.suffix!r}, expected one of {SUFFIXES}")
     try:
+        # only a regular file: opening a named pipe blocks until something writes to it (File > Open
+        # froze the window), and a device never ends
+        kind = path.stat().st_mode
+        if not stat.S_ISREG(kind):
+            what = ("a folder" if stat.S_ISDIR(kind) else "a named pipe (FIFO)" if stat.S_ISFIFO(kind)
+                    else "a device" if stat.S_ISCHR(kind) or stat.S_ISBLK(kind) else "a socket"
+                    if stat.S_ISSOCK(kind) else "not a regular file")
+            raise RecordingError(f"{path}: not a recording file: it is {what}")
         if suffix == ".mcap":
             from .container import open_recording  # the container reads through this module
 

@@ -3,7 +3,6 @@ path, declared sizes and decompression bombs. The MCAP recorder and reader are i
 
 import contextlib
 import io
-import re
 import struct
 import tracemalloc
 import zipfile
@@ -259,13 +258,6 @@ def test_missing_file(tmp_path, name):
     assert str(info.value).startswith(f"{path}: ")
 
 
-def test_a_directory_is_not_a_recording(tmp_path):
-    path = tmp_path / "folder.csv"
-    path.mkdir()
-    with pytest.raises(RecordingError, match=re.escape(f"{path}: cannot read: Is a directory")):
-        load(path)
-
-
 def test_a_bare_npy_array_named_npz(tmp_path):
     path = tmp_path / "array.npz"
     with open(path, "wb") as handle:
@@ -335,6 +327,39 @@ def test_a_chunk_without_a_field_the_others_have_is_refused(tmp_path):
              chunk000000_t=[0.0, 0.1], chunk000001_frames=np.ones((1, 4)), chunk000001_when=[0.2])
     with pytest.raises(RecordingError, match=r"chunk\(s\) chunk000001 have no 't' while the others have it"):
         load(path)
+
+
+@pytest.mark.parametrize("suffix", [".mcap", ".npz", ".csv"])
+def test_only_a_regular_file_is_opened(tmp_path, suffix):
+    import os
+    import threading
+
+    # a named pipe: open() would wait for a writer (File > Open froze the window)
+    fifo = tmp_path / f"pipe{suffix}"
+    os.mkfifo(fifo)
+    outcome = []
+
+    def opening():
+        try:
+            load(fifo)
+        except RecordingError as exc:
+            outcome.append(str(exc))
+    thread = threading.Thread(target=opening, daemon=True)
+    thread.start()
+    thread.join(5)
+    if thread.is_alive():  # release it, so the test fails instead of hanging
+        os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        pytest.fail("load() blocked on a named pipe")
+    assert outcome == [f"{fifo}: not a recording file: it is a named pipe (FIFO)"]
+    # a device behind a link never ends; a folder is no file
+    device = tmp_path / f"zeros{suffix}"
+    device.symlink_to("/dev/zero")
+    with pytest.raises(RecordingError, match=r"not a recording file: it is a device"):
+        load(device)
+    folder = tmp_path / f"folder{suffix}"
+    folder.mkdir()
+    with pytest.raises(RecordingError, match=r"not a recording file: it is a folder"):
+        load(folder)
 
 
 def test_a_bare_npy_array_named_npz_is_rejected(tmp_path):
