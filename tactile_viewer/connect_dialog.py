@@ -7,6 +7,7 @@ from pathlib import Path
 
 from PyQt6 import QtCore, QtWidgets
 
+from .live_source import MAX_BAUDRATE, check_baudrate
 from .preferences import Settings
 from .protocol import FORMATS
 
@@ -108,13 +109,12 @@ class ConnectDialog(QtWidgets.QDialog):
         url = self.port_box.currentText().strip()
         if not url:
             raise ValueError("choose a port or type a URL")
+        text = self.baud_box.currentText().strip()
         try:
-            baudrate = int(self.baud_box.currentText())
+            baudrate = check_baudrate(int(text) if text.isdigit() and len(text) <= 10 else text)
         except ValueError:
-            text = self.baud_box.currentText()
-            raise ValueError(f"baud rate must be a whole number, got {text!r}") from None
-        if baudrate <= 0:
-            raise ValueError(f"baud rate must be positive, got {baudrate}")
+            raise ValueError(f"baud rate must be a whole number from 1 to {MAX_BAUDRATE}, "
+                             f"got {text!r}") from None
         layout = self.layout_edit.text().strip()
         if not layout:
             raise ValueError("choose the sensor layout file (JSON) that describes the board")

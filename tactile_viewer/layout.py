@@ -101,7 +101,9 @@ def load_layout(path) -> SensorLayout:
         spec = json.loads(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise LayoutError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except RecursionError:  # arrays nested past the parser's depth (100,000 '[')
+        raise LayoutError(f"{path}: not a layout: JSON nested too deep to read") from None
+    except ValueError as exc:  # not JSON, not text, or a number of over 4300 digits
         raise LayoutError(f"{path}: not JSON ({exc})") from None
     if not isinstance(spec, dict):
         raise LayoutError(f"{path}: expected a JSON object, got {type(spec).__name__}")

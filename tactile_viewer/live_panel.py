@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from pathlib import Path
 
 from PyQt6 import QtCore, QtGui, QtWidgets
 
@@ -52,6 +53,7 @@ class LivePanel(QtWidgets.QGroupBox):
         super().__init__("Live", parent)
         self.model = model
         self._install, self._error, self._notify = install, error, notify
+        self._layout_name = ""  # the layout file of the board shown, to name it
         box = QtWidgets.QVBoxLayout(self)
         self.status = QtWidgets.QLabel("")
         self.status.setWordWrap(True)
@@ -122,9 +124,11 @@ class LivePanel(QtWidgets.QGroupBox):
         Errors (bad layout, port that cannot be opened) are shown and change nothing.
         """
         try:
+            named = "" if isinstance(layout, SensorLayout) else Path(layout).name
             if not isinstance(layout, SensorLayout):
                 layout = load_layout(layout)
             reader = SerialReader(url, layout, fmt=fmt, baudrate=baudrate)
+            self._layout_name = named
             reader.start()
         except (LayoutError, ValueError, OSError) as exc:  # pyserial's SerialException is an OSError
             self._error("Cannot connect", f"{url}: {exc}")
@@ -231,6 +235,9 @@ class LivePanel(QtWidgets.QGroupBox):
         if rejected or reader.decoder.skipped_bytes:
             parts.append("rejected " + (", ".join(f"{k} {v}" for k, v in sorted(rejected.items())) or "0")
                          + f"; skipped {reader.decoder.skipped_bytes} B")
+            mismatch = reader.size_mismatch(self._layout_name)
+            if mismatch:
+                parts.append(mismatch)
         if reader.reconnects:
             parts.append(f"reconnected {reader.reconnects}x")
         if reader.identity_notice:

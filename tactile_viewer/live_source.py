@@ -309,6 +309,21 @@ class LiveSource(Source):
     def recorded_calibration(self) -> StressCalibration:
         return self.calibration.stress_calibration()
 
+    def size_mismatch(self, layout_name: str = "") -> str:
+        """What frames of the wrong value count held against the layout, in words ("" when none).
+
+        Parameters
+        ----------
+        layout_name : str, optional
+            The layout's file, to name it.
+        """
+        sizes = self.decoder.wrong_sizes.most_common()
+        if not sizes:
+            return ""
+        held = ", ".join(f"{count} values ({frames} frames)" for count, frames in sizes[:3])
+        named = f" {layout_name}" if layout_name else ""
+        return f"frames of {held}; the layout{named} describes {self.layout.count} taxels"
+
     def rejected(self) -> Counter:
         """Rejected frames by reason so far (a copy)."""
         return Counter(self.decoder.rejected)
@@ -378,6 +393,18 @@ class LiveSource(Source):
             self.message.emit("warning", "Tare taken under load?", warning)
 
 
+# The largest baud rate a serial port takes: the operating system holds it in a C int (a larger one
+# raised OverflowError on the reader's thread). USB boards ignore it; UARTs stop far below.
+MAX_BAUDRATE = 2**31 - 1
+
+
+def check_baudrate(baudrate) -> int:
+    """``baudrate`` as an int; ValueError unless it is a whole number from 1 to :data:`MAX_BAUDRATE`."""
+    if isinstance(baudrate, bool) or not isinstance(baudrate, int) or not 1 <= baudrate <= MAX_BAUDRATE:
+        raise ValueError(f"baud rate must be a whole number from 1 to {MAX_BAUDRATE}, got {baudrate!r}")
+    return baudrate
+
+
 class SerialReader(LiveSource):
     """The serial board: a :class:`LiveSource` over pyserial's ``serial_for_url``.
 
@@ -396,8 +423,8 @@ class SerialReader(LiveSource):
                  reconnect_interval: float = 0.5):
         import serial  # pyserial; imported here so that the codecs work without it
 
+        self.baudrate = check_baudrate(baudrate)
         super().__init__(url, layout, fmt=fmt, reconnect_interval=reconnect_interval)
-        self.baudrate = baudrate
         self.lost = (serial.SerialException, OSError)
         self.device = DeviceCheck(url)  # reconnect only to the device it started with
 

@@ -140,6 +140,10 @@ class Decoder:
     ----------
     rejected : collections.Counter
         Rejected frames (or lines) by reason.
+    wrong_sizes : collections.Counter
+        How many values the frames rejected for their count held (value
+        count: frames), to say what the board sends against what the layout
+        describes.
     skipped_bytes : int
         Bytes discarded while looking for the start of a frame.
     accepted : int
@@ -151,6 +155,7 @@ class Decoder:
             raise ValueError(f"count must be an integer in [1, {MAX_VALUES}] (or None), got {count!r}")
         self.count = count
         self.rejected: Counter = Counter()
+        self.wrong_sizes: Counter = Counter()  # value counts of the frames rejected for their count
         self.skipped_bytes = 0
         self.accepted = 0
         self._buffer = bytearray()
@@ -170,6 +175,7 @@ class Decoder:
     def _accept(self, values: np.ndarray, seq, out: list) -> None:
         if self.count is not None and values.size != self.count:
             self.rejected["wrong value count"] += 1
+            self.wrong_sizes[values.size] += 1
         elif not np.all(np.isfinite(values)):
             self.rejected["non-finite value"] += 1
         else:

@@ -52,7 +52,11 @@ def main(argv=None) -> int:
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda *_: stop.set())
-    reader = SerialReader(args.url, layout, fmt=args.format, baudrate=args.baudrate)
+    try:
+        reader = SerialReader(args.url, layout, fmt=args.format, baudrate=args.baudrate)
+    except ValueError as exc:
+        print(f"tactile-record: {exc}", file=sys.stderr)
+        return 2
     failed = threading.Event()
 
     def tell(level, title, text):
@@ -94,6 +98,9 @@ def main(argv=None) -> int:
     print(f"stopped: {recorder.added} frames recorded to {written or args.out} (closed in "
           f"{closing * 1e3:.0f} ms), lost {stats.lost}, rejected {sum(reader.rejected().values())}, "
           f"longest wait between frames {stats.longest_gap * 1e3:.0f} ms", flush=True)
+    mismatch = reader.size_mismatch(Path(args.layout).name)
+    if mismatch:
+        print(f"tactile-record: rejected for their value count: {mismatch}", file=sys.stderr, flush=True)
     return 1 if failed.is_set() else 0
 
 

@@ -310,7 +310,8 @@ class Recording:
         receive clock).
     truncated : bool
         The file was cut short (a crash, a full disk); it holds every frame
-        of its complete chunks.
+        of its complete chunks (MCAP) or rows (CSV: a last row without a
+        line end is left out).
     """
 
     grid: SensorGrid
@@ -743,7 +744,7 @@ def _load_csv(path) -> Recording:
     # (at most MAX_TAXELS + 2), and rows are packed as float64, 8 bytes a value where the file spent at
     # least 2 characters ('0,'): at most four times the file (twice that while the blocks are joined)
     # and at most _MAX_RECORDING_BYTES. 'positions' holds at most MAX_TAXELS pairs.
-    meta, blocks, block, width, held = {}, [], [], None, 0
+    meta, blocks, block, width, held, cut = {}, [], [], None, 0, False
     with open(path, encoding="utf-8") as handle:
         for number, line in enumerate(iter(lambda: handle.readline(_MAX_CSV_LINE + 1), ""), start=1):
             if len(line) > _MAX_CSV_LINE and not line.endswith("\n"):
@@ -756,6 +757,11 @@ def _load_csv(path) -> Recording:
                 key, sep, value = text[1:].partition("=")
                 if sep:
                     meta[key.strip()] = value.strip()
+                continue
+            if not line.endswith("\n"):
+                # the last row has no line end: the file was cut short, perhaps inside a value (1.25
+                # read as 1.2); it is left out, and the recording says it was cut
+                cut = True
                 continue
             count = text.count(",") + text.count(";") + 1
             if count > MAX_TAXELS + 2:
@@ -785,7 +791,8 @@ def _load_csv(path) -> Recording:
         if not meta:
             raise RecordingError(f"{path}: empty: a CSV recording has '# key=value' header lines (nx, ny, "
                                  "pitch, thickness) and then one frame per row (t, v0, v1, ...)")
-        raise RecordingError(f"{path}: no frames")
+        raise RecordingError(f"{path}: no frames" + (" (its one row has no line end: cut short)" if cut
+                                                     else ""))
     table = np.concatenate([*blocks, np.array(block, dtype=float)]).reshape(-1, width)
     columns = meta.get("columns", "t")
     if columns not in ("t", "seq,t"):
@@ -806,7 +813,8 @@ def _load_csv(path) -> Recording:
     frames = _checked_frames(table[:, first:], grid, path, _scale(meta.get("units", "Pa"), path))
     seq = table[:, 0] if first == 2 else None
     try:
-        return Recording(grid, frames, table[:, first - 1], None, meta.get("description", ""), seq)
+        return Recording(grid, frames, table[:, first - 1], None, meta.get("description", ""), seq,
+                         truncated=cut)
     except ValueError as exc:
         raise RecordingError(f"{path}: {exc}") from None
 
@@ -865,7 +873,7 @@ def facts(recording: Recording) -> list[str]:
     else:
         lines += [f"first received {recording.received:.6f}",
                   f"last received {recording.received + float(recording.t[-1]):.6f}"]
-    lines.append("cut short yes: it ends at its last complete chunk (a crash or a full disk)"
+    lines.append("cut short yes: it ends at its last complete chunk or row (a crash or a full disk)"
                  if recording.truncated else "cut short no")
     size = (f"{grid.shape[1]}x{grid.shape[0]} taxels" if len(grid.shape) == 2
             else f"{grid.size} taxels (irregular)")

@@ -133,7 +133,7 @@ def test_info_prints_one_fact_per_line_of_a_live_recording_cut_short(tmp_path, c
     lines = capsys.readouterr().out.splitlines()
     assert lines[:6] == ["frames 6", "span 0.500 s", "sequence gaps 2", "first received 1700000000.000000",
                          "last received 1700000000.500000",
-                         "cut short yes: it ends at its last complete chunk (a crash or a full disk)"]
+                         "cut short yes: it ends at its last complete chunk or row (a crash or a full disk)"]
     assert lines[6] == ("geometry 3x2 taxels, pitch 2 mm, thickness 1.5 mm, poisson ratio 0.5, "
                         "sensor size 0 mm")
     assert lines[7] == ("calibration raw float32 in kPa, gain 2, offset 0.5, tares: from frame 0 "

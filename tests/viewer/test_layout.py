@@ -121,6 +121,9 @@ GOOD = {"nx": 3, "ny": 2, "pitch": 2e-3, "thickness": 1.5e-3}
     (json.dumps({**GOOD, "offset": float("nan")}), r"offset must be finite"),
     (json.dumps({**GOOD, "units": "psi"}), r"units must be one of"),
     (json.dumps({**GOOD, "positions": [[0, 0], [1, 1]]}), r"shape \(2, 3\) does not hold the 2 positions"),
+    # they reached the window's "Unexpected error": a RecursionError and a bare ValueError
+    ("[" * 100000 + "]" * 100000, r"not a layout: JSON nested too deep to read"),
+    ('{"nx": ' + "9" * 5000 + ', "ny": 2, "pitch": 2e-3, "thickness": 1.5e-3}', r"not JSON \(.*4300 digits"),
 ])
 def test_bad_layout_files_name_the_file_and_the_problem(tmp_path, content, message):
     path = tmp_path / "bad layout.json"

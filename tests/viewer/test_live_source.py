@@ -242,6 +242,18 @@ def test_a_frame_that_is_no_stress_once_calibrated_is_rejected_and_counted(pty, 
     np.testing.assert_array_equal(calibration(values(0)), np.zeros(6))
 
 
+def test_frames_that_do_not_fit_the_layout_say_what_they_hold_against_it(pty, make_reader):
+    # "wrong value count 3" alone did not say that the board sends 4 values for a 6-taxel layout
+    reader = make_reader(fmt="text")
+    reader.start()
+    assert reader.size_mismatch() == ""
+    write_all(pty[0], b"1, 2, 3, 4\n1, 2, 3, 4\n1, 2, 3, 4, 5, 6, 7\n" + b", ".join(b"1" for _ in range(6)) + b"\n")
+    wait_for(lambda: reader.stats.received == 1, what="the one frame that fits")
+    assert reader.rejected() == {"wrong value count": 3}
+    assert reader.size_mismatch("board.json") == ("frames of 4 values (2 frames), 7 values (1 frames); the layout "
+                                                  "board.json describes 6 taxels")
+
+
 def test_reader_records_every_frame(pty, make_reader, tmp_path):
     reader = make_reader()
     reader.start()
@@ -261,6 +273,13 @@ def test_reader_records_every_frame(pty, make_reader, tmp_path):
     assert loaded.calibration.units == "kPa" and loaded.frames.raw_dtype == np.float32
     assert np.all(np.diff(loaded.t) >= 0)
     assert reader.stats.lost == 0
+
+
+@pytest.mark.parametrize("baudrate", [0, -9600, 2**31, 2**40, 9600.0, "9600", True])
+def test_a_baud_rate_no_port_takes_is_refused_when_the_reader_is_made(baudrate):
+    # 2^31 and more raised OverflowError on the reader's thread ("Unexpected error" in the window)
+    with pytest.raises(ValueError, match=r"baud rate must be a whole number from 1 to 2147483647, got "):
+        SerialReader("loop://", SensorLayout(grid32()), baudrate=baudrate)
 
 
 def test_reader_start_fails_at_once_on_a_missing_device(tmp_path):

@@ -123,9 +123,11 @@ def test_the_connect_dialog_remembers_and_checks(qtbot, tmp_path, monkeypatch):
     dialog._accept()
     assert "choose a port" in dialog.message.text() and dialog.result() == 0
     dialog.port_box.setEditText("socket://localhost:7777")
-    dialog.baud_box.setEditText("fast")
-    dialog._accept()
-    assert "baud rate must be a whole number, got 'fast'" in dialog.message.text()
+    for typed in ("fast", "0", "-5", "2147483648", "9" * 5000):
+        dialog.baud_box.setEditText(typed)
+        dialog._accept()
+        assert f"baud rate must be a whole number from 1 to 2147483647, got {typed!r}" in dialog.message.text()
+        assert dialog.result() == 0
     dialog.baud_box.setEditText("921600")
     dialog.layout_edit.setText(str(tmp_path / "missing.json"))
     dialog._accept()

@@ -124,6 +124,8 @@ def test_a_stop_leaves_a_complete_file_and_says_what_was_recorded(board, tmp_pat
      "cannot record: .*No such file or directory"),
     (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.mcap", "--duration", "0"], 2,
      "--duration must be > 0 seconds, got 0.0"),
+    (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.mcap", "--baudrate", "4294967296"], 2,
+     "baud rate must be a whole number from 1 to 2147483647, got 4294967296"),
 ])
 def test_errors_are_named_and_nothing_is_left_running(board, tmp_path, arguments, code, message):
     filled = [a.format(layout=board.layout, link=board.link, tmp=tmp_path) for a in arguments]

@@ -61,6 +61,20 @@ def test_csv_round_trip(recording, tmp_path):
     assert back.description == "five frames"
 
 
+def test_a_csv_cut_inside_its_last_value_leaves_that_row_out_and_says_so(recording, tmp_path):
+    path = save(recording, tmp_path / "whole.csv")
+    whole = path.read_text()
+    cut = tmp_path / "cut.csv"
+    cut.write_text(whole[:-3])  # a crash inside the last value: 1234.5678 would read as 1234.5
+    back, full = load(cut), load(path)
+    assert back.truncated and len(back) == len(recording) - 1 and not full.truncated
+    np.testing.assert_array_equal(back.frames, full.frames[:-1])
+    lone = tmp_path / "lone.csv"
+    lone.write_text(HEADER + "0, 1, 2")
+    with pytest.raises(RecordingError, match=r"no frames \(its one row has no line end: cut short\)"):
+        load(lone)
+
+
 def test_csv_keeps_a_multi_line_description_on_one_line(tmp_path):
     grid = SensorGrid.regular(2, 1, 1e-3, 1e-3)
     path = save(Recording(grid, np.ones((1, 2)), [0.0], None, "two\nlines"), tmp_path / "d.csv")
