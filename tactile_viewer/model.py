@@ -514,18 +514,32 @@ class ViewerModel:
             source.seek(index, now=time.perf_counter())
 
     def set_auto(self, auto: bool):
+        """Automatic parameters on or off. Leaving Auto starts from what it found on the frame shown
+        (not from manual values set long before: unticking Auto made the shear of a contact drop
+        from 401 to 3 mN)."""
         if bool(auto) != self.auto:
+            if not auto:
+                self.shear_ratio, self.shear_direction = self._found()
             self.auto = bool(auto)
             self.parameters_changed.emit()
             self._schedule()
 
+    def _found(self) -> tuple[float, float]:
+        # the parameters Auto shows (those of the frame's largest contact), or the manual ones
+        last = self.last
+        if not (self.auto and last is not None and last.auto):
+            return self.shear_ratio, self.shear_direction
+        return (min(float(last.result.shear_ratio), MAX_SHEAR_RATIO),
+                math.remainder(float(last.result.shear_direction), 2 * math.pi))
+
     def set_parameters(self, *, shear_ratio: float | None = None, shear_direction: float | None = None):
         """Manual parameters (a slider was touched): switches Auto off.
 
-        Both values are checked before either is stored; ``parameters_changed``
-        fires only when something changed.
+        A parameter not given keeps its manual value, or, when this leaves
+        Auto, what Auto found. Both values are checked before either is
+        stored; ``parameters_changed`` fires only when something changed.
         """
-        ratio, direction = self.shear_ratio, self.shear_direction
+        ratio, direction = self._found()
         if shear_ratio is not None:
             if not (math.isfinite(shear_ratio) and 0 <= shear_ratio <= MAX_SHEAR_RATIO):
                 raise ValueError(f"shear_ratio must be in [0, {MAX_SHEAR_RATIO}], got {shear_ratio!r}")

@@ -159,15 +159,8 @@ class ParametersPanel(QtWidgets.QGroupBox):
         model.solved.connect(lambda solved: self.follow() if solved.auto else None)
 
     def _manual(self, **changes):
-        if not self.model.is_open:
-            return
-        last = self.model.last
-        if self.model.auto and last is not None and last.auto:
-            # leaving Auto: the parameter not touched stays at what Auto showed, not at an old
-            # manual value the user cannot see
-            changes = {"shear_ratio": last.result.shear_ratio,
-                       "shear_direction": last.result.shear_direction, **changes}
-        self.model.set_parameters(**changes)
+        if self.model.is_open:
+            self.model.set_parameters(**changes)  # leaving Auto, the other keeps what Auto found
 
     def _on_recording(self):
         self.geometry_label.setText(geometry_text(self.model.grid))

@@ -411,6 +411,24 @@ def test_leaving_auto_from_one_slider_keeps_the_other_as_shown(opened, qtbot):
     assert panel.direction_spin.value() == pytest.approx(math.degrees(found.shear_direction), abs=0.05)
 
 
+def test_unticking_auto_starts_from_what_auto_found(opened, qtbot):
+    # it jumped to the manual values set before (0 and 0 deg for a newcomer): the shear fell from
+    # 401 to 3 mN on the screen
+    panel, model = opened.parameters, opened.model
+    found = model.last.result
+    assert model.auto and found.shear_ratio > 0.2 and (model.shear_ratio, model.shear_direction) == (0.0, 0.0)
+    with qtbot.waitSignal(opened.rendered, timeout=5000):
+        panel.auto_box.setChecked(False)
+    assert not model.auto
+    assert (model.shear_ratio, model.shear_direction) == (pytest.approx(found.shear_ratio),
+                                                          pytest.approx(found.shear_direction))
+    shown = model.last.result
+    assert not model.last.auto and shown.shear_ratio == pytest.approx(found.shear_ratio)
+    tangential = lambda r: math.hypot(*r.total_force[:2])  # noqa: E731
+    assert tangential(shown) == pytest.approx(tangential(found), rel=0.1)
+    assert panel.ratio_slider.value() == round(found.shear_ratio * 100)
+
+
 def test_closing_while_a_recording_is_factored_leaves_nothing_running(window, qtbot):
     import threading
 
