@@ -451,6 +451,9 @@ class ViewerModel:
             calibration = calibration.retared(Tare(0, untared.mean(axis=0), taken, len(rows)))
             text = f"tare from frames {rows[0]} to {rows[-1]}"
         source.recalibrate(calibration)
+        # the scales follow the stresses now shown (cleared, a tare's offsets are load: the resultant
+        # kept the scale of the tared frames and was drawn 50 mm long)
+        self.set_display(**_display_scales(source, self.reconstructor))
         return text
 
     def _stop(self, source: Source):

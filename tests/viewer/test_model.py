@@ -9,7 +9,7 @@ import pytest
 
 from solver import ContactTracker, Reconstructor, SensorGrid, loads
 from solver.kernels import KERNELS
-from tactile_viewer.model import MAX_SHEAR_RATIO, Display, Solved, ViewerModel, geometry_text
+from tactile_viewer.model import MAX_SHEAR_RATIO, Display, Solved, ViewerModel, _display_scales, geometry_text
 from tactile_viewer.recording import Recording
 from tactile_viewer.source import RecordingSource, Source, SourceFrame
 
@@ -693,6 +693,30 @@ def test_a_tare_retaken_cleared_or_restored_changes_what_is_solved_not_the_file(
     with pytest.raises(ValueError, match="frames must be a positive integer, got 0"):
         model.retare("here", frames=0)
     assert hashlib.sha256(path.read_bytes()).hexdigest() == before  # the raw values are untouched
+
+
+def test_the_display_scales_follow_a_tare_cleared_or_taken(recording, reconstructor, tmp_path):
+    from tactile_viewer.container import Recorder
+    from tactile_viewer.recording import StressCalibration, Tare, load
+
+    # an untared board reads a large offset: cleared, the scales must be those of what is shown
+    path = tmp_path / "take.mcap"
+    offset = np.full(recording.grid.size, 20 * float(np.abs(recording.frames[:]).max()))
+    recorder = Recorder(path, recording.grid, dtype="float64", calibration=StressCalibration(
+        "Pa", 1.0, 0.0, (Tare(0, offset, t=0.0, frames=50),)))
+    for k in range(4):
+        recorder.add(k, float(recording.t[k]), np.asarray(recording.frames[k]) + offset)
+    recorder.close()
+    model = ViewerModel()
+    source = RecordingSource(load(path), path)
+    model.set_source(source, reconstructor)
+    tared = model.display
+    model.retare("clear")
+    assert model.display.resultant_scale == pytest.approx(_display_scales(source, reconstructor)["resultant_scale"])
+    assert model.display.resultant_scale < tared.resultant_scale / 5  # the total is far larger now
+    model.retare("recorded")
+    assert model.display.resultant_scale == pytest.approx(tared.resultant_scale)
+    assert model.display.arrow_scale == pytest.approx(tared.arrow_scale)
 
 
 def test_retare_errors_are_named(model):
