@@ -32,8 +32,10 @@ lose what it had not yet written back.
 from __future__ import annotations
 
 import contextlib
+import errno
 import io
 import json
+import os
 import struct
 import threading
 import zlib
@@ -75,6 +77,11 @@ _CHUNK_BYTES = 2**31  # past any second of frames (a 1000x1000 skin at 1 kHz wri
 _MESSAGE_HEAD = 9 + 22  # record header, then channel u16, sequence u32, log time u64, publish time u64
 # no metadata record of ours comes near this; a larger one is damage, not data
 _MAX_METADATA = 64 * 2**20
+
+
+def _not_through_a_link(path, flags):
+    # open()'s opener: O_NOFOLLOW refuses a symbolic link as the file itself (ELOOP)
+    return os.open(path, flags | os.O_NOFOLLOW, 0o666)
 
 
 class Recorder:
@@ -128,7 +135,14 @@ class Recorder:
         self._first_t: float | None = None  # receive time of the first frame recorded
         self._lock = threading.Lock()
         calibration = calibration or StressCalibration.identity(grid.size)
-        self._stream = open(path, "wb")  # noqa: SIM115 (closed by close or abandon)
+        # never through a link (a dangling one at the path created its target)
+        try:
+            self._stream = open(path, "wb", opener=_not_through_a_link)  # noqa: SIM115 (close, abandon)
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                raise OSError(exc.errno, "is a symbolic link: a recording is not written through one",
+                              str(path)) from None
+            raise
         try:
             # chunks close on time (flush_interval), not on mcap's default 1 MiB
             writer = Writer(self._stream, compression=CompressionType.NONE, chunk_size=_CHUNK_BYTES)

@@ -12,6 +12,7 @@ No Qt.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -45,7 +46,7 @@ def main(argv=None) -> int:
     except (OSError, LayoutError) as exc:
         print(f"tactile-record: {exc}", file=sys.stderr)
         return 2
-    if Path(args.out).exists() and not args.overwrite:
+    if os.path.lexists(args.out) and not args.overwrite:  # a dangling link is something there too
         print(f"tactile-record: {args.out} exists: not replacing a recording (--overwrite replaces it)",
               file=sys.stderr)
         return 2
@@ -95,9 +96,12 @@ def main(argv=None) -> int:
         closing = time.perf_counter() - closing
         reader.stop()
     stats = reader.stats
-    print(f"stopped: {recorder.added} frames recorded to {written or args.out} (closed in "
+    # what the file holds, not what was handed to the recorder (after a write error they differ)
+    unwritten = recorder.added - recorder.written
+    print(f"stopped: {recorder.written} frames recorded to {written or args.out} (closed in "
           f"{closing * 1e3:.0f} ms), lost {stats.lost}, rejected {sum(reader.rejected().values())}, "
-          f"longest wait between frames {stats.longest_gap * 1e3:.0f} ms", flush=True)
+          f"longest wait between frames {stats.longest_gap * 1e3:.0f} ms"
+          + (f"; {unwritten} received but not written" if unwritten else ""), flush=True)
     mismatch = reader.size_mismatch(Path(args.layout).name)
     if mismatch:
         print(f"tactile-record: rejected for their value count: {mismatch}", file=sys.stderr, flush=True)

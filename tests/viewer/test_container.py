@@ -132,6 +132,20 @@ def test_recorder_arguments_are_checked(tmp_path, name, options, message):
     assert not (tmp_path / name).exists()
 
 
+@pytest.mark.parametrize("target", ["missing.mcap", "elsewhere.mcap"])
+def test_a_recording_is_not_written_through_a_symbolic_link(tmp_path, target):
+    # a dangling link at the path created its target
+    link = tmp_path / "take.mcap"
+    link.symlink_to(tmp_path / target)
+    if target == "elsewhere.mcap":
+        (tmp_path / target).write_bytes(b"another file")
+    with pytest.raises(OSError, match=r"is a symbolic link: a recording is not written through one"):
+        Recorder(link, grid32())
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted({"take.mcap", target} - {"missing.mcap"})
+    if target == "elsewhere.mcap":
+        assert (tmp_path / target).read_bytes() == b"another file"
+
+
 def test_a_frame_of_the_wrong_size_is_refused(tmp_path):
     recorder = Recorder(tmp_path / "live.mcap", grid32())
     with pytest.raises(ValueError, match=r"a frame must have 6 values, got shape \(5,\)"):
@@ -197,8 +211,8 @@ def test_a_full_disk_stops_the_recording_and_keeps_what_fit(tmp_path, monkeypatc
     grid = grid32()
     path = tmp_path / "full.mcap"
     FullDisk.room = 4000  # metadata and a few chunks of 6-value frames
-    monkeypatch.setattr(container, "open", lambda name, mode: io.BufferedWriter(FullDisk(name, "w"))
-                        if mode == "wb" else open(name, mode), raising=False)
+    monkeypatch.setattr(container, "open", lambda name, mode, **kw: io.BufferedWriter(FullDisk(name, "w", **kw))
+                        if mode == "wb" else open(name, mode, **kw), raising=False)
     source = Publisher("board", grid)
     messages = []
     source.message.connect(lambda *m: messages.append(m))
@@ -386,8 +400,8 @@ def test_a_torn_last_chunk_leaves_the_chunks_before_it(tmp_path, where):
 def test_a_recorder_whose_write_failed_writes_nothing_more(tmp_path, monkeypatch):
     path = tmp_path / "full.mcap"
     FullDisk.room = 3000
-    monkeypatch.setattr(container, "open", lambda name, mode: io.BufferedWriter(FullDisk(name, "w"))
-                        if mode == "wb" else open(name, mode), raising=False)
+    monkeypatch.setattr(container, "open", lambda name, mode, **kw: io.BufferedWriter(FullDisk(name, "w", **kw))
+                        if mode == "wb" else open(name, mode, **kw), raising=False)
     recorder = Recorder(path, grid32(), flush_interval=0.05, dtype="float64")
     stress = frames_for(100, seed=13)  # fixed seed
     with pytest.raises(OSError, match="No space left on device"):

@@ -433,10 +433,10 @@ def test_a_read_only_target_is_refused_and_the_reader_goes_on(pty, make_reader, 
 
     from tactile_viewer import container
 
-    def read_only(name, mode):
+    def read_only(name, mode, **options):
         if "w" in mode:  # a folder turned read-only (root ignores chmod, so the refusal is injected)
             raise PermissionError(errno.EACCES, "Permission denied", str(name))
-        return open(name, mode)
+        return open(name, mode, **options)
     monkeypatch.setattr(container, "open", read_only, raising=False)
     reader = make_reader()
     reader.start()

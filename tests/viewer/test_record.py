@@ -33,7 +33,8 @@ class SlowDisk(io.FileIO):
         marker.unlink()
         return done
 
-container.open = lambda name, mode: io.BufferedWriter(SlowDisk(name, "w")) if mode == "wb" else io.open(name, mode)
+container.open = lambda name, mode, **kw: (io.BufferedWriter(SlowDisk(name, "w", **kw)) if mode == "wb"
+                                          else io.open(name, mode, **kw))
 sys.exit(record.main(sys.argv[2:]))
 """
 
@@ -134,6 +135,51 @@ def test_errors_are_named_and_nothing_is_left_running(board, tmp_path, arguments
     assert done.returncode == code
     assert re.search(message, done.stderr), done.stderr
     assert not (tmp_path / "a.mcap").exists()
+
+
+FULL_DISK = """
+import errno, io, sys
+from tactile_viewer import container, record
+
+class FullDisk(io.FileIO):
+    room = 60000  # bytes: the header and a chunk or two of 16x16 frames
+    def write(self, data):
+        if len(data) > FullDisk.room:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        FullDisk.room -= len(data)
+        return super().write(data)
+
+container.open = lambda name, mode, **kw: (io.BufferedWriter(FullDisk(name, "w", **kw)) if mode == "wb"
+                                          else io.open(name, mode, **kw))
+sys.exit(record.main(sys.argv[1:]))
+"""
+
+
+def test_after_a_write_error_the_last_line_counts_what_the_file_holds(board, tmp_path):
+    # it said 2,303 frames recorded for a file holding none: it counted the frames handed over
+    path = tmp_path / "full.mcap"
+    done = subprocess.run([sys.executable, "-c", FULL_DISK, str(board.link), "--layout", str(board.layout),
+                           "--out", str(path), "--duration", "3"], capture_output=True, text=True, timeout=30)
+    assert done.returncode == 1 and "No space left on device" in done.stderr
+    last = done.stdout.strip().splitlines()[-1]
+    recorded = int(last.split()[1])
+    held = len(load(path)) if recorded else 0
+    assert last.startswith("stopped: ") and recorded == held
+    assert re.search(r"; \d+ received but not written$", last), last
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_the_output_is_never_written_through_a_dangling_link(board, tmp_path, overwrite):
+    # --out followed a dangling symbolic link and created its target
+    link, target = tmp_path / "take.mcap", tmp_path / "target.mcap"
+    link.symlink_to(target)
+    done = subprocess.run([sys.executable, "-m", "tactile_viewer.record", str(board.link), "--layout",
+                           str(board.layout), "--out", str(link), "--duration", "1",
+                           *(["--overwrite"] if overwrite else [])], capture_output=True, text=True, timeout=30)
+    assert done.returncode == (1 if overwrite else 2)
+    assert ("is a symbolic link: a recording is not written through one" if overwrite else
+            "exists: not replacing a recording") in done.stderr
+    assert not target.exists() and link.is_symlink()
 
 
 def test_an_existing_recording_is_not_replaced_without_overwrite(board, tmp_path):
