@@ -24,7 +24,7 @@ from .export_dialogs import ExportActions  # noqa: E402
 from .hover import TaxelReadout  # noqa: E402
 from .live_panel import LivePanel  # noqa: E402
 from .model import ViewerModel  # noqa: E402
-from .panels import DisplayPanel, ParametersPanel, PlaybackPanel, status_text  # noqa: E402
+from .panels import DisplayPanel, ParametersPanel, PlaybackPanel, status_details, status_text  # noqa: E402
 from .preferences import (  # noqa: E402
     RecentFiles,
     last_folder,
@@ -431,6 +431,7 @@ class MainWindow(QtWidgets.QMainWindow):
     def _on_solved(self, solved):
         self.scene.update(solved, self.model.display, render=False)
         self.status.setText(status_text(solved, self.model))
+        self.status.setToolTip(status_details(solved))
         self._draw()
         if self._first_frame:
             self._first_frame = False

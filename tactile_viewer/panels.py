@@ -19,7 +19,8 @@ from solver.kernels import KERNELS
 from .model import KERNEL_HELP, MAX_SHEAR_RATIO, Solved, ViewerModel, geometry_text
 from .source import RecordingSource
 
-__all__ = ["ParametersPanel", "DisplayPanel", "PlaybackPanel", "status_text", "MAP_CHOICES", "SPEEDS"]
+__all__ = ["ParametersPanel", "DisplayPanel", "PlaybackPanel", "status_text", "status_details", "MAP_CHOICES",
+           "SPEEDS"]
 
 MAP_CHOICES = (("normal pressure", "pressure"), ("sensor stress", "stress"), ("none", "none"))
 SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0)
@@ -53,31 +54,67 @@ def _show_number(field: QtWidgets.QDoubleSpinBox, value: float):
     field.setValue(value)
 
 
+# contacts named on the status line; the rest are in its tooltip
+STATUS_CONTACTS = 3
+
+
 def status_text(solved: Solved, model: ViewerModel) -> str:
-    """The status line of a solved frame: where, how fast, the parameters, the fit, the forces."""
+    """The status line of a solved frame: where, how fast, the parameters, the forces.
+
+    Short enough for a 1280 px window with several contacts and the taxel
+    read-out beside it; the fit's figures and every contact are in
+    :func:`status_details` (the line's tooltip).
+    """
     r = solved.result
     total = r.total_force
     if r.fallback:
-        # a load too broad for the accurate path within its budget: the solver says what it did
-        shear = f"cheaper answer, {r.fallback}"
+        # a load too broad for the accurate path within its budget: what the solver did, in short
+        shear = f"cheaper answer: {r.fallback.split(':', 1)[0]}"
     elif r.normal_only:
         shear = "normal only"  # the fast preset
-    elif solved.auto and not r.shear_detected:
-        shear = "auto: no shear signature"
     else:
-        shear = (f"{'auto' if solved.auto else 'manual'}: mu {r.shear_ratio:.2f}, "
-                 f"theta {math.degrees(r.shear_direction):+.0f} deg")
-    if len(r.contacts) > 1:  # each contact has its own parameters
-        shear += "  (" + "; ".join(
-            f"contact {c.identity or k + 1}: mu {c.shear_ratio:.2f}, theta "
-            f"{math.degrees(c.shear_direction):+.0f}" for k, c in enumerate(r.contacts)) + ")"
+        mode = "auto" if solved.auto else "manual"
+        contacts = r.contacts if len(r.contacts) > 1 else ()
+        if not contacts:
+            shear = (f"{mode}: no shear signature" if solved.auto and not r.shear_detected else
+                     f"{mode}: mu {r.shear_ratio:.2f}, theta {math.degrees(r.shear_direction):+.0f} deg")
+        else:
+            named = "; ".join(_contact_text(c, k) for k, c in enumerate(contacts[:STATUS_CONTACTS]))
+            more = len(contacts) - STATUS_CONTACTS
+            shear = f"{mode}: {named}" + (f"; {more} more" if more > 0 else "")
     where = (f"seq {solved.frame}" if solved.frame >= 0 else "live") if model.live \
         else f"frame {solved.frame} (of 0-{len(model.recording) - 1})"
-    return (f"{where}  t {solved.time:.3f} s  |  "
-            f"solve {solved.solve_ms:.2f} ms  |  {shear}  |  efficiency {r.efficiency:.3f}  "
-            f"residual {r.residual:.1e}  condition {r.condition:.3g}"
-            f"{' (damped)' if r.regularized else ''}  |  "
+    return (f"{where}  t {solved.time:.3f} s  |  {solved.solve_ms:.2f} ms  |  {shear}  |  "
             f"Fz {total[2] * 1e3:.1f} mN  Ft {math.hypot(total[0], total[1]) * 1e3:.1f} mN")
+
+
+def _contact_text(contact, k: int) -> str:
+    number = contact.identity or k + 1
+    if contact.shear_ratio == 0:
+        return f"#{number} no shear"
+    return f"#{number} mu {contact.shear_ratio:.2f} {math.degrees(contact.shear_direction):+.0f} deg"
+
+
+def status_details(solved: Solved) -> str:
+    """The status line's tooltip: every contact, the fit's figures in words, a cheaper answer's reason."""
+    r = solved.result
+    lines = []
+    if r.fallback:
+        lines.append(f"Cheaper answer: {r.fallback}")
+    for k, contact in enumerate(r.contacts):
+        fz = contact.total_force[2]
+        lines.append(f"{_contact_text(contact, k)}, Fz {fz * 1e3:.1f} mN"
+                     + (" (on the skin's edge)" if contact.at_edge else ""))
+    if math.isfinite(r.efficiency):
+        lines.append(f"efficiency {r.efficiency:.3f}: how much of the sensor stress the fitted contact load "
+                     "explains (1: all of it)")
+    else:
+        lines.append("efficiency: none (no contact load was fitted: a normal-only answer or an empty frame)")
+    lines.append(f"residual {r.residual:.1e}: the sensor stress the forces shown leave unexplained, "
+                 "relative to the stress")
+    lines.append(f"condition {r.condition:.3g}: how much the inversion can amplify sensor noise"
+                 + (" (damped: the layer is thick for its pitch)" if r.regularized else ""))
+    return "\n".join(lines)
 
 
 class ParametersPanel(QtWidgets.QGroupBox):

@@ -9,7 +9,7 @@ import pytest
 import pyvista as pv
 
 from tactile_viewer.export import load_forces, reconstruct_frames
-from tactile_viewer.recording import load
+from tactile_viewer.recording import Recording, load
 
 SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
 
@@ -28,7 +28,7 @@ def test_window_opens_on_each_sample(window, qtbot, name):
     assert window.scene.arrows.n_points > 0
     assert name in window.windowTitle()
     # frames are numbered from 0 everywhere: window, exports, sidecars, --frame, --report
-    assert "frame 0 (of 0-" in window.status.text() and "efficiency" in window.status.text()
+    assert "frame 0 (of 0-" in window.status.text() and "efficiency" in window.status.toolTip()
     assert window.playback.time_label.text().startswith("frame 0 (of 0-")
 
 
@@ -356,7 +356,25 @@ def test_separate_contacts_are_reported_each_with_its_parameters(window, qtbot):
     assert len(result.contacts) == 2
     directions = sorted(round(math.degrees(c.shear_direction)) for c in result.contacts)
     assert abs(directions[0] - math.degrees(-2.0)) < 10 and abs(directions[1] - math.degrees(0.5)) < 10
-    assert "contact 1: mu" in window.status.text() and "contact 2: mu" in window.status.text()
+    assert "#1 mu" in window.status.text() and "#2 mu" in window.status.text()
+
+
+def test_the_status_line_fits_a_1280_px_window_with_three_contacts(window, qtbot):
+    # with two contacts it was cut at the right edge; "efficiency nan" showed on the fast preset and
+    # empty frames; efficiency, residual and condition were jargon without a word of explanation
+    window.resize(1280, 800)
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        assert window.open(SAMPLES / "three_contacts.npz")
+    qtbot.waitUntil(lambda: len(window.model.last.result.contacts) == 3, timeout=10000)
+    text, tip = window.status.text(), window.status.toolTip()
+    assert "#1 " in text and "#2 " in text and "#3 " in text and "nan" not in text
+    room = window.statusBar().width() - window.readout_label.sizeHint().width()
+    assert window.status.fontMetrics().horizontalAdvance(text) < room, (text, room)
+    assert "efficiency" in tip and "explains" in tip and "residual" in tip and "condition" in tip
+    assert tip.count(" mN") >= 3  # every contact, with its force
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        window.show_recording(Recording(window.model.grid, np.zeros((2, window.model.grid.size)), [0.0, 0.1]))
+    assert "nan" not in window.status.text() and "efficiency: none" in window.status.toolTip()
 
 
 def test_kernels_come_from_the_solver_with_its_default_first(window):
