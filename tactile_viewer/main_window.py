@@ -411,6 +411,11 @@ class MainWindow(QtWidgets.QMainWindow):
         self.setWindowTitle(f"tactile-viewer - live: {source.label}" if source.live else
                             f"tactile-viewer - {name}")
         self._set_enabled(True)
+        recording = self.model.recording
+        if recording is not None and recording.truncated:
+            self._on_message("warning", "Recording cut short:",
+                             f"{name} ends at its last complete chunk or row (a crash or a full disk while "
+                             "it was written); every frame before is kept")
         if self.model.current is None and self.model.live:
             self.ready.emit()  # no frame yet: the first to arrive is solved and drawn as it comes
         else:

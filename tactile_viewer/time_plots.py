@@ -581,6 +581,12 @@ class TimePlotsDock(QtWidgets.QDockWidget):
     def _clicked(self, event):
         if event.button() != QtCore.Qt.MouseButton.LeftButton:
             return
+        if event.double():
+            # undo any zoom, as a double-click does in most plotting tools (pyqtgraph's own is a small
+            # corner button)
+            for plot in self.plots.values():
+                plot.enableAutoRange()
+            return
         position = event.scenePos()
         for plot in self.plots.values():
             box = plot.getViewBox()

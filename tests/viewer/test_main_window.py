@@ -180,6 +180,16 @@ def test_a_recording_whose_values_overflow_leaves_the_window_working(opened, qtb
     assert opened.model.grid.size == 256 and len(opened.errors) == errors
 
 
+def test_a_recording_cut_short_says_so_when_it_opens(window, qtbot, tmp_path):
+    # it opened with no word that its end was lost
+    cut = tmp_path / "cut.csv"
+    cut.write_text("# nx=2\n# ny=2\n# pitch=0.002\n# thickness=0.002\n0.0, 1, 2, 3, 4\n0.1, 1, 2, 3, 4\n0.2, 1, 2")
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        assert window.open(cut)
+    assert "Recording cut short: cut.csv ends at its last complete chunk or row" in window.statusBar().currentMessage()
+    assert len(window.model.recording) == 2
+
+
 def read_png(path):
     image = pv.read(path)
     name = image.point_data.keys()[0]

@@ -152,6 +152,29 @@ def test_a_click_on_a_plot_seeks_to_the_nearest_frame(window, shown, qtbot):
     qtbot.waitUntil(lambda: lines_at(shown, t[25]), timeout=5000)  # then at the frame drawn
 
 
+def test_a_double_click_undoes_a_zoom(window, shown, qtbot):
+    from PyQt6 import QtCore
+
+    box = shown.plots["fz"].getViewBox()
+    qtbot.waitUntil(lambda: box.viewRange()[0][1] > 0, timeout=5000)
+    whole = box.viewRange()[0]
+    box.scaleBy((0.2, 0.2))  # as the wheel does
+    shown.plots["tangential"].getViewBox().scaleBy((0.3, 0.3))
+    qtbot.waitUntil(lambda: box.viewRange()[0][1] - box.viewRange()[0][0] < 0.5 * (whole[1] - whole[0]),
+                    timeout=5000)
+    x = (box.viewRange()[0][0] + box.viewRange()[0][1]) / 2
+    (_, _), (low, high) = box.viewRange()
+    point = shown.graphics.mapFromScene(box.mapViewToScene(QtCore.QPointF(x, (low + high) / 2)))
+    # a double click as the window system sends it: press, release, double-click (the second press), release
+    view, left = shown.graphics.viewport(), QtCore.Qt.MouseButton.LeftButton
+    qtbot.mouseClick(view, left, pos=point)
+    qtbot.mouseDClick(view, left, pos=point)
+    qtbot.mouseRelease(view, left, pos=point)
+    qtbot.waitUntil(lambda: box.viewRange()[0] == pytest.approx(whole, rel=1e-6), timeout=5000)
+    other = shown.plots["tangential"].getViewBox()
+    qtbot.waitUntil(lambda: other.viewRange()[0] == pytest.approx(whole, rel=1e-6), timeout=5000)
+
+
 def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(window, shown, qtbot):
     from dataclasses import replace
 
