@@ -104,6 +104,24 @@ def _broken(x, y, jump=180.0):
     return np.insert(x, cut, (x[cut - 1] + x[cut]) / 2), np.insert(y, cut, np.nan)
 
 
+# A pause between two frames this many times the usual one is an outage (a board unplugged, frames
+# lost): the curves are not drawn across it.
+OUTAGE = 5.0
+
+
+def _outages_cut(x, y):
+    # the curve is cut where time jumps by OUTAGE times the median step (a straight line across an
+    # outage would show values nobody measured)
+    if len(x) < 3:
+        return x, y
+    steps = np.diff(x)
+    usual = float(np.median(steps))
+    cut = np.flatnonzero(steps > OUTAGE * usual) + 1 if usual > 0 else np.zeros(0, int)
+    if not cut.size:
+        return x, y
+    return np.insert(x, cut, (x[cut - 1] + x[cut]) / 2), np.insert(np.asarray(y, float), cut, np.nan)
+
+
 class TimePlotsDock(QtWidgets.QDockWidget):
     """Plots of the whole recording over time, a cursor at the frame shown; click to seek.
 
@@ -540,7 +558,7 @@ class TimePlotsDock(QtWidgets.QDockWidget):
     def _set(curve, x, y, wrap):
         if wrap:
             x, y = _broken(x, y)
-        curve.setData(x, y)
+        curve.setData(*_outages_cut(x, y))
 
     def _move_lines(self, x: float):
         # the one thing that moves during playback: a few line items, never the curves

@@ -285,6 +285,22 @@ def test_nothing_to_export_before_a_recording(dock):
     assert dock.errors == [("Nothing to export", "no series has been solved yet")]
 
 
+def test_curves_are_not_drawn_across_an_outage():
+    from tactile_viewer.time_plots import OUTAGE, _outages_cut
+
+    # a board at 100 Hz, unplugged for a second: no straight line across the second nobody measured
+    t = np.r_[np.arange(10) * 0.01, 1.09 + np.arange(5) * 0.01]
+    y = np.arange(15.0)
+    x, cut = _outages_cut(t, y)
+    assert np.isnan(cut).sum() == 1 and np.flatnonzero(np.isnan(cut)).tolist() == [10]
+    assert x[10] == pytest.approx((t[9] + t[10]) / 2)
+    np.testing.assert_array_equal(cut[~np.isnan(cut)], y)
+    # frames a little late are no outage
+    steady = np.cumsum(np.r_[0.0, np.full(9, 0.01), 0.01 * (OUTAGE - 0.5), np.full(4, 0.01)])
+    assert not np.isnan(_outages_cut(steady, y)[1]).any()
+    assert _outages_cut(t[:2], y[:2])[1].tolist() == [0.0, 1.0]
+
+
 def test_a_live_source_draws_the_frames_solved_so_far(window, qtbot):
     from PyQt6 import QtCore
 
