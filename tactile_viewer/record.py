@@ -1,4 +1,4 @@
-"""``tactile-record``: record a live board to an MCAP file without a display (robot PCs).
+"""tactile-record: record a live board to an MCAP file without a display (robot PCs).
 
 ``tactile-record URL --layout LAYOUT.json --out FILE.mcap [--format text|binary] [--duration S]``
 records every frame the board sends (raw values, their calibration, receive
@@ -35,7 +35,8 @@ def main(argv=None) -> int:
     parser.add_argument("--out", required=True, metavar="FILE.mcap", help="the recording to write")
     parser.add_argument("--overwrite", action="store_true", help="replace FILE.mcap if it exists")
     parser.add_argument("--format", choices=FORMATS, default="binary", help="the board's frame format")
-    parser.add_argument("--baudrate", type=int, default=115200)
+    parser.add_argument("--baudrate", type=int, default=115200,
+                        help="the board's baud rate (default 115200; pseudo-terminals and sockets ignore it)")
     parser.add_argument("--duration", type=float, metavar="S",
                         help="stop after S seconds (default: on Ctrl+C or SIGTERM)")
     args = parser.parse_args(argv)

@@ -33,6 +33,7 @@ No Qt here: the command line, the tests and the solver tools use it too.
 from __future__ import annotations
 
 import contextlib
+import datetime
 import io
 import math
 import os
@@ -162,6 +163,12 @@ def written_whole(path):
         os.replace(temporary, path)
     finally:
         temporary.unlink(missing_ok=True)
+
+
+def _clock(unix: float) -> str:
+    # "2023-11-14 22:13:20.000 UTC (1700000000.000000 s)"
+    when = datetime.datetime.fromtimestamp(unix, datetime.UTC)
+    return f"{when:%Y-%m-%d %H:%M:%S}.{when.microsecond // 1000:03d} UTC ({unix:.6f} s)"
 
 
 def json_ready(fields: dict) -> dict:
@@ -871,8 +878,9 @@ def facts(recording: Recording) -> list[str]:
     if recording.received is None:
         lines += ["first received unknown (the file keeps no receive clock)", "last received unknown"]
     else:
-        lines += [f"first received {recording.received:.6f}",
-                  f"last received {recording.received + float(recording.t[-1]):.6f}"]
+        # a date and clock time a person reads (UTC, to the millisecond), the UNIX seconds beside it
+        lines += [f"first received {_clock(recording.received)}",
+                  f"last received {_clock(recording.received + float(recording.t[-1]))}"]
     lines.append("cut short yes: it ends at its last complete chunk or row (a crash or a full disk)"
                  if recording.truncated else "cut short no")
     size = (f"{grid.shape[1]}x{grid.shape[0]} taxels" if len(grid.shape) == 2
@@ -889,7 +897,9 @@ def facts(recording: Recording) -> list[str]:
             if np.ndim(value) == 0:
                 return f"{value:g}"
             return f"per taxel ({np.min(value):g} to {np.max(value):g})"
-        tares = "; ".join(f"from frame {tare.from_frame} (taken at {tare.t:.3f} s, {tare.frames} frames)"
+        def when(tare):  # a tare of a file that kept no time for it says so, not "nan s"
+            return f"taken at {tare.t:.3f} s" if math.isfinite(tare.t) else "taken at an unknown time"
+        tares = "; ".join(f"from frame {tare.from_frame} ({when(tare)}, {tare.frames} frames)"
                           for tare in calibration.tares) or "none"
         lines.append(f"calibration raw {recording.frames.raw_dtype.name} in {fields['units']}, "
                      f"gain {shown(fields['gain'])}, offset {shown(fields['offset'])}, tares: {tares}")

@@ -1,4 +1,4 @@
-"""``tactile-sim``: a virtual sensor board streaming simulated contacts.
+"""tactile-sim: a virtual sensor board streaming simulated contacts.
 
 It creates a pseudo-terminal and prints its device path (``--link PATH`` also
 makes a stable symlink to it, so a restarted board reappears at the same
@@ -548,23 +548,26 @@ def main(argv=None) -> int:
     parser.add_argument("--scene", choices=tuple(SCENES), default="circle", metavar="NAME",
                         help=f"what the board feels (default circle), one of: {scenes}".replace("%", "%%"))
     parser.add_argument("--rate", type=float, default=100.0, help="frames per second (max 1000)")
-    parser.add_argument("--format", choices=("binary", "text"), default="binary")
+    parser.add_argument("--format", choices=("binary", "text"), default="binary",
+                        help="frames as binary packets with a CRC (default) or as text lines")
     parser.add_argument("--checksum", action="store_true",
                         help="end each text line with *XXXX, its CRC-16 (text format only)")
-    parser.add_argument("--nx", type=int, default=16)
-    parser.add_argument("--ny", type=int, default=16)
+    parser.add_argument("--nx", type=int, default=16, help="taxels along x (default 16)")
+    parser.add_argument("--ny", type=int, default=16, help="taxels along y (default 16)")
     parser.add_argument("--pitch", type=float, default=2e-3, help="metres")
     parser.add_argument("--thickness", type=float, default=2e-3, help="metres")
     parser.add_argument("--poisson-ratio", type=float, default=0.5,
                         help="Poisson ratio nu of the elastomer, in [0, 0.5] (default 0.5: incompressible)")
     parser.add_argument("--sensor-size", type=float, default=0.0,
                         help="side of a square taxel, metres, at most the pitch (default 0: point sensors)")
-    parser.add_argument("--units", choices=("Pa", "kPa", "MPa"), default="kPa")
-    parser.add_argument("--noise", type=float, default=0.01)
+    parser.add_argument("--units", choices=("Pa", "kPa", "MPa"), default="kPa",
+                        help="units of the values sent (default kPa)")
+    parser.add_argument("--noise", type=float, default=0.01,
+                        help="sensor noise relative to the peak stress (default 0.01)")
     parser.add_argument("--garbage", type=float, default=0.0, help="probability of a garbage burst per frame")
     parser.add_argument("--dropout", type=float, default=0.0, help="probability of dropping a frame")
     parser.add_argument("--duration", type=float, default=math.inf, help="seconds, then exit")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the noise and garbage (default 0)")
     parser.add_argument("--url", help="write to this pyserial URL instead of a pseudo-terminal")
     parser.add_argument("--link", type=Path, help="symlink to the pseudo-terminal (a stable device path)")
     parser.add_argument("--layout", type=Path, help="write the matching sensor layout JSON here")

@@ -1,4 +1,4 @@
-"""``tactile-tradeoff``: measure speed against accuracy for a geometry; table, CSV and plot.
+"""tactile-tradeoff: measure speed against accuracy for a geometry; table, CSV and plot.
 
 The measurements are :mod:`measurement.tradeoff`'s; this module adds the command
 line and draws the time-against-error plot with its Pareto front (a pyvista
@@ -135,8 +135,8 @@ def chart_of(measurements, *, title=""):
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="tactile-tradeoff", description=__doc__.splitlines()[0])
-    parser.add_argument("--nx", type=int, default=16)
-    parser.add_argument("--ny", type=int, default=16)
+    parser.add_argument("--nx", type=int, default=16, help="taxels along x (default 16)")
+    parser.add_argument("--ny", type=int, default=16, help="taxels along y (default 16)")
     parser.add_argument("--pitch", type=float, default=2e-3, help="metres")
     parser.add_argument("--thickness", type=float, default=2e-3, help="metres")
     parser.add_argument("--poisson-ratio", type=float, default=0.5,

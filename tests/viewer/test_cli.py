@@ -131,13 +131,29 @@ def test_info_prints_one_fact_per_line_of_a_live_recording_cut_short(tmp_path, c
     # never closed (a crash): the frames of the complete chunk are there
     assert main([str(path), "--info"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[:6] == ["frames 6", "span 0.500 s", "sequence gaps 2", "first received 1700000000.000000",
-                         "last received 1700000000.500000",
+    assert lines[:6] == ["frames 6", "span 0.500 s", "sequence gaps 2",
+                         "first received 2023-11-14 22:13:20.000 UTC (1700000000.000000 s)",
+                         "last received 2023-11-14 22:13:20.500 UTC (1700000000.500000 s)",
                          "cut short yes: it ends at its last complete chunk or row (a crash or a full disk)"]
     assert lines[6] == ("geometry 3x2 taxels, pitch 2 mm, thickness 1.5 mm, poisson ratio 0.5, "
                         "sensor size 0 mm")
     assert lines[7] == ("calibration raw float32 in kPa, gain 2, offset 0.5, tares: from frame 0 "
                         "(taken at 0.000 s, 50 frames)")
+
+
+def test_info_says_when_a_tare_was_taken_or_that_it_is_unknown(tmp_path, capsys):
+    from tactile_viewer.container import Recorder
+    from tactile_viewer.recording import StressCalibration, Tare
+    from tests.viewer.skins import grid32
+
+    path = tmp_path / "take.mcap"
+    calibration = StressCalibration("Pa", 1.0, 0.0, (Tare(0, np.zeros(6)),))  # no time kept: it said "nan s"
+    recorder = Recorder(path, grid32(), calibration=calibration)
+    recorder.add(0, 0.0, np.ones(6))
+    recorder.close()
+    assert main([str(path), "--info"]) == 0
+    out = capsys.readouterr().out
+    assert "tares: from frame 0 (taken at an unknown time, 0 frames)" in out and "nan" not in out
 
 
 def test_info_says_what_an_npz_does_not_keep(capsys):
@@ -163,3 +179,24 @@ def test_a_frame_out_of_range_is_named_as_for_a_movie(tmp_path, capsys, monkeypa
     assert capsys.readouterr().err == (f"tactile-viewer: --frame must be a whole number from 0 to 29 (the frame to "
                                        f"report or render, numbered from 0; the recording has 30 frames), got {frame}\n")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("module", ["simulator", "record", "tradeoff", "__main__"])
+def test_every_command_says_in_plain_words_what_each_option_is(module, capsys, monkeypatch):
+    import argparse
+    import importlib
+    import re as regex
+
+    command = importlib.import_module(f"tactile_viewer.{module}")
+    parsers = []
+    parse = argparse.ArgumentParser.parse_args
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args",
+                        lambda self, *a, **k: (parsers.append(self), parse(self, *a, **k))[1])
+    with pytest.raises(SystemExit) as done:
+        command.main(["--help"])
+    assert done.value.code == 0
+    text = capsys.readouterr().out
+    # reStructuredText markup was printed as it is written
+    assert not regex.search(r"``|:(func|class|mod|data|meth):", text), text
+    bare = [action.option_strings or action.dest for action in parsers[0]._actions if not action.help]
+    assert not bare, f"options without a word of help: {bare}"
