@@ -719,6 +719,21 @@ def test_the_display_scales_follow_a_tare_cleared_or_taken(recording, reconstruc
     assert model.display.arrow_scale == pytest.approx(tared.arrow_scale)
 
 
+@pytest.mark.parametrize("name", ["hertz_static.npz", "two_contacts.npz", "three_contacts.npz"])
+def test_the_fixed_map_range_holds_the_pressure_the_map_shows(name):
+    # it came from the normal-only solve: the core of every contact saturated on most frames
+    from pathlib import Path
+
+    from tactile_viewer.recording import load
+
+    recording = load(Path(__file__).resolve().parents[2] / "sample_data" / name)
+    solver = ViewerModel.build(recording.grid, "layer")
+    scales = _display_scales(RecordingSource(recording), solver)
+    every = recording.frames[:: max(1, len(recording) // 15)]
+    peaks = [Solved.of(recording.grid, b, solver.solve(b)).pressure.max() for b in every]
+    assert max(peaks) <= scales["range_max"] <= 2 * max(peaks)  # held, and not washed out
+
+
 def test_retare_errors_are_named(model):
     with pytest.raises(ValueError, match=r"only a recording that keeps raw values \(a live recording, \.mcap\)"):
         model.retare("here")  # an NPZ holds stresses only
