@@ -49,6 +49,8 @@ class LivePanel(QtWidgets.QGroupBox):
         The NO DATA banner, placed by the window above the scene.
     """
 
+    disconnected = QtCore.pyqtSignal()  # the board shown was disconnected by the user
+
     def __init__(self, model: ViewerModel, *, install, error, notify, parent=None):
         super().__init__("Live", parent)
         self.model = model
@@ -140,6 +142,7 @@ class LivePanel(QtWidgets.QGroupBox):
         reader = self.reader
         if reader is not None:
             reader.stop()
+            self.disconnected.emit()
         self.follow()
 
     # -- acting on the source --------------------------------------------------------------

@@ -150,6 +150,9 @@ class MainWindow(QtWidgets.QMainWindow):
         self.live_panel = LivePanel(self.model, install=self.show_source, error=self._error,
                                     notify=self._notify)
         self.rendered.connect(self.live_panel.frame_drawn)
+        # the title said "live" after a disconnect
+        self.live_panel.disconnected.connect(
+            lambda: self.setWindowTitle(f"tactile-viewer - {self.model.source.label} (disconnected)"))
         self.presets = PresetMeasurer(self.model, self.parameters, self.tasks, notify=self._notify,
                                       parent=self)
         self.exports = ExportActions(self, self.model, self.scene, self.tasks, error=self._error,

@@ -184,6 +184,7 @@ def test_disconnect_keeps_the_last_frame_and_disables_what_needs_a_connection(li
     assert reader.state == "stopped" and reader.recorder is None and (tmp_path / "take.mcap").exists()
     assert not any(enabled().values()) and not any(a.isEnabled() for a in panel.actions.values())
     assert "stopped" in panel.status.text() and not panel.banner.isVisible()
+    assert live.windowTitle().endswith("(disconnected)") and "live:" not in live.windowTitle()
     qtbot.wait(300)  # a frame solved before the stop may still arrive; after it, nothing new
     shown = live.model.last
     qtbot.wait(500)  # two status ticks later: still stopped, the last frame still shown
