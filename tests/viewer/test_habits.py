@@ -248,6 +248,17 @@ def test_a_text_field_keeps_its_keys(opened, qtbot):
     assert opened.model.frame == 0 and opened.model.auto
 
 
+def select_all_of(window, qtbot, spin):
+    """Focus ``spin`` in the active window and select its text with Ctrl+A, as a user does; its line edit."""
+    window.activateWindow()
+    qtbot.waitUntil(window.isActiveWindow, timeout=5000)
+    spin.setFocus()
+    qtbot.waitUntil(spin.hasFocus, timeout=5000)
+    edit = spin.lineEdit()
+    qtbot.keyClick(edit, QtCore.Qt.Key.Key_A, QtCore.Qt.KeyboardModifier.ControlModifier)
+    return edit
+
+
 # every numeric field, the model value it sets (SI), and what is typed
 TYPED = [
     ("parameters", "ratio_spin", "0.8", 0.8, lambda m: m.shear_ratio),
@@ -273,12 +284,7 @@ def test_a_number_typed_into_a_field_is_the_number_used(opened, qtbot, panel, na
         opened.display_panel.arrow_range_box.setChecked(False)
     if name == "gain_spin":
         opened.display_panel.in_plane_box.setChecked(True)
-    opened.activateWindow()
-    qtbot.waitUntil(opened.isActiveWindow, timeout=5000)
-    spin.setFocus()
-    qtbot.waitUntil(spin.hasFocus, timeout=5000)
-    edit = spin.lineEdit()
-    qtbot.keyClick(edit, QtCore.Qt.Key.Key_A, QtCore.Qt.KeyboardModifier.ControlModifier)
+    edit = select_all_of(opened, qtbot, spin)
     qtbot.keyClicks(edit, typed)
     qtbot.keyClick(edit, QtCore.Qt.Key.Key_Return)
     assert spin.value() == pytest.approx(value)
@@ -296,12 +302,7 @@ def test_auto_frames_arriving_while_a_number_is_typed_leave_it_alone(opened, qtb
     # in Auto every solved frame shows its parameters in the fields; not over a half-typed number
     spin, model = opened.parameters.ratio_spin, opened.model
     assert model.auto
-    opened.activateWindow()
-    qtbot.waitUntil(opened.isActiveWindow, timeout=5000)
-    spin.setFocus()
-    qtbot.waitUntil(spin.hasFocus, timeout=5000)
-    edit = spin.lineEdit()
-    qtbot.keyClick(edit, QtCore.Qt.Key.Key_A, QtCore.Qt.KeyboardModifier.ControlModifier)
+    edit = select_all_of(opened, qtbot, spin)
     qtbot.keyClicks(edit, "0.")
     opened.playback.play_button.setChecked(True)
     for _ in range(3):  # Auto's frames go on arriving
