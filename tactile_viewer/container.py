@@ -67,7 +67,8 @@ from .recording import (
 __all__ = ["Recorder", "FrameTable", "open_recording", "SUFFIX", "RAW_DTYPES"]
 
 SUFFIX = ".mcap"
-VERSION = "1"
+VERSION = "2"  # 2: a checksum in every metadata record of ours, and a record of each chunk
+VERSIONS = ("1", "2")
 TOPIC = "/tactile/raw"
 RAW_DTYPES = {"float32": "<f4", "float64": "<f8"}
 _MAGIC = b"\x89MCAP0\r\n"
@@ -134,6 +135,8 @@ class Recorder:
         self._last_flush: float | None = None
         self._first_t: float | None = None  # receive time of the first frame recorded
         self._lock = threading.Lock()
+        self._tares = 0  # tare records written
+        self._chunk_times: list[int] = []  # receive times of the open chunk's frames, nanoseconds
         calibration = calibration or StressCalibration.identity(grid.size)
         # never through a link (a dangling one at the path created its target)
         try:
@@ -144,17 +147,18 @@ class Recorder:
                               str(path)) from None
             raise
         try:
-            # chunks close on time (flush_interval), not on mcap's default 1 MiB
-            writer = Writer(self._stream, compression=CompressionType.NONE, chunk_size=_CHUNK_BYTES)
+            # chunks close on time (flush_interval), not on mcap's default 1 MiB; the data section's
+            # CRC lands in its end record
+            writer = Writer(self._stream, compression=CompressionType.NONE, chunk_size=_CHUNK_BYTES,
+                            enable_data_crcs=True)
             writer.start(profile="tactile-viewer", library="tactile-viewer")
-            writer.add_metadata("tactile-viewer.recording", {
-                "version": VERSION, "description": self.description, "taxels": str(grid.size),
-                "dtype": dtype, "channel": "1"})
-            writer.add_metadata("tactile-viewer.geometry", _json_fields(geometry_fields(grid)))
-            writer.add_metadata("tactile-viewer.calibration", _json_fields(calibration.fields()))
+            self._writer = writer
+            self._add_metadata("recording", {"version": VERSION, "description": self.description,
+                                             "taxels": str(grid.size), "dtype": dtype, "channel": "1"})
+            self._add_metadata("geometry", _json_fields(geometry_fields(grid)))
+            self._add_metadata("calibration", _json_fields(calibration.fields()))
             self._channel = writer.register_channel(TOPIC, f"tactile-raw/{dtype}-le", schema_id=0,
                                                     metadata={"taxels": str(grid.size)})
-            self._writer = writer
             for tare in calibration.tares:
                 self._write_tare(tare)
             self._stream.flush()
@@ -174,6 +178,7 @@ class Recorder:
             with self._ending_on_failure():
                 self._writer.add_message(self._channel, log_time=stamp, data=values.tobytes(),
                                          publish_time=stamp, sequence=int(seq) % 2**32)
+                self._chunk_times.append(stamp)
                 self.added += 1
                 if self._last_flush is None:
                     self._first_t = self._last_flush = t
@@ -209,13 +214,37 @@ class Recorder:
             self._release()
             raise
 
+    def _add_metadata(self, name: str, fields: dict) -> None:
+        fields = dict(fields)
+        fields["crc32"] = _checksum(fields)
+        self._writer.add_metadata(f"tactile-viewer.{name}", fields)
+
     def _write_tare(self, tare: Tare) -> None:
-        self._writer.add_metadata("tactile-viewer.tare", _json_fields(tare.fields()))
+        self._add_metadata("tare", _json_fields(tare.fields()))
+        self._tares += 1
 
     def _flush(self, now: float) -> None:
-        self._writer.flush()
+        self._end_chunk()
         self.written = self.added
         self._last_flush = now
+
+    def _end_chunk(self) -> None:
+        # the chunk, its message index, then our checksummed record of it: where it is, its frames'
+        # numbers and the checksum of their receive times (what the index says but no CRC covers),
+        # and the tares written so far (so that a lost tare record is noticed)
+        if not self._chunk_times:
+            return
+        count = len(self._chunk_times)
+        position = self._stream.tell()
+        self._writer.flush()
+        # the chunk record, then the message index of our one channel: 16 bytes a frame
+        length = self._stream.tell() - position - _RECORD.size - (_RECORD.size + 6 + 16 * count)
+        self._add_metadata("chunk", {
+            "offset": str(position), "length": str(length), "first": str(self.added - count),
+            "frames": str(count), "times_crc32": _times_checksum(self._chunk_times),
+            "tares": str(self._tares)})
+        self._chunk_times = []
+        self._stream.flush()
 
     def close(self) -> Path | None:
         """Finish the file (the open chunk and the summary: at most a chunk's work).
@@ -231,6 +260,7 @@ class Recorder:
                 self.path.unlink(missing_ok=True)
                 return None
             try:
+                self._end_chunk()
                 self._writer.finish()
                 self._stream.close()
             except BaseException:
@@ -273,9 +303,10 @@ class _Index:
     path: Path
     chunks: tuple
     log_times: np.ndarray  # (T,) receive times, UNIX nanoseconds
-    metadata: dict  # name -> the last record of that name
-    tares: tuple  # the tare records in file order
+    metadata: dict  # name -> the last sound record of that name
     truncated: bool  # never finished (a crash, a full disk): it ends at its last whole record
+    damage: tuple  # what could not be read, a sentence each
+    data_end: tuple | None  # position of the data section's end record and the section's CRC (0: none)
 
 
 class FrameTable:
@@ -361,6 +392,38 @@ class FrameTable:
                 continue
         return np.array(rows).reshape(len(rows), self._m)
 
+    @property
+    def data_checksum(self) -> bool:
+        """Whether the file keeps a checksum of its data section (finished files from version 2 on)."""
+        return self._index.data_end is not None and self._index.data_end[1] != 0
+
+    def verify(self) -> list[str]:
+        """Read the whole file and check every checksum: what fails, a sentence each (empty: all good).
+
+        Each chunk's frames against the chunk's CRC, and the data section (everything before
+        the summary) against the CRC in its end record, when the file has one.
+        """
+        problems = []
+        for chunk in self._index.chunks:
+            try:
+                _read_records(self._index.path, chunk)
+            except RecordingError as exc:
+                problems.append(str(exc).split(": ", 1)[1])
+        if self.data_checksum:
+            position, expected = self._index.data_end
+            crc = 0
+            with open(self._index.path, "rb") as handle:
+                while position > 0:
+                    block = handle.read(min(position, _BLOCK))
+                    if not block:
+                        break
+                    crc = zlib.crc32(block, crc)
+                    position -= len(block)
+            if crc != expected:
+                problems.append("the data section fails its checksum: a record outside the frames is "
+                                "damaged (what could not be read is said above)")
+        return problems
+
     def sequence(self) -> np.ndarray:
         """``(T,)`` sequence numbers as written (modulo 2**32; reads every chunk)."""
         return np.concatenate([self._cache.sequence(k) for k in range(len(self._index.chunks))]
@@ -425,103 +488,238 @@ def _decode_chunk(path: Path, chunk: _Chunk, m: int, raw_dtype) -> tuple:
 
 
 class _Torn(Exception):
-    """Inside the scan: a record that cannot be whole; the file is read up to the chunk before it."""
+    """Inside the scan: a record whose framing cannot be right (a cut, a flipped length or opcode)."""
 
 
-def _scan(path: Path) -> _Index:
-    # one pass over the record headers, seeking past each chunk's frames. A record cut short or
-    # damaged (a kill, a full disk, a torn page) ends the scan: the file is what came before it.
-    size = path.stat().st_size
-    chunks, log_times, metadata, tares = [], [], {}, []
-    truncated = True  # until the end of the data section is met: a finished file has it
-    pending = None  # a chunk whose message index has not been met yet
-    frames = 0  # in the chunks so far
-    with open(path, "rb") as handle:
-        if handle.read(len(_MAGIC)) != _MAGIC:
-            raise RecordingError(f"{path}: not an MCAP recording (no MCAP magic at the start)")
-        position = len(_MAGIC)
-        try:
-            while position + _RECORD.size <= size:
-                opcode, length = _RECORD.unpack(handle.read(_RECORD.size))
-                end = position + _RECORD.size + length
-                if end > size:
-                    break  # a record cut short: the file ends at the one before
+# what our data section holds: any other opcode there is damage, not a record
+_DATA_RECORDS = {Opcode.HEADER, Opcode.CHUNK, Opcode.MESSAGE_INDEX, Opcode.METADATA, Opcode.DATA_END}
+_OURS = b"tactile-viewer."
+_DATA_END = struct.pack("<BQI", Opcode.DATA_END, 4, 0)[:9]  # opcode and length; its CRC follows
+_BLOCK = 2**24  # bytes searched at a time when looking past damage
+
+
+@dataclass
+class _Found:
+    """A chunk met in the scan (a mutable draft; :class:`_Chunk` is what the reader keeps)."""
+
+    position: int  # of the chunk record
+    data_offset: int
+    length: int
+    crc: int
+    start: int  # its header's time span (not under any checksum)
+    stop: int
+    index: tuple | None = None  # (offsets, times) from the message index after it
+    record: dict | None = None  # our checksummed record of it (version 2)
+    suspect: bool = False  # reached past damage: its records are read and checked at open
+
+
+@dataclass
+class _Meta:
+    position: int
+    name: str
+    fields: dict
+    checksum: str  # "good", "bad" or "none" (version 1 records carry none)
+
+
+def _checksum(fields: dict) -> str:
+    # CRC-32 of the record's other fields in a canonical form, as 8 hex digits (metadata values
+    # are strings)
+    text = json.dumps(sorted((key, value) for key, value in fields.items() if key != "crc32"),
+                      separators=(",", ":"))
+    return f"{zlib.crc32(text.encode()):08x}"
+
+
+def _times_checksum(times) -> str:
+    return f"{zlib.crc32(np.asarray(times, dtype='<u8').tobytes()):08x}"
+
+
+class _Scan:
+    """One pass over the record headers of a file, seeking past each chunk's frames.
+
+    A record whose framing cannot be right (an unknown opcode, a length past the end, a body that
+    does not parse) is damage: the scan looks forward for the next record it can vouch for (a
+    chunk header whose sizes agree, a metadata record of ours that parses, the end of the data
+    section) and goes on from there. When nothing follows, the file was cut there.
+    """
+
+    def __init__(self, path: Path, handle):
+        self.path = path
+        self.fd = handle.fileno()
+        self.size = os.fstat(self.fd).st_size
+        self.chunks: dict[int, _Found] = {}
+        self.metadata: list[_Meta] = []
+        self.damaged: list[int] = []  # positions where the framing was damaged
+        self.resumed: set[int] = set()  # positions where the scan went on after damage
+        self.ended = False  # the end of the data section was met
+        self.data_end: tuple[int, int] | None = None  # its position and the data section's CRC (0: none)
+        self.cut = False  # damage with nothing good after it: the file ends there
+
+    def read(self, position: int, count: int) -> bytes:
+        return os.pread(self.fd, count, position)
+
+    def run(self) -> _Scan:
+        position, last_chunk = len(_MAGIC), None
+        while position + _RECORD.size <= self.size:
+            opcode, length = _RECORD.unpack(self.read(position, _RECORD.size))
+            end = position + _RECORD.size + length
+            try:
+                if opcode not in _DATA_RECORDS or end > self.size:
+                    raise _Torn
                 if opcode == Opcode.CHUNK:
-                    if pending is not None:
-                        chunks.append(_walked(path, pending, frames, log_times))
-                        frames += len(chunks[-1].offsets)
-                    pending = _chunk_header(handle, path, position, end)
+                    self.chunks[position] = last_chunk = self._chunk(position, end)
+                    last_chunk.suspect = position in self.resumed
                 elif opcode == Opcode.MESSAGE_INDEX:
-                    content = handle.read(length)
-                    if length < 6:
-                        raise _Torn
-                    channel, entries = struct.unpack_from("<HI", content)
-                    if channel == 1 and pending is not None:
-                        if entries % 16 or 6 + entries > length:
-                            raise _Torn
-                        pairs = np.frombuffer(content, "<u8", count=entries // 8, offset=6).reshape(-1, 2)
-                        order = np.argsort(pairs[:, 1], kind="stable")  # file order, as written
-                        times = pairs[order, 0]
-                        start, stop = pending[3:]
-                        if len(times) and (times.min() < start or times.max() > stop
-                                           or np.any(np.diff(times.astype(np.int64)) < 0)):
-                            # the index is not under the chunk's CRC: when it disagrees with the
-                            # chunk, the chunk's own records say where its frames are
-                            chunks.append(_walked(path, pending, frames, log_times))
-                        else:
-                            chunks.append(_Chunk(*pending[:3], frames, pairs[order, 1].astype(np.int64)))
-                            log_times.append(times)
-                        frames += len(chunks[-1].offsets)
-                        pending = None
+                    self._message_index(position, length, last_chunk)
+                    last_chunk = None  # one index per chunk: a second would be damage
                 elif opcode == Opcode.METADATA:
-                    if length > _MAX_METADATA:
-                        raise RecordingError(f"{path}: a metadata record declares {length} bytes "
-                                             f"(at most {_MAX_METADATA})")
-                    try:
-                        record = Metadata.read(ReadDataStream(io.BytesIO(handle.read(length))))
-                    except (McapError, struct.error, UnicodeDecodeError):
-                        raise _Torn from None
-                    metadata[record.name] = record.metadata
-                    if record.name == "tactile-viewer.tare":
-                        tares.append(record.metadata)
+                    self.metadata.append(self._metadata(position, end))
                 elif opcode == Opcode.DATA_END:
-                    truncated = False
+                    if length != 4:
+                        raise _Torn
+                    self.ended = True
+                    self.data_end = (position, struct.unpack("<I", self.read(position + _RECORD.size, 4))[0])
                     break  # the summary that follows repeats what was read
-                position = end
-                handle.seek(position)
-            if pending is not None:
-                chunks.append(_walked(path, pending, frames, log_times))
-        except _Torn:
-            truncated = True
-    times = np.concatenate(log_times) if log_times else np.zeros(0, np.uint64)
-    return _Index(path, tuple(chunks), times, metadata, tuple(tares), truncated)
+            except _Torn:
+                resumed = self._next_record(position + 1)
+                if resumed is None:
+                    self.cut = True
+                    break
+                self.damaged.append(position)
+                position, last_chunk = resumed, None
+                self.resumed.add(position)
+                continue
+            position = end
+        # a finished file ends in the footer and the magic: damage in between is not a cut
+        self.cut = not (self.ended or self.read(self.size - len(_MAGIC), len(_MAGIC)) == _MAGIC)
+        return self
+
+    def _chunk(self, position: int, end: int) -> _Found:
+        head = self.read(position + _RECORD.size, _CHUNK_HEAD.size + 8)
+        if end - position < _RECORD.size + _CHUNK_HEAD.size + 8 or len(head) < _CHUNK_HEAD.size:
+            raise _Torn
+        start, stop, uncompressed, crc, name_length = _CHUNK_HEAD.unpack_from(head)
+        if name_length:
+            compression = self.read(position + _RECORD.size + _CHUNK_HEAD.size, min(name_length, 16))
+            if compression.isascii() and compression.isalnum():  # a real name, not a flipped length
+                raise RecordingError(f"{self.path}: compressed chunks ({compression.decode()!r}) are not "
+                                     "read; this viewer writes them uncompressed")
+            raise _Torn
+        (length,) = struct.unpack_from("<Q", head, _CHUNK_HEAD.size)
+        data_offset = position + _RECORD.size + _CHUNK_HEAD.size + 8
+        if data_offset + length != end or uncompressed != length:
+            raise _Torn
+        return _Found(position, data_offset, length, crc, start, stop)
+
+    def _message_index(self, position: int, length: int, chunk: _Found | None) -> None:
+        content = self.read(position + _RECORD.size, length)
+        if length < 6:
+            raise _Torn
+        channel, entries = struct.unpack_from("<HI", content)
+        if entries % 16 or 6 + entries > length:
+            raise _Torn
+        if channel == 1 and chunk is not None:
+            pairs = np.frombuffer(content, "<u8", count=entries // 8, offset=6).reshape(-1, 2)
+            order = np.argsort(pairs[:, 1], kind="stable")  # file order, as written
+            chunk.index = (pairs[order, 1].astype(np.int64), pairs[order, 0])
+
+    def _metadata(self, position: int, end: int) -> _Meta:
+        length = end - position - _RECORD.size
+        if length > _MAX_METADATA:
+            raise _Torn  # no record of ours comes near this: a flipped length
+        try:
+            record = Metadata.read(ReadDataStream(io.BytesIO(self.read(position + _RECORD.size, length))))
+        except (McapError, struct.error, UnicodeDecodeError, ValueError):
+            raise _Torn from None
+        fields = record.metadata
+        checksum = ("none" if "crc32" not in fields else
+                    "good" if fields["crc32"] == _checksum(fields) else "bad")
+        return _Meta(position, record.name, fields, checksum)
+
+    # -- looking past damage ------------------------------------------------------------------
+
+    def _next_record(self, start: int) -> int | None:
+        # the first position at or after ``start`` where a record we can vouch for begins
+        finders = [self._next_chunk, self._next_metadata, self._next_data_end]
+        found = [finder(start) for finder in finders]
+        while any(position is not None for position in found):
+            position = min(p for p in found if p is not None)
+            kind = found.index(position)
+            if self._vouched(kind, position):
+                return position
+            found[kind] = finders[kind](position + 1)
+        return None
+
+    def _vouched(self, kind: int, position: int) -> bool:
+        opcode, length = _RECORD.unpack(self.read(position, _RECORD.size))
+        end = position + _RECORD.size + length
+        if end > self.size:
+            return False
+        try:
+            if kind == 0:
+                self._chunk(position, end)
+            elif kind == 1:
+                self._metadata(position, end)
+        except (_Torn, RecordingError):
+            return False
+        return True
+
+    def _search(self, start: int, match, overlap: int) -> int | None:
+        # the first hit of ``match(block) -> offset or None`` at or after ``start``, a block at a time
+        while start < self.size:
+            block = self.read(start, _BLOCK + overlap)
+            hit = match(block)
+            if hit is not None:
+                return start + hit
+            if len(block) <= overlap:
+                return None
+            start += _BLOCK
+        return None
+
+    def _next_metadata(self, start: int) -> int | None:
+        head = _RECORD.size + 4  # the name follows the record header and its own length
+        def match(block):
+            at = block.find(_OURS, head)
+            while at >= 0:
+                if block[at - head] == Opcode.METADATA:
+                    return at - head
+                at = block.find(_OURS, at + 1)
+            return None
+        return self._search(start, match, len(_OURS) + head)
+
+    def _next_data_end(self, start: int) -> int | None:
+        def match(block):
+            at = block.find(_DATA_END)
+            return None if at < 0 else at
+        return self._search(start, match, len(_DATA_END))
+
+    def _next_chunk(self, start: int) -> int | None:
+        # a chunk header whose sizes agree with each other: opcode, length L, two times, the
+        # uncompressed size L - 40, a CRC, an empty compression name, the records' size L - 40
+        head = _RECORD.size + _CHUNK_HEAD.size + 8
+        def match(block):
+            view = np.frombuffer(block, np.uint8)
+            at = np.flatnonzero(view[:max(len(view) - head, 0)] == Opcode.CHUNK)
+            if not at.size:
+                return None
+            def field(offset, width):
+                taken = view[at[:, None] + offset + np.arange(width)]
+                return taken.copy().view(f"<u{width}")[:, 0]
+            length, uncompressed = field(1, 8), field(25, 8)
+            good = ((length >= 40) & (uncompressed == length - 40) & (field(37, 4) == 0)
+                    & (field(41, 8) == uncompressed))
+            hits = at[good]
+            return int(hits[0]) if hits.size else None
+        return self._search(start, match, head)
 
 
-def _chunk_header(handle, path, position, end):
-    if end - position < _RECORD.size + _CHUNK_HEAD.size + 8:
-        raise _Torn
-    _start, _stop, uncompressed, crc, name_length = _CHUNK_HEAD.unpack(handle.read(_CHUNK_HEAD.size))
-    data_offset = position + _RECORD.size + _CHUNK_HEAD.size + name_length + 8
-    if data_offset > end:
-        raise _Torn
-    compression = handle.read(name_length)
-    (length,) = struct.unpack("<Q", handle.read(8))
-    if compression:
-        raise RecordingError(f"{path}: compressed chunks ({compression.decode(errors='replace')!r}) are "
-                             "not read; this viewer writes them uncompressed")
-    if data_offset + length != end or uncompressed != length:
-        raise _Torn
-    return data_offset, length, crc, _start, _stop
-
-
-def _walked(path, pending, first, log_times) -> _Chunk:
-    # a chunk without a (trustworthy) index, e.g. written just before a crash: walk its records,
-    # which its CRC vouches for; a chunk that fails its CRC ends the file there
-    data_offset, length, crc = pending[:3]
+def _walk(path: Path, found: _Found):
+    # a chunk's frames from its own records, which its CRC vouches for: (offsets, times), or None
+    # when the chunk fails its CRC
     try:
-        records = _read_records(path, _Chunk(data_offset, length, crc, first, np.zeros(0, np.int64)))
+        records = _read_records(path, _Chunk(found.data_offset, found.length, found.crc, 0,
+                                             np.zeros(0, np.int64)))
     except RecordingError:
-        raise _Torn from None
+        return None
     offsets, times, position = [], [], 0
     while position + _RECORD.size <= len(records):
         opcode, size = _RECORD.unpack_from(records, position)
@@ -531,13 +729,162 @@ def _walked(path, pending, first, log_times) -> _Chunk:
                 offsets.append(position)
                 times.append(log_time)
         position += _RECORD.size + size
-    log_times.append(np.array(times, dtype=np.uint64))
-    return _Chunk(data_offset, length, crc, first, np.array(offsets, dtype=np.int64))
+    return np.array(offsets, dtype=np.int64), np.array(times, dtype=np.uint64)
+
+
+def _indexed(scan: _Scan, found: _Found, size: int, version: str):
+    # the chunk's message index, when it agrees with what vouches for it: (offsets, times) or None.
+    # Our chunks hold a frame message after another, after the channel record in the first one,
+    # so the offsets follow from the chunk's length; the times from our checksummed record of the
+    # chunk (version 2) or, failing that, from the chunk header's span
+    if found.index is None:
+        return None
+    offsets, times = found.index
+    count = len(offsets)
+    prefix = found.length - count * size
+    if prefix < 0 or np.any(offsets != prefix + size * np.arange(count)):
+        return None
+    if prefix:
+        opcode, length = _RECORD.unpack(scan.read(found.data_offset, _RECORD.size))
+        if opcode != Opcode.CHANNEL or _RECORD.size + length != prefix:
+            return None
+    if found.record is not None:
+        if count != found.record["frames"] or _times_checksum(times) != found.record["times_crc32"]:
+            return None
+    elif version != "1" or (count and (times.min() < found.start or times.max() > found.stop
+                                        or np.any(np.diff(times.astype(np.int64)) < 0))):
+        return None
+    return offsets, times
+
+
+def _chunk_records(scan: _Scan, metadata: list) -> None:
+    # attach our records of chunks (version 2) to the chunks they describe; a chunk whose own
+    # header was damaged is found through its record
+    for meta in metadata:
+        if meta.name != "tactile-viewer.chunk":
+            continue
+        try:
+            record = {key: int(meta.fields[key]) for key in ("offset", "length", "first", "frames", "tares")}
+        except (KeyError, ValueError):
+            continue
+        record["times_crc32"] = meta.fields.get("times_crc32")
+        position = record["offset"]
+        if position not in scan.chunks:
+            # its header is damaged: our chunks are uncompressed, so the record's length says
+            # where its frames are, and their CRC says whether they are whole
+            end = position + _RECORD.size + record["length"]
+            if record["length"] < _CHUNK_HEAD.size + 8 or end > scan.size:
+                continue
+            start, stop, _size, crc, _name = _CHUNK_HEAD.unpack(scan.read(position + _RECORD.size,
+                                                                         _CHUNK_HEAD.size))
+            found = _Found(position, position + _RECORD.size + _CHUNK_HEAD.size + 8,
+                           record["length"] - _CHUNK_HEAD.size - 8, crc, start, stop, suspect=True)
+            scan.chunks[position] = found
+            after = found.data_offset + found.length  # its message index follows it
+            opcode, length = _RECORD.unpack(scan.read(after, _RECORD.size))
+            if opcode == Opcode.MESSAGE_INDEX and after + _RECORD.size + length <= scan.size:
+                with contextlib.suppress(_Torn):
+                    scan._message_index(after, length, found)
+        scan.chunks[position].record = record
+
+
+def _assemble(scan: _Scan, metadata: list, tares: list, size: int, version: str):
+    """Chunks, receive times, tares (numbered as loaded) and what is lost, from a scan."""
+    path = scan.path
+    _chunk_records(scan, metadata)
+    # spans: (chunk position, written number of its first frame or None, count, loaded number)
+    chunks, log_times, lost, spans, gaps = [], [], [], [], []
+    loaded = written = 0
+    certain = True  # the written number of the next frame is known
+    for found in sorted(scan.chunks.values(), key=lambda chunk: chunk.position):
+        record = found.record
+        first = record["first"] if record else (written if certain else None)
+        if record and certain and first > written:  # a chunk and its record both lost
+            gaps.append((written, first - written))
+        frames = (None if found.suspect else _indexed(scan, found, size, version)) or _walk(path, found)
+        if frames is None:  # the chunk fails its CRC
+            count = record["frames"] if record else None
+            exact = bool(record and count and found.index is not None
+                         and _times_checksum(found.index[1]) == record["times_crc32"])
+            lost.append((found.position, first, count,
+                         found.index[1][[0, -1]] if exact else (found.start, found.stop), exact))
+            certain = count is not None and first is not None
+            written = first + count if certain else written
+            continue
+        offsets, times = frames
+        if not len(offsets):
+            continue
+        chunks.append(_Chunk(found.data_offset, found.length, found.crc, loaded, offsets))
+        log_times.append(times)
+        spans.append((found.position, first, len(offsets), loaded))
+        certain = first is not None
+        written = first + len(offsets) if certain else written
+        loaded += len(offsets)
+    times = np.concatenate(log_times) if log_times else np.zeros(0, np.uint64)
+    origin = int(times[0]) if len(times) else 0
+    damage = []
+    damage = [_lost(*chunk, origin) for chunk in lost]
+    for first, count in gaps:
+        damage.append(f"frames {first} to {first + count - 1} as recorded are lost: their chunk is damaged "
+                      "beyond finding")
+    tares = _renumbered(tares, spans, scan, damage)
+    return tuple(chunks), times, tares, tuple(damage)
+
+
+def _lost(position, first, count, span, exact, origin) -> str:
+    start, stop = ((int(end) - origin) * 1e-9 for end in (span[0], span[-1]))
+    when = (f"t {start:.3f} to {stop:.3f} s" if start >= 0 else  # the first frames kept come after them
+            f"{-start:.3f} to {-stop:.3f} s before the first frame kept")
+    if not exact:
+        when = "about " + when  # the chunk header's span, under no checksum
+    if count is None:
+        what = f"an unknown number of frames ({when})"
+    elif first is None:
+        what = f"{count} frames ({when})"
+    else:
+        what = f"frames {first} to {first + count - 1} as recorded ({count} frames, {when})"
+    return f"{what} are lost: their chunk at byte {position} is damaged"
+
+
+def _renumbered(tares: list, spans: list, scan: _Scan, damage: list) -> list:
+    # tares name the frame they apply from as numbered when written; frames lost before it move it.
+    # A tare that cannot be placed, or whose record is damaged or lost, is said
+    def loaded_after(position):  # the first frame kept from a chunk written after ``position``
+        return next((loaded for at, _first, _count, loaded in spans if at > position), None)
+    def offset_from(position):
+        after = loaded_after(position)
+        return f": frames from {after} on may be offset" if after is not None else ""
+    known = [(first, count) for _at, first, count, _loaded in spans if first is not None]
+    uncounted = len(known) < len(spans)
+    placed = []
+    for meta in tares:
+        if meta.checksum == "bad":
+            damage.append(f"the tare recorded at byte {meta.position} is damaged and not applied"
+                          + offset_from(meta.position))
+            continue
+        fields = dict(meta.fields)
+        try:
+            written = int(json.loads(fields["from_frame"]))
+        except (KeyError, ValueError, TypeError):
+            placed.append(fields)  # Tare.from_fields says what is wrong, naming the file
+            continue
+        if uncounted and not any(first <= written < first + count for first, count in known):
+            damage.append(f"the tare from frame {written} as recorded may apply from the wrong frame "
+                          "(frames before it were lost in numbers not known)")
+        fields["from_frame"] = json.dumps(sum(min(max(written - first, 0), count) for first, count in known))
+        placed.append(fields)
+    # each record of a chunk counts the tares written so far: fewer found means some are lost
+    counted = [(chunk.position, chunk.record["tares"]) for chunk in scan.chunks.values() if chunk.record]
+    missing = max((tares for _at, tares in counted), default=0) - len(tares)
+    if missing > 0:
+        at = min(at for at, count in counted if count > len(tares))
+        damage.append(f"{missing} tare record{'s are' if missing > 1 else ' is'} lost" + offset_from(at - 1))
+    return placed
 
 
 def _loads(fields: dict, name: str, path) -> dict:
     try:
-        return {key: json.loads(value) for key, value in fields.items()}
+        return {key: json.loads(value) for key, value in fields.items() if key != "crc32"}
     except (ValueError, RecursionError):
         raise RecordingError(f"{path}: metadata {name!r} is not JSON values") from None
 
@@ -546,23 +893,56 @@ def open_recording(path) -> Recording:
     """Open an MCAP recording lazily: metadata and an index now, frames on demand.
 
     A file cut short (a kill, a full disk) opens with every frame of its
-    complete chunks.
+    complete chunks. A damaged file opens with what is good and says what is
+    not in :attr:`~tactile_viewer.recording.Recording.damage`: frames of a
+    chunk that fails its checksum are left out (their numbers and times said
+    when the chunk's record keeps them), a tare whose record is damaged or
+    lost is said with the frames it may offset. Records around damage are
+    found again by looking forward for the next record that checks out.
 
     Raises
     ------
     RecordingError
-        Naming the file and what is wrong (not MCAP, missing metadata, sizes
-        the file cannot hold).
+        Naming the file and what is wrong (not MCAP, missing or damaged
+        metadata, sizes the file cannot hold).
     """
     path = Path(path)
-    index = _scan(path)
-    if index.truncated and not len(index.log_times):
+    with open(path, "rb") as handle:
+        if handle.read(len(_MAGIC)) != _MAGIC:
+            raise RecordingError(f"{path}: not an MCAP recording (no MCAP magic at the start)")
+        scan = _Scan(path, handle).run()
+        return _opened(scan)
+
+
+def _opened(scan: _Scan) -> Recording:
+    path = scan.path
+    if scan.cut and not scan.chunks:
         raise RecordingError(f"{path}: no frames (the file was cut short before its first chunk)")
-    for name in ("recording", "geometry", "calibration"):
-        if f"tactile-viewer.{name}" not in index.metadata:
-            raise RecordingError(f"{path}: missing metadata 'tactile-viewer.{name}' (not a recording of "
-                                 "this viewer)")
-    info = index.metadata["tactile-viewer.recording"]
+    ours = [meta for meta in scan.metadata if meta.name.startswith("tactile-viewer.")]
+    info = next((meta for meta in reversed(ours) if meta.name == "tactile-viewer.recording"), None)
+    if info is None:
+        raise RecordingError(f"{path}: missing metadata 'tactile-viewer.recording' (not a recording of "
+                             "this viewer)")
+    version = info.fields.get("version")
+    if info.checksum == "bad":
+        raise RecordingError(f"{path}: metadata 'tactile-viewer.recording' is damaged (checksum mismatch)")
+    if version not in VERSIONS:
+        raise RecordingError(f"{path}: recording version {version!r} is not read by this viewer "
+                             f"(it reads {', '.join(VERSIONS)})")
+    # version 1 wrote no checksums; from version 2 on every record of ours carries one
+    good = [meta for meta in ours if meta.checksum == "good" or (version == "1" and meta.checksum == "none")]
+    if version != "1":
+        for meta in ours:
+            if meta not in good:
+                meta.checksum = "bad"
+    metadata = {meta.name: meta.fields for meta in good}
+    for name in ("geometry", "calibration"):
+        name = f"tactile-viewer.{name}"
+        if name not in metadata:
+            damaged = any(meta.name == name for meta in ours)
+            raise RecordingError(f"{path}: metadata {name!r} is damaged (checksum mismatch)" if damaged else
+                                 f"{path}: missing metadata {name!r} (not a recording of this viewer)")
+    info = metadata["tactile-viewer.recording"]
     dtype = info.get("dtype")
     if dtype not in RAW_DTYPES:
         raise RecordingError(f"{path}: 'dtype' must be one of {sorted(RAW_DTYPES)}, got {dtype!r}")
@@ -572,24 +952,32 @@ def open_recording(path) -> Recording:
         raise RecordingError(f"{path}: 'taxels' must be a whole number, got {info.get('taxels')!r}") from None
     if not 1 <= taxels <= MAX_TAXELS:
         raise RecordingError(f"{path}: 'taxels' must be in [1, {MAX_TAXELS}], got {taxels}")
-    geometry = _loads(index.metadata["tactile-viewer.geometry"], "geometry", path)
+    geometry = _loads(metadata["tactile-viewer.geometry"], "geometry", path)
     try:
         grid = grid_from_fields(width=taxels, **geometry)
     except (TypeError, ValueError) as exc:
         raise RecordingError(f"{path}: impossible geometry: {exc}") from None
+    raw_dtype = np.dtype(RAW_DTYPES[dtype])
+    tares = [meta for meta in ours if meta.name == "tactile-viewer.tare"]
+    chunk_records = [meta for meta in good if meta.name == "tactile-viewer.chunk"]
+    chunks, log_times, tares, damage = _assemble(scan, chunk_records, tares,
+                                                 _MESSAGE_HEAD + taxels * raw_dtype.itemsize, version)
     try:
         calibration = StressCalibration.from_fields(
-            taxels, **_loads(index.metadata["tactile-viewer.calibration"], "calibration", path),
-            tares=[Tare.from_fields(taxels, **_loads(fields, "tare", path)) for fields in index.tares])
+            taxels, **_loads(metadata["tactile-viewer.calibration"], "calibration", path),
+            tares=[Tare.from_fields(taxels, **_loads(fields, "tare", path)) for fields in tares])
     except (TypeError, ValueError) as exc:
         raise RecordingError(f"{path}: calibration: {exc}") from None
-    if not len(index.log_times):
-        raise RecordingError(f"{path}: no frames")
-    frames = FrameTable(index, taxels, RAW_DTYPES[dtype], calibration)
-    times = index.log_times.astype(np.int64)
+    if not len(log_times):
+        raise RecordingError(f"{path}: no frames" + (" (the file was cut short before its first chunk)"
+                                                     if scan.cut and not damage else "")
+                             + "".join(f"; {what}" for what in damage))
+    index = _Index(path, chunks, log_times, metadata, scan.cut, damage, scan.data_end)
+    frames = FrameTable(index, taxels, raw_dtype, calibration)
+    times = log_times.astype(np.int64)
     t = (times - times[0]) * 1e-9
     try:
         return Recording(grid, frames, t, None, info.get("description", ""), received=times[0] * 1e-9,
-                         truncated=index.truncated)
+                         truncated=scan.cut, damage=damage)
     except ValueError as exc:
         raise RecordingError(f"{path}: {exc}") from None

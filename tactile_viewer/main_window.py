@@ -419,6 +419,10 @@ class MainWindow(QtWidgets.QMainWindow):
             self._on_message("warning", "Recording cut short:",
                              f"{name} ends at its last complete chunk or row (a crash or a full disk while "
                              "it was written); every frame before is kept")
+        if recording is not None and recording.damage:
+            # the title keeps saying it after the status line has moved on
+            self.setWindowTitle(f"tactile-viewer - {name} (damaged)")
+            self._on_message("warning", "Recording damaged:", f"{name}: " + "; ".join(recording.damage))
         if self.model.current is None and self.model.live:
             self.ready.emit()  # no frame yet: the first to arrive is solved and drawn as it comes
         else:

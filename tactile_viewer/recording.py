@@ -319,6 +319,10 @@ class Recording:
         The file was cut short (a crash, a full disk); it holds every frame
         of its complete chunks (MCAP) or rows (CSV: a last row without a
         line end is left out).
+    damage : tuple of str
+        What the file holds that could not be read, a sentence each (MCAP:
+        frames of a chunk that failed its checksum, a tare whose record is
+        damaged or lost); empty when nothing is.
     """
 
     grid: SensorGrid
@@ -329,6 +333,7 @@ class Recording:
     seq: np.ndarray | None = None
     received: float | None = None
     truncated: bool = False
+    damage: tuple = ()
 
     def __post_init__(self):
         lazy = not isinstance(self.frames, (np.ndarray, list, tuple))
@@ -862,19 +867,24 @@ def facts(recording: Recording) -> list[str]:
     ``frames``, ``span`` (seconds), ``sequence gaps`` (frames missing between
     the numbers received, and any repeated or reordered ones), ``first
     received`` and ``last received`` (UNIX seconds, the recorder's receive
-    clock), ``cut short``, ``geometry`` and ``calibration``. What a format does
-    not keep is said to be unknown.
+    clock), ``cut short``, ``damage`` (what could not be read), ``checksums``
+    (MCAP: the whole file read and every checksum checked), ``geometry`` and
+    ``calibration``. What a format does not keep is said to be unknown.
     """
     grid = recording.grid
     lines = [f"frames {len(recording)}", f"span {float(recording.t[-1] - recording.t[0]):.3f} s"]
-    sequence = recording.sequence()
-    if sequence is None:
-        lines.append("sequence gaps unknown (the file keeps no sequence numbers)")
+    try:
+        sequence = recording.sequence()
+    except RecordingError:  # a chunk fails its checksum: the checksums line says which
+        lines.append("sequence gaps unknown (a damaged chunk holds some of them)")
     else:
-        steps = np.diff(sequence)
-        gaps = f"sequence gaps {int(np.sum(steps[steps > 1] - 1))}"
-        backwards = int(np.sum(steps <= 0))
-        lines.append(gaps + (f" ({backwards} repeated or reordered)" if backwards else ""))
+        if sequence is None:
+            lines.append("sequence gaps unknown (the file keeps no sequence numbers)")
+        else:
+            steps = np.diff(sequence)
+            gaps = f"sequence gaps {int(np.sum(steps[steps > 1] - 1))}"
+            backwards = int(np.sum(steps <= 0))
+            lines.append(gaps + (f" ({backwards} repeated or reordered)" if backwards else ""))
     if recording.received is None:
         lines += ["first received unknown (the file keeps no receive clock)", "last received unknown"]
     else:
@@ -883,6 +893,13 @@ def facts(recording: Recording) -> list[str]:
                   f"last received {_clock(recording.received + float(recording.t[-1]))}"]
     lines.append("cut short yes: it ends at its last complete chunk or row (a crash or a full disk)"
                  if recording.truncated else "cut short no")
+    lines += [f"damage {what}" for what in recording.damage] or ["damage none found"]
+    if hasattr(recording.frames, "verify"):
+        problems = recording.frames.verify()
+        checked = "every chunk's frames" + (" and the data section" if recording.frames.data_checksum else
+                                            " (the file keeps no checksum of its data section)")
+        lines += ([f"checksums fail: {what}" for what in problems] if problems else
+                  [f"checksums good: {checked}, all read and checked"])
     size = (f"{grid.shape[1]}x{grid.shape[0]} taxels" if len(grid.shape) == 2
             else f"{grid.size} taxels (irregular)")
     lines.append(f"geometry {size}, pitch {grid.pitch * 1e3:g} mm, thickness {grid.thickness * 1e3:g} mm, "

@@ -135,10 +135,30 @@ def test_info_prints_one_fact_per_line_of_a_live_recording_cut_short(tmp_path, c
                          "first received 2023-11-14 22:13:20.000 UTC (1700000000.000000 s)",
                          "last received 2023-11-14 22:13:20.500 UTC (1700000000.500000 s)",
                          "cut short yes: it ends at its last complete chunk or row (a crash or a full disk)"]
-    assert lines[6] == ("geometry 3x2 taxels, pitch 2 mm, thickness 1.5 mm, poisson ratio 0.5, "
+    assert lines[6:8] == ["damage none found", "checksums good: every chunk's frames (the file keeps no "
+                          "checksum of its data section), all read and checked"]
+    assert lines[8] == ("geometry 3x2 taxels, pitch 2 mm, thickness 1.5 mm, poisson ratio 0.5, "
                         "sensor size 0 mm")
-    assert lines[7] == ("calibration raw float32 in kPa, gain 2, offset 0.5, tares: from frame 0 "
+    assert lines[9] == ("calibration raw float32 in kPa, gain 2, offset 0.5, tares: from frame 0 "
                         "(taken at 0.000 s, 50 frames)")
+
+
+def test_info_reads_a_damaged_recording_whole_and_says_what_fails(tmp_path, capsys):
+    from tests.viewer.test_container import chunk_positions, flipped, tared_recording
+
+    path = tmp_path / "damaged.mcap"
+    tared_recording(path)
+    assert main([str(path), "--info"]) == 0
+    assert ("checksums good: every chunk's frames and the data section, all read and checked"
+            in capsys.readouterr().out)
+    flipped(path, chunk_positions(path)[1] + 200)  # a value of frames 6 to 10: found only when read
+    flipped(path, chunk_positions(path)[3], 0x20)  # chunk 3's header: found through its record
+    assert main([str(path), "--info"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "damage none found" in lines  # the opened file reads chunk 1 only when asked
+    assert "checksums fail: frames 6 to 10 are damaged (chunk checksum mismatch)" in lines
+    assert ("checksums fail: the data section fails its checksum: a record outside the frames is damaged "
+            "(what could not be read is said above)") in lines
 
 
 def test_info_says_when_a_tare_was_taken_or_that_it_is_unknown(tmp_path, capsys):

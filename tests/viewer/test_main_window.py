@@ -190,6 +190,22 @@ def test_a_recording_cut_short_says_so_when_it_opens(window, qtbot, tmp_path):
     assert len(window.model.recording) == 2
 
 
+def test_a_damaged_recording_says_what_is_lost_when_it_opens(window, qtbot, tmp_path):
+    from tests.viewer.test_container import chunk_positions, flipped, tared_recording
+
+    path = tmp_path / "damaged.mcap"
+    tared_recording(path)
+    position = chunk_positions(path)[1]
+    flipped(path, position, 0x20)
+    flipped(path, position + 200)  # chunk 1 unreadable, found through its record, its frames lost
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        assert window.open(path)
+    assert window.statusBar().currentMessage() == (
+        f"Warning: Recording damaged: damaged.mcap: frames 6 to 10 as recorded (5 frames, t 0.600 to 1.000 s) "
+        f"are lost: their chunk at byte {position} is damaged")
+    assert window.windowTitle() == "tactile-viewer - damaged.mcap (damaged)" and len(window.model.recording) == 25
+
+
 def read_png(path):
     image = pv.read(path)
     name = image.point_data.keys()[0]
