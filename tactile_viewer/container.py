@@ -36,6 +36,7 @@ import errno
 import io
 import json
 import os
+import queue
 import struct
 import threading
 import zlib
@@ -88,7 +89,12 @@ def _not_through_a_link(path, flags):
 class Recorder:
     """Writes every frame it is given to an MCAP recording, a chunk per ``flush_interval``.
 
-    Thread-safe: frames come from a reader thread, :meth:`close` from the GUI.
+    Thread-safe: frames come from a reader thread, :meth:`close` from the GUI. The
+    file is written on a thread of its own behind a queue of at most ``backlog``
+    bytes of frames, so a slow disk never stalls the reader (and the board with
+    it). A frame that finds the queue full is not recorded and is counted in
+    :attr:`dropped`. A write that fails ends the recording; the next call of
+    :meth:`add`, :meth:`tick`, :meth:`tare` or :meth:`close` raises its error.
 
     Parameters
     ----------
@@ -104,18 +110,21 @@ class Recorder:
     description : str
     clock_origin : float
         UNIX seconds of receive time 0 (frames carry seconds since it).
+    backlog : int
+        Bytes of frames that may wait for the disk (default 8 MiB: 8 s of a 16x16 board at
+        1 kHz). :meth:`close` waits for them: at most ``backlog`` over the disk's speed.
 
     Raises
     ------
     ValueError
-        For a path not ending in ``.mcap`` or an unknown ``dtype``.
+        For a path not ending in ``.mcap``, an unknown ``dtype`` or a backlog under one frame.
     OSError
         When the file cannot be created (the message names it).
     """
 
     def __init__(self, path, grid: SensorGrid, *, calibration: StressCalibration | None = None,
                  dtype: str = "float32", flush_interval: float = 1.0, description: str = "",
-                 clock_origin: float = 0.0):
+                 clock_origin: float = 0.0, backlog: int = 8 * 2**20):
         path = Path(path)
         if path.suffix.lower() != SUFFIX:
             raise ValueError(f"{path}: a recording is written as {SUFFIX}, got {path.suffix!r}")
@@ -123,20 +132,26 @@ class Recorder:
             raise ValueError(f"dtype must be one of {sorted(RAW_DTYPES)}, got {dtype!r}")
         if not flush_interval >= 0:
             raise ValueError(f"flush_interval must be >= 0 seconds, got {flush_interval!r}")
+        frame_bytes = grid.size * np.dtype(RAW_DTYPES[dtype]).itemsize
+        if not backlog >= frame_bytes:
+            raise ValueError(f"backlog must be at least one frame ({frame_bytes} bytes), got {backlog!r}")
         self.path = path
         self.flush_interval = float(flush_interval)
         self.dtype = np.dtype(RAW_DTYPES[dtype])
         self.description = description or "live recording"
-        self.added = 0  # frames given, in the file's order (the index of the next one)
+        self.added = 0  # frames accepted, in the file's order (the index of the next one)
+        self.dropped = 0  # frames that found the queue full: not recorded
         self.written = 0  # frames in complete chunks on disk: what a crash now would keep
         self._m = grid.size
         self._origin = float(clock_origin)
-        self._closed = False
+        self._closed = False  # no more frames are accepted
+        self._failure: BaseException | None = None  # the write error that ended the recording
         self._last_flush: float | None = None
         self._first_t: float | None = None  # receive time of the first frame recorded
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # the accepting side: added, dropped, closed
         self._tares = 0  # tare records written
         self._chunk_times: list[int] = []  # receive times of the open chunk's frames, nanoseconds
+        self._queue: queue.Queue = queue.Queue(maxsize=max(1, backlog // frame_bytes))
         calibration = calibration or StressCalibration.identity(grid.size)
         # never through a link (a dangling one at the path created its target)
         try:
@@ -163,69 +178,146 @@ class Recorder:
                 self._write_tare(tare)
             self._stream.flush()
         except BaseException:
-            self.abandon()
+            self._release()
             raise
+        self._thread = threading.Thread(target=self._write_queued, name=f"recorder {path.name}", daemon=True)
+        self._thread.start()
 
-    def add(self, seq: int, t: float, raw) -> None:
-        """Write one frame received at ``t`` seconds; closes a chunk when ``flush_interval`` has passed."""
+    # -- the accepting side (any thread) ------------------------------------------------------------
+
+    def add(self, seq: int, t: float, raw) -> bool:
+        """Record one frame received at ``t`` seconds; False when it was dropped (the queue is full).
+
+        Its chunk closes on the writer's thread when ``flush_interval`` has passed.
+        """
+        values = np.array(raw, dtype=self.dtype)  # a copy: the caller may reuse its buffer
+        if values.shape != (self._m,):
+            raise ValueError(f"a frame must have {self._m} values, got shape {values.shape}")
         with self._lock:
+            self._raise_failure()
             if self._closed:
-                return  # the reader took this recorder just before it was stopped: past the end
-            values = np.asarray(raw, dtype=self.dtype)
-            if values.shape != (self._m,):
-                raise ValueError(f"a frame must have {self._m} values, got shape {values.shape}")
-            stamp = round((self._origin + t) * 1e9)
-            with self._ending_on_failure():
-                self._writer.add_message(self._channel, log_time=stamp, data=values.tobytes(),
-                                         publish_time=stamp, sequence=int(seq) % 2**32)
-                self._chunk_times.append(stamp)
-                self.added += 1
-                if self._last_flush is None:
-                    self._first_t = self._last_flush = t
-                if t - self._last_flush >= self.flush_interval:
-                    self._flush(t)
+                return False  # the reader took this recorder just before it was stopped: past the end
+            try:
+                self._queue.put_nowait(("frame", int(seq), float(t), values))
+            except queue.Full:
+                self.dropped += 1
+                return False
+            self.added += 1
+            if self._first_t is None:
+                self._first_t = float(t)
+            return True
 
     def tick(self, now: float) -> None:
         """Close the open chunk if its frames have waited ``flush_interval`` (a quiet line)."""
         with self._lock:
-            waiting = not self._closed and self.added > self.written
-            if waiting and now - self._last_flush >= self.flush_interval:
-                with self._ending_on_failure():
-                    self._flush(now)
+            self._raise_failure()
+            if not self._closed:
+                with contextlib.suppress(queue.Full):  # a full queue closes chunks by itself
+                    self._queue.put_nowait(("tick", float(now)))
 
     def tare(self, tare: Tare) -> None:
-        """Record a baseline taken while recording; it applies from the next frame written."""
+        """Record a baseline taken while recording; it applies from the next frame recorded."""
         with self._lock:
+            self._raise_failure()
             if not self._closed:
                 # its time on the recording's clock: seconds since the first frame recorded
                 since = tare.t - self._first_t if self._first_t is not None else 0.0
-                with self._ending_on_failure():
-                    self._write_tare(Tare(self.added, tare.baseline, since, tare.frames))
-                    self._stream.flush()
+                self._queue.put(("tare", Tare(self.added, tare.baseline, since, tare.frames)))
 
-    @contextlib.contextmanager
-    def _ending_on_failure(self):
-        # a write that failed leaves the writer mid-chunk: writing on would repeat or tear records,
-        # so the recorder ends here and the file keeps its complete chunks
-        try:
-            yield
-        except BaseException:
+    def drain(self) -> None:
+        """Wait until everything given so far has been written (or discarded after a failure)."""
+        self._queue.join()
+
+    def close(self) -> Path | None:
+        """Finish the file: the frames waiting, the open chunk and the summary.
+
+        Returns the path, or None (and no file) when no frame was recorded.
+
+        Raises
+        ------
+        OSError
+            The write error that ended the recording (the file keeps its complete chunks).
+        """
+        with self._lock:
             self._closed = True
-            self._release()
-            raise
+        self._end_writer("close")
+        with self._lock:
+            self._raise_failure()
+        return self.path if self.written else None
+
+    def abandon(self) -> None:
+        """Stop writing after a failure: the frames waiting go into chunks, but the file is not finished.
+
+        The complete chunks on disk stay readable (the file reads as cut short).
+        """
+        with self._lock:
+            self._closed = True
+            self._failure = self._failure or _Abandoned()
+        self._end_writer("abandon")  # after what waits: the file ends at the last chunk written
+
+    def _end_writer(self, how: str) -> None:
+        if self._thread.is_alive():  # once ended (closed before), nothing takes from the queue
+            self._queue.put((how, None))
+        self._thread.join()
+
+    def _raise_failure(self) -> None:
+        # the write error that ended the recording, raised once, to whoever calls next
+        failure = self._failure
+        if failure is not None and not isinstance(failure, _Abandoned):
+            self._failure = _Abandoned()
+            raise failure
+
+    # -- the writer's thread ------------------------------------------------------------------------
+
+    def _write_queued(self) -> None:
+        writing = True
+        while True:
+            kind, *item = self._queue.get()
+            try:
+                if kind in ("close", "abandon"):
+                    if writing and kind == "close":
+                        self._finish()
+                    elif writing:
+                        self._release()
+                    return
+                if writing:
+                    getattr(self, f"_write_{kind}")(*item)
+            except BaseException as exc:  # a full disk, a vanished folder: the file ends at its last chunk
+                writing = False
+                with self._lock:
+                    self._closed = True
+                    if self._failure is None:
+                        self._failure = exc
+                self._release()
+            finally:
+                self._queue.task_done()
+
+    def _write_frame(self, seq: int, t: float, values) -> None:
+        stamp = round((self._origin + t) * 1e9)
+        self._writer.add_message(self._channel, log_time=stamp, data=values.tobytes(), publish_time=stamp,
+                                 sequence=seq % 2**32)
+        self._chunk_times.append(stamp)
+        if self._last_flush is None:
+            self._last_flush = t
+        if t - self._last_flush >= self.flush_interval:
+            self._flush(t)
+
+    def _write_tick(self, now: float) -> None:
+        if self._chunk_times and now - self._last_flush >= self.flush_interval:
+            self._flush(now)
+
+    def _write_tare(self, tare: Tare) -> None:
+        self._add_metadata("tare", _json_fields(tare.fields()))
+        self._tares += 1
+        self._stream.flush()
 
     def _add_metadata(self, name: str, fields: dict) -> None:
         fields = dict(fields)
         fields["crc32"] = _checksum(fields)
         self._writer.add_metadata(f"tactile-viewer.{name}", fields)
 
-    def _write_tare(self, tare: Tare) -> None:
-        self._add_metadata("tare", _json_fields(tare.fields()))
-        self._tares += 1
-
     def _flush(self, now: float) -> None:
         self._end_chunk()
-        self.written = self.added
         self._last_flush = now
 
     def _end_chunk(self) -> None:
@@ -240,46 +332,31 @@ class Recorder:
         # the chunk record, then the message index of our one channel: 16 bytes a frame
         length = self._stream.tell() - position - _RECORD.size - (_RECORD.size + 6 + 16 * count)
         self._add_metadata("chunk", {
-            "offset": str(position), "length": str(length), "first": str(self.added - count),
+            "offset": str(position), "length": str(length), "first": str(self.written),
             "frames": str(count), "times_crc32": _times_checksum(self._chunk_times),
             "tares": str(self._tares)})
         self._chunk_times = []
         self._stream.flush()
+        self.written += count
 
-    def close(self) -> Path | None:
-        """Finish the file (the open chunk and the summary: at most a chunk's work).
-
-        Returns the path, or None (and no file) when no frame was recorded.
-        """
-        with self._lock:
-            if self._closed:
-                return self.path if self.written else None
-            self._closed = True
-            if self.added == 0:
-                self._stream.close()
-                self.path.unlink(missing_ok=True)
-                return None
-            try:
-                self._end_chunk()
-                self._writer.finish()
-                self._stream.close()
-            except BaseException:
-                self._release()
-                raise
-            self.written = self.added
-        return self.path
-
-    def abandon(self) -> None:
-        """Stop writing after a failure; the complete chunks already on disk stay readable."""
-        with self._lock:
-            self._closed = True
-            self._release()
+    def _finish(self) -> None:
+        if not self.written and not self._chunk_times:  # no frame recorded: no file
+            self._stream.close()
+            self.path.unlink(missing_ok=True)
+            return
+        self._end_chunk()
+        self._writer.finish()
+        self._stream.close()
 
     def _release(self) -> None:
         try:
             self._stream.close()
         except OSError:
             pass  # the buffered tail could not be written either: the file ends at its last chunk
+
+
+class _Abandoned(Exception):
+    """The recording was ended (after a failure already reported): nothing more to raise."""
 
 
 def _json_fields(fields: dict) -> dict:

@@ -84,7 +84,8 @@ def main(argv=None) -> int:
             elapsed = time.monotonic() - start
             stats = reader.stats
             print(f"{elapsed:7.1f} s  {stats.rate(reader.now()):7.1f} frames/s  recorded {recorder.added}  "
-                  f"lost {stats.lost}  rejected {sum(reader.rejected().values())}  {reader.state}"
+                  + (f"not recorded {recorder.dropped} (the disk is slower)  " if recorder.dropped else "")
+                  + f"lost {stats.lost}  rejected {sum(reader.rejected().values())}  {reader.state}"
                   + (f" ({reader.error})" if reader.error else ""), flush=True)
             if reader.recorder is None:  # ended by a write error or a reconnection (said on stderr)
                 failed.set()
@@ -98,7 +99,7 @@ def main(argv=None) -> int:
         reader.stop()
     stats = reader.stats
     # what the file holds, not what was handed to the recorder (after a write error they differ)
-    unwritten = recorder.added - recorder.written
+    unwritten = recorder.added - recorder.written + recorder.dropped
     print(f"stopped: {recorder.written} frames recorded to {written or args.out} (closed in "
           f"{closing * 1e3:.0f} ms), lost {stats.lost}, rejected {sum(reader.rejected().values())}, "
           f"longest wait between frames {stats.longest_gap * 1e3:.0f} ms"

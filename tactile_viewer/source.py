@@ -178,6 +178,10 @@ class Source:
             return None
         if written is None:
             self.message.emit("info", "nothing recorded", f"no frame arrived; {recorder.path} not written")
+        elif recorder.dropped:
+            self.message.emit("warning", "recording saved",
+                              f"{written}: {recorder.dropped} frames not recorded (the disk was slower than "
+                              "the board)")
         else:
             self.message.emit("info", "recording saved", str(written))
         return written
@@ -200,6 +204,13 @@ class Source:
             except (OSError, ValueError) as exc:
                 self._recording_failed(recorder, exc, "Recording stopped")
 
+    def _record(self, recorder: Recorder, seq: int, t: float, values) -> None:
+        if not recorder.add(seq, t, values) and recorder.dropped == 1:
+            self.message.emit("warning", "Recording falls behind",
+                              f"{recorder.path}: the disk takes frames slower than the board sends them; "
+                              "frames that find the recorder's queue full are not recorded (counted, and "
+                              "the count is said when the recording stops)")
+
     def _tick_recording(self, now: float) -> None:
         # frames waiting for their chunk go to disk on time even when no new frame comes
         self._to_recorder(lambda recorder: recorder.tick(now))
@@ -211,7 +222,7 @@ class Source:
         for frame in frames:
             seq = frame.index if frame.index is not None else self.published
             values = frame.stress if frame.raw is None else frame.raw
-            self._to_recorder(lambda recorder: recorder.add(seq, frame.t, values))  # noqa: B023 (called now)
+            self._to_recorder(lambda recorder: self._record(recorder, seq, frame.t, values))  # noqa: B023 (called now)
             # counted once handed to the recorder: a stop_recording that follows the count keeps it
             self.published += 1
         with self._lock:

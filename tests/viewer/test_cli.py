@@ -128,6 +128,7 @@ def test_info_prints_one_fact_per_line_of_a_live_recording_cut_short(tmp_path, c
     recorder = Recorder(path, grid32(), calibration=calibration, flush_interval=0.5, clock_origin=1.7e9)
     for k, seq in enumerate([0, 1, 2, 5, 6, 7, 8]):  # frames 3 and 4 lost on the way
         recorder.add(seq, k / 10, np.ones(6))
+    recorder.drain()
     # never closed (a crash): the frames of the complete chunk are there
     assert main([str(path), "--info"]) == 0
     lines = capsys.readouterr().out.splitlines()

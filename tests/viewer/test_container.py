@@ -5,6 +5,7 @@ import errno
 import hashlib
 import io
 import struct
+import threading
 
 import numpy as np
 import pytest
@@ -24,6 +25,8 @@ def record(path, stress, *, flush_interval=0.5, step=0.1, close=True, **options)
         recorder.add(1000 + k, k * step, frame)
     if close:
         recorder.close()
+    else:
+        recorder.drain()  # written as a crash now would leave it
     return recorder
 
 
@@ -34,6 +37,7 @@ def test_a_recording_is_loadable_after_every_chunk(tmp_path):
     stress = frames_for(13, seed=1)  # fixed seed
 
     def check(count):
+        recorder.drain()  # what the writer's thread has been given is on disk
         loaded = load(path)
         assert len(loaded) == count == recorder.written
         np.testing.assert_array_equal(loaded.sequence(), np.arange(count) + 1000)
@@ -43,6 +47,7 @@ def test_a_recording_is_loadable_after_every_chunk(tmp_path):
 
     for k in range(5):
         recorder.add(1000 + k, k / 10, stress[k])  # t = 0 .. 0.4: less than flush_interval since the first
+    recorder.drain()
     assert recorder.written == 0
     with pytest.raises(RecordingError, match="no frames"):
         load(path)  # nothing in a complete chunk yet: metadata only
@@ -168,6 +173,7 @@ def test_a_file_cut_at_any_byte_opens_with_every_complete_chunk(tmp_path):
     ends = []  # (file size, frames in complete chunks) after each chunk
     for k in range(30):
         recorder.add(k, k / 10, stress[k])
+        recorder.drain()
         if recorder.written and (not ends or ends[-1][1] != recorder.written):
             ends.append((path.stat().st_size, recorder.written))
     recorder.close()
@@ -218,8 +224,10 @@ def test_a_full_disk_stops_the_recording_and_keeps_what_fit(tmp_path, monkeypatc
     source.message.connect(lambda *m: messages.append(m))
     source.start_recording(path, flush_interval=0.05)
     stress = frames_for(200, seed=6)  # fixed seed
+    recorder = source.recorder
     for k in range(200):
         source.send(k, stress[k])  # the source goes on after the failure
+        recorder.drain()  # the disk as fast as the board: the failure comes with the next frame
     assert source.published == 200 and source.recorder is None
     [(level, title, text)] = messages
     assert level == "error" and title == "Recording stopped"
@@ -407,6 +415,7 @@ def test_a_recorder_whose_write_failed_writes_nothing_more(tmp_path, monkeypatch
     with pytest.raises(OSError, match="No space left on device"):
         for k in range(100):
             recorder.add(k, k / 100, stress[k])
+            recorder.drain()  # the failure comes with the next call
     FullDisk.room = 10**9  # space freed: writing on would repeat the failed chunk's records
     recorder.add(100, 1.0, stress[0])
     recorder.tick(5.0)
@@ -607,3 +616,68 @@ def test_an_unknown_version_is_refused(tmp_path):
         writer.finish()
     with pytest.raises(RecordingError, match=r"recording version '9' is not read by this viewer \(it reads 1, 2\)"):
         load(path)
+
+
+# -- a slow disk (issue 31, item 7) -------------------------------------------------------------------
+
+class StuckDisk(io.FileIO):
+    """A disk that takes no write while ``StuckDisk.turning`` is clear (a slow or stalled device)."""
+
+    turning = threading.Event()
+
+    def write(self, data):
+        assert StuckDisk.turning.wait(timeout=30), "the disk was never released"
+        return super().write(data)
+
+
+@pytest.fixture
+def stuck_disk(monkeypatch):
+    StuckDisk.turning.set()
+    monkeypatch.setattr(container, "open", lambda name, mode, **kw: io.BufferedWriter(StuckDisk(name, "w", **kw))
+                        if mode == "wb" else open(name, mode, **kw), raising=False)
+    yield StuckDisk.turning
+    StuckDisk.turning.set()
+
+
+def test_a_stalled_disk_never_stalls_the_frames_given_to_the_recorder(tmp_path, stuck_disk):
+    # before: every chunk was written on the caller's (the reader's) thread, which waited for the disk
+    path = tmp_path / "slow.mcap"
+    recorder = Recorder(path, grid32(), flush_interval=0.0, dtype="float64")
+    stress = frames_for(50, seed=16)  # fixed seed
+    stuck_disk.clear()
+    given = []
+    board = threading.Thread(target=lambda: given.extend(recorder.add(k, k / 100, stress[k]) for k in range(50)))
+    board.start()
+    board.join(timeout=10)  # a hang detector, not a speed bar: the disk stays stuck all along
+    assert not board.is_alive() and given == [True] * 50 and recorder.dropped == 0
+    assert recorder.written == 0  # nothing reached the disk yet
+    stuck_disk.set()
+    assert recorder.close() == path
+    np.testing.assert_array_equal(load(path).frames[:], stress)
+
+
+def test_a_full_queue_drops_frames_counts_them_and_the_source_says_so(tmp_path, stuck_disk):
+    source = Publisher("board", grid32())
+    messages = []
+    source.message.connect(lambda *m: messages.append(m))
+    path = tmp_path / "behind.mcap"
+    source.recorder = Recorder(path, grid32(), flush_interval=0.0, dtype="float64", backlog=10 * 6 * 8)
+    recorder = source.recorder
+    stress = frames_for(40, seed=17)  # fixed seed
+    stuck_disk.clear()
+    for k in range(40):
+        source.send(k, stress[k])
+    # ten wait in the queue, and the writer may hold one more it took before the disk stalled
+    assert recorder.added in (10, 11) and recorder.dropped == 40 - recorder.added
+    assert [m[:2] for m in messages] == [("warning", "Recording falls behind")]
+    stuck_disk.set()
+    assert source.stop_recording() == path
+    loaded = load(path)
+    np.testing.assert_array_equal(loaded.frames[:], stress[:recorder.added])  # the first ones, in order
+    assert messages[-1] == ("warning", "recording saved", f"{path}: {recorder.dropped} frames not recorded "
+                            "(the disk was slower than the board)")
+
+
+def test_a_backlog_under_one_frame_is_refused(tmp_path):
+    with pytest.raises(ValueError, match=r"backlog must be at least one frame \(24 bytes\), got 10"):
+        Recorder(tmp_path / "x.mcap", grid32(), backlog=10)
