@@ -1,4 +1,4 @@
-"""The live panel: connect a board, tare, record, disconnect; its state and the NO DATA banner.
+"""The live bar: connect a board, tare, record, disconnect; its state and the NO DATA banner.
 
 The panel builds a :class:`~tactile_viewer.live_source.SerialReader` and hands
 it to the window's ``install`` (which builds the solver and sets it as the
@@ -29,8 +29,11 @@ SILENCE_S = 1.0  # seconds without a frame before the banner says NO DATA
 DISPLAY_WINDOW_S = 2.0  # seconds of drawn frames the on-screen rate is measured over
 
 
-class LivePanel(QtWidgets.QGroupBox):
-    """A live source's state and its actions.
+class LivePanel(QtWidgets.QFrame):
+    """A live source's state and its actions: the bar under the scene while a board is shown.
+
+    It takes the timeline's place (a board has no timeline) and is never scrolled away: the
+    counts, the REC indicator and the buttons stay in view.
 
     Parameters
     ----------
@@ -50,21 +53,29 @@ class LivePanel(QtWidgets.QGroupBox):
     """
 
     disconnected = QtCore.pyqtSignal()  # the board shown was disconnected by the user
+    recording_to = QtCore.pyqtSignal(str)  # the file frames are recorded to now ("": none)
 
     def __init__(self, model: ViewerModel, *, install, error, notify, parent=None):
-        super().__init__("Live", parent)
+        super().__init__(parent)
         self.model = model
         self._install, self._error, self._notify = install, error, notify
         self._layout_name = ""  # the layout file of the board shown, to name it
-        box = QtWidgets.QVBoxLayout(self)
+        self._recording_to = ""
+        self.setFrameShape(QtWidgets.QFrame.Shape.StyledPanel)
+        bar = QtWidgets.QHBoxLayout(self)
+        bar.setContentsMargins(6, 2, 6, 2)
+        box = QtWidgets.QVBoxLayout()
         self.status = QtWidgets.QLabel("")
         self.status.setWordWrap(True)
+        policy = QtWidgets.QSizePolicy.Policy
+        self.status.setSizePolicy(policy.Ignored, policy.Preferred)  # wraps, never widens the window
         box.addWidget(self.status)
         # seen at a glance while every frame goes to a file
         self.recording_indicator = QtWidgets.QLabel("")
         self.recording_indicator.setStyleSheet("color: #b00020; font-weight: bold")
         self.recording_indicator.hide()
         box.addWidget(self.recording_indicator)
+        bar.addLayout(box, 1)
         self._drawn: deque = deque()  # when frames reached the screen (monotonic seconds)
         buttons = QtWidgets.QHBoxLayout()
         self.buttons = {}
@@ -81,7 +92,7 @@ class LivePanel(QtWidgets.QGroupBox):
             button.clicked.connect(lambda _=False, slot=slot: slot())
             buttons.addWidget(button)
             self.buttons[name] = button
-        box.addLayout(buttons)
+        bar.addLayout(buttons)
         self.banner = QtWidgets.QLabel("NO DATA")
         self.banner.setAlignment(QtCore.Qt.AlignmentFlag.AlignCenter)
         self.banner.setStyleSheet("background: #b00020; color: white; font-weight: bold; padding: 4px")
@@ -219,9 +230,15 @@ class LivePanel(QtWidgets.QGroupBox):
         """Show the source's state: rate, counts, rejections, recording; NO DATA after a silence."""
         self._enable()
         reader = self.reader
+        recorder = reader.recorder if reader is not None and reader.state != "stopped" else None
+        path = str(recorder.path) if recorder is not None else ""
+        if path != self._recording_to:
+            self._recording_to = path
+            self.recording_to.emit(path)
+        if recorder is None:
+            self.recording_indicator.hide()
         if reader is None or reader.state == "stopped":
             self.banner.hide()
-            self.recording_indicator.hide()
             self.status.setText(f"{reader.label}: stopped" if reader is not None else "")
             return
         stats = reader.stats
@@ -249,9 +266,10 @@ class LivePanel(QtWidgets.QGroupBox):
             parts.append(f"{reader.failures} chunks failed: {reader.error}")
         if reader.calibration.taring:
             parts.append("taring")
-        recorder = reader.recorder
-        self.recording_indicator.setVisible(recorder is not None)
         if recorder is not None:
-            self.recording_indicator.setText(f"\u25cf REC {recorder.path.name}: {recorder.added} frames "
-                                             f"({recorder.written} on disk)")
-        self.status.setText("\n".join(parts))
+            self.recording_indicator.show()
+            self.recording_indicator.setText(
+                f"\u25cf REC {recorder.path.name}: {recorder.added} frames ({recorder.written} on disk)"
+                + (f", {recorder.dropped} not recorded (the disk is slower than the board)"
+                   if recorder.dropped else ""))
+        self.status.setText("  \u00b7  ".join(parts))

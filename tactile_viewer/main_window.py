@@ -153,6 +153,8 @@ class MainWindow(QtWidgets.QMainWindow):
         # the title said "live" after a disconnect
         self.live_panel.disconnected.connect(
             lambda: self.setWindowTitle(f"tactile-viewer - {self.model.source.label} (disconnected)"))
+        # the title says a recording runs, whatever part of the window is in view
+        self.live_panel.recording_to.connect(self._on_recording_to)
         self.presets = PresetMeasurer(self.model, self.parameters, self.tasks, notify=self._notify,
                                       parent=self)
         self.exports = ExportActions(self, self.model, self.scene, self.tasks, error=self._error,
@@ -165,14 +167,16 @@ class MainWindow(QtWidgets.QMainWindow):
         self.resizeDocks([self.time_plots], [TIME_PLOTS_PX], QtCore.Qt.Orientation.Vertical)
 
         layout.addWidget(self.live_panel.banner)
-        layout.addWidget(self.plotter.interactor)
+        layout.addWidget(self.plotter.interactor, 1)
+        # the timeline (a recording) or the live bar (a board) under the scene, never scrolled away
+        layout.addWidget(self.playback)
+        layout.addWidget(self.live_panel)
         self.setCentralWidget(central)
         self._controls = QtWidgets.QWidget()
         column = QtWidgets.QVBoxLayout(self._controls)
-        for panel in (self.parameters, self.display_panel, self.contacts_panel, self.playback,
-                      self.live_panel):
-            column.addWidget(panel)
-        column.addStretch(1)
+        column.addWidget(self.parameters)
+        column.addWidget(self.display_panel)
+        column.addWidget(self.contacts_panel, 1)  # the table takes the height left
         # on a short screen the column scrolls rather than push the status bar off it
         scroll = QtWidgets.QScrollArea()
         scroll.setWidget(self._controls)
@@ -296,6 +300,7 @@ class MainWindow(QtWidgets.QMainWindow):
         live = self.model.live
         self._controls.setEnabled(on)
         self.playback.setEnabled(on and not live)
+        self.playback.setVisible(not live)
         for action in self.playback_actions.values():
             action.setEnabled(on and not live)
         self.auto_action.setEnabled(on)
@@ -427,6 +432,12 @@ class MainWindow(QtWidgets.QMainWindow):
             self.ready.emit()  # no frame yet: the first to arrive is solved and drawn as it comes
         else:
             self._first_frame = True  # ready follows with its first solve
+
+    def _on_recording_to(self, path: str):
+        source = self.model.source
+        if source is not None and source.live and source.state != "stopped":
+            self.setWindowTitle(f"tactile-viewer - live: {source.label}"
+                                + (f" - \u25cf REC {Path(path).name}" if path else ""))
 
     def retare(self, how: str) -> bool:
         """Retake ("here"), clear or restore ("recorded") the tare of the recording shown (not its file)."""

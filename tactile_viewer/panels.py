@@ -281,12 +281,12 @@ class DisplayPanel(QtWidgets.QGroupBox):
         self.scale_spin.valueChanged.connect(lambda v: model.set_display(arrow_scale=v / 1e3))
         self.threshold_spin = _number_field(decimals=2, maximum=1e6, singleStep=1.0, suffix=" mN")
         self.threshold_spin.valueChanged.connect(lambda v: model.set_display(threshold=v / 1e3))
-        self.range_box = QtWidgets.QCheckBox("automatic colour range")
+        self.range_box = QtWidgets.QCheckBox("auto map range")
         self.range_box.setChecked(True)
         self.range_box.toggled.connect(lambda on: model.set_display(auto_range=on))
         self.range_spin = _number_field(decimals=2, maximum=1e6, singleStep=1.0, suffix=" kPa")
         self.range_spin.valueChanged.connect(lambda v: model.set_display(range_max=v * 1e3))
-        self.arrow_range_box = QtWidgets.QCheckBox("automatic arrow colour range")
+        self.arrow_range_box = QtWidgets.QCheckBox("auto arrow range")
         self.arrow_range_box.setChecked(True)
         self.arrow_range_box.toggled.connect(lambda on: model.set_display(arrow_auto_range=on))
         self.arrow_range_spin = _number_field(decimals=2, maximum=1e6, singleStep=5.0,
@@ -313,7 +313,7 @@ class DisplayPanel(QtWidgets.QGroupBox):
                 (self.colormap_box, "Colours of the map: perceptually uniform maps (equal steps look equal), "
                                     "cividis also for colour-blind readers, gray for print"),
                 (self.range_box, "The map's colours span 0 to this frame's largest value (on), or 0 to "
-                                 "'range max' on every frame (off)"),
+                                 "the value beside on every frame (off)"),
                 (self.range_spin, "Top of the map's fixed colour range, kPa (set from the recording's "
                                   "most loaded frame when it opens)"),
                 (self.arrows_box, "One arrow per taxel: the force on the skin there, its tip on the surface, "
@@ -323,7 +323,7 @@ class DisplayPanel(QtWidgets.QGroupBox):
                 (self.scale_spin, "Arrow length per newton, mm/N; the scene states it as '1 mm = ... mN'"),
                 (self.threshold_spin, "Taxels with a smaller force (in-plane: shear) draw no arrow, mN"),
                 (self.arrow_range_box, "The arrows' colours span 0 to this frame's largest shown force (on), "
-                                       "or 0 to 'arrow range max' on every frame, so colours compare across "
+                                       "or 0 to the value beside on every frame, so colours compare across "
                                        "frames (off)"),
                 (self.arrow_range_spin, "Top of the arrows' fixed colour range, mN (set from the recording's "
                                         "loads when it opens); larger forces show in the top colour"),
@@ -338,29 +338,23 @@ class DisplayPanel(QtWidgets.QGroupBox):
                 (top, "Look straight down (orthographic, +x right, +y up) with in-plane arrows"),
                 (iso, "Look from the front right, in perspective, with 3-D arrows")):
             widget.setToolTip(tip)
-        grid.addWidget(QtWidgets.QLabel("map"), 0, 0)
-        grid.addWidget(self.map_box, 0, 1, 1, 2)
-        grid.addWidget(QtWidgets.QLabel("colours"), 1, 0)
-        grid.addWidget(self.colormap_box, 1, 1, 1, 2)
-        grid.addWidget(self.range_box, 2, 0, 1, 3)
-        grid.addWidget(QtWidgets.QLabel("range max"), 3, 0)
-        grid.addWidget(self.range_spin, 3, 1, 1, 2)
-        grid.addWidget(self.arrows_box, 4, 0, 1, 2)
-        grid.addWidget(self.resultant_box, 4, 2)
-        grid.addWidget(QtWidgets.QLabel("arrow scale"), 5, 0)
-        grid.addWidget(self.scale_spin, 5, 1, 1, 2)
-        grid.addWidget(QtWidgets.QLabel("hide below"), 6, 0)
-        grid.addWidget(self.threshold_spin, 6, 1, 1, 2)
-        grid.addWidget(self.arrow_range_box, 7, 0, 1, 3)
-        grid.addWidget(QtWidgets.QLabel("arrow range max"), 8, 0)
-        grid.addWidget(self.arrow_range_spin, 8, 1, 1, 2)
-        grid.addWidget(self.in_plane_box, 9, 0, 1, 2)
-        grid.addWidget(self.gain_spin, 9, 2)
-        grid.addWidget(self.axes_box, 10, 0)
-        grid.addWidget(self.ids_box, 10, 1, 1, 2)
-        grid.addWidget(QtWidgets.QLabel("camera"), 11, 0)
-        grid.addWidget(top, 11, 1)
-        grid.addWidget(iso, 11, 2)
+        # two controls to a row where one qualifies the other: the column fits 1280x800 unscrolled
+        rows = [(QtWidgets.QLabel("map"), self.map_box, self.colormap_box),
+                (self.range_box, self.range_spin),
+                (self.arrows_box, self.resultant_box),
+                (QtWidgets.QLabel("arrow scale"), self.scale_spin),
+                (QtWidgets.QLabel("hide below"), self.threshold_spin),
+                (self.arrow_range_box, self.arrow_range_spin),
+                (self.in_plane_box, self.gain_spin),
+                (self.axes_box, self.ids_box),
+                (QtWidgets.QLabel("camera"), top, iso)]
+        for row, widgets in enumerate(rows):
+            grid.addWidget(widgets[0], row, 0)
+            if len(widgets) == 2:
+                grid.addWidget(widgets[1], row, 1, 1, 2)
+            else:
+                grid.addWidget(widgets[1], row, 1)
+                grid.addWidget(widgets[2], row, 2)
         model.display_changed.connect(self.follow)
 
     def view(self, preset: str):
@@ -397,8 +391,10 @@ class DisplayPanel(QtWidgets.QGroupBox):
         self.gain_spin.setEnabled(d.in_plane)
 
 
-class PlaybackPanel(QtWidgets.QGroupBox):
-    """Play, step, frame slider, speed, loop: controls of the recording source's clock.
+class PlaybackPanel(QtWidgets.QFrame):
+    """The timeline under the scene: step, play, the frame slider, frame and time, speed, loop.
+
+    One row with a permanent place (as in rviz and Foxglove), never scrolled away.
 
     The :class:`~tactile_viewer.source.RecordingSource` keeps the clock and
     shows the frame whose time has come, so slow drawing skips frames rather
@@ -406,9 +402,11 @@ class PlaybackPanel(QtWidgets.QGroupBox):
     """
 
     def __init__(self, model: ViewerModel, parent=None):
-        super().__init__("Playback", parent)
+        super().__init__(parent)
         self.model = model
-        grid = QtWidgets.QGridLayout(self)
+        self.setFrameShape(QtWidgets.QFrame.Shape.StyledPanel)
+        row = QtWidgets.QHBoxLayout(self)
+        row.setContentsMargins(6, 2, 6, 2)
         self.play_button = QtWidgets.QPushButton("Play")
         self.play_button.setCheckable(True)
         self.play_button.toggled.connect(self._play_toggled)
@@ -432,13 +430,17 @@ class PlaybackPanel(QtWidgets.QGroupBox):
                             (self.speed_box, "Playback speed: recording seconds per wall-clock second"),
                             (self.loop_box, "Start again from frame 0 at the end")):
             widget.setToolTip(tip)
-        grid.addWidget(back, 0, 0)
-        grid.addWidget(self.play_button, 0, 1)
-        grid.addWidget(forward, 0, 2)
-        grid.addWidget(self.speed_box, 0, 3)
-        grid.addWidget(self.loop_box, 0, 4)
-        grid.addWidget(self.frame_slider, 1, 0, 1, 5)
-        grid.addWidget(self.time_label, 2, 0, 1, 5)
+        for button in (back, forward):
+            button.setFixedWidth(button.fontMetrics().horizontalAdvance("<") + 24)
+        self.play_button.setFixedWidth(self.play_button.fontMetrics().horizontalAdvance("Pause") + 24)
+        # room for the longest label, so that the slider does not jump as it changes
+        self.time_label.setMinimumWidth(self.time_label.fontMetrics().horizontalAdvance(
+            "frame 0000 (of 0-0000),  t = 000.000 s"))
+        for widget in (back, self.play_button, forward):
+            row.addWidget(widget)
+        row.addWidget(self.frame_slider, 1)
+        for widget in (self.time_label, self.speed_box, self.loop_box):
+            row.addWidget(widget)
         self._timer = QtCore.QTimer(self, interval=15)
         self._timer.timeout.connect(self._tick)
         self.source: RecordingSource | None = None

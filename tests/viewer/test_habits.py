@@ -335,7 +335,8 @@ def test_every_control_says_what_it_does(opened):
         return False
 
     silent = [w for kind in kinds for w in opened.findChildren(kind)
-              if opened._controls.isAncestorOf(w) and not w.toolTip() and not inside_a_view(w)]
+              if any(part.isAncestorOf(w) for part in (opened._controls, opened.playback, opened.live_panel))
+              and not w.toolTip() and not inside_a_view(w)]
     assert silent == [], [(type(w).__name__, getattr(w, "text", lambda: "")()) for w in silent]
 
 

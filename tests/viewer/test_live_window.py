@@ -225,3 +225,23 @@ def test_the_recording_indicator_shows_while_recording_and_both_rates_are_shown(
     assert "device identity unknown" in panel.status.text() and "recordings end at a reconnection" in panel.status.text()
     panel.stop_recording()
     qtbot.waitUntil(lambda: not panel.recording_indicator.isVisible(), timeout=5000)
+
+
+def test_a_recording_in_progress_shows_in_the_title_and_the_live_bar_in_view(live, qtbot, tmp_path):
+    # before: the live counters, REC and the buttons sat below the controls column's fold (1,056 px
+    # in a 703 px viewport) and nothing else said a recording ran
+    from tests.viewer.test_main_window import in_view
+
+    live.resize(1280, 760)
+    qtbot.waitUntil(lambda: live.height() == 760, timeout=5000)
+    assert live.windowTitle() == f"tactile-viewer - live: {live.live_panel.reader.label}"
+    assert live.live_panel.start_recording(tmp_path / "take.mcap")
+    qtbot.waitUntil(lambda: live.windowTitle().endswith(" - \u25cf REC take.mcap"), timeout=3000)
+    qtbot.waitUntil(lambda: live.live_panel.recording_indicator.isVisible(), timeout=3000)
+    for widget in (live.live_panel.status, live.live_panel.recording_indicator, *live.live_panel.buttons.values()):
+        assert in_view(live, widget), widget
+    assert not live.playback.isVisible()  # a board has no timeline: the live bar takes its place
+    live.live_panel.stop_recording()
+    qtbot.waitUntil(lambda: live.windowTitle() == f"tactile-viewer - live: {live.live_panel.reader.label}",
+                    timeout=3000)
+    assert not live.live_panel.recording_indicator.isVisible()

@@ -693,3 +693,32 @@ def test_a_long_status_line_and_a_taxel_read_out_do_not_widen_the_window(opened,
     QtWidgets.QApplication.processEvents()
     assert opened.width() == width and opened.frameGeometry().width() <= 1280
     assert opened.readout_label.isVisible() and opened.readout_label.width() >= opened.readout_label.sizeHint().width()
+
+
+def in_view(window, widget):
+    from PyQt6 import QtCore
+
+    # shown, and wholly inside the window and inside whatever scroll area holds it, as placed now
+    if not widget.isVisible():
+        return False
+    top_left = widget.mapTo(window, QtCore.QPoint(0, 0))
+    inside = window.rect().contains(QtCore.QRect(top_left, widget.size()))
+    return inside and widget.visibleRegion().boundingRect().size() == widget.size()
+
+
+def test_at_1280x800_the_timeline_and_every_control_are_in_view_unscrolled(opened, qtbot):
+    from PyQt6 import QtCore, QtWidgets
+
+    # before: Play and the frame slider sat under the controls column, 863 px in a 703 px viewport
+    opened.resize(1280, 760)  # a 1280x800 screen less a title bar
+    qtbot.waitUntil(lambda: opened.height() == 760, timeout=5000)
+    scroll = opened._controls
+    while not isinstance(scroll, QtWidgets.QScrollArea):
+        scroll = scroll.parentWidget()
+    assert scroll.verticalScrollBar().maximum() == 0  # the column needs no scrolling
+    for widget in (opened.playback.play_button, opened.playback.frame_slider, opened.playback.time_label,
+                   opened.parameters.auto_box, opened.display_panel.ids_box, opened.contacts_panel.table):
+        assert in_view(opened, widget), widget
+    # the timeline sits under the scene
+    scene = opened.plotter.interactor
+    assert opened.playback.mapTo(opened, QtCore.QPoint(0, 0)).y() >= scene.mapTo(opened, QtCore.QPoint(0, 0)).y() + scene.height()
