@@ -452,7 +452,7 @@ class MainWindow(QtWidgets.QMainWindow):
     # -- drawing ------------------------------------------------------------------------------
 
     def _on_solved(self, solved):
-        self.scene.update(solved, self.model.display, render=False)
+        self.scene.update(self.model.drawn, self.model.display, render=False)
         self.status.setText(status_text(solved, self.model))
         self.status.setToolTip(status_details(solved))
         self._draw()
@@ -462,8 +462,8 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _redraw(self):
         # the display settings changed: draw the last result again
-        if self.model.last is not None:
-            self.scene.update(self.model.last, self.model.display, render=False)
+        if self.model.drawn is not None:
+            self.scene.update(self.model.drawn, self.model.display, render=False)
             self._draw()
 
     def _draw(self):

@@ -58,6 +58,7 @@ __all__ = ["Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO", "KERNEL_HELP",
 # the map's fixed colour range over the most loaded frame's normal-only peak pressure (_display_scales)
 RANGE_MARGIN = 1.75
 MAX_SHEAR_RATIO = 1.5  # the slider's end; the automatic search uses the same bound
+MAX_SMOOTHING = 10.0  # seconds: past any contact a lab follows
 MAPS = ("pressure", "stress", "none")
 HIDE_BELOW = 0.02  # default "hide below": this fraction of the largest node force of a new source
 
@@ -121,6 +122,12 @@ class Display:
         convention (0 deg = +x, 90 deg = +y) at its corner.
     taxel_ids : bool
         Each taxel's node index (from 0, as everywhere) on its square.
+    smoothing : float
+        Time constant, seconds, of the exponential smoothing of the node
+        forces drawn (arrows and pressure map) over frame time; 0 is off
+        (the default). Smoothed forces lag the data by about this much and a
+        step reaches 63% of its height after it. Never applied to exports,
+        the read-out, the contacts or the status line.
     """
 
     COLORMAPS: ClassVar[tuple] = ("viridis", "cividis", "plasma", "inferno", "magma", "gray")
@@ -140,6 +147,7 @@ class Display:
     in_plane_gain: float = 2.0
     axes: bool = True
     taxel_ids: bool = False
+    smoothing: float = 0.0
 
     CAMERAS: ClassVar[tuple] = ("top", "iso")
 
@@ -156,12 +164,15 @@ class Display:
     def __post_init__(self):
         one_of("map", self.map, MAPS)
         one_of("colormap", self.colormap, self.COLORMAPS)
-        for name in ("arrow_scale", "resultant_scale", "threshold", "range_max", "arrow_range_max"):
+        for name in ("arrow_scale", "resultant_scale", "threshold", "range_max", "arrow_range_max",
+                     "smoothing"):
             value = getattr(self, name)
             # bool is a number to Python, but never a scale a caller meant
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
                     or not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+        if self.smoothing > MAX_SMOOTHING:
+            raise ValueError(f"smoothing must be at most {MAX_SMOOTHING:g} s, got {self.smoothing!r}")
         if not (isinstance(self.in_plane_gain, (int, float, np.integer, np.floating))
                 and not isinstance(self.in_plane_gain, bool)
                 and math.isfinite(self.in_plane_gain) and self.in_plane_gain > 0):
@@ -192,6 +203,10 @@ class Solved:
         Each contact's :attr:`solver.Contact.centre` (the solver's formula:
         its load's centre, its nodes' middle when nothing of it presses),
         metres, in the order of ``result.contacts``.
+    drawn_forces : (m, 3) ndarray or None
+        The node forces the scene draws, newtons, when they differ from
+        ``result.forces`` (smoothed over time: :class:`ForceSmoothing`);
+        ``pressure`` is then theirs too.
 
     The contacts of a result the model delivers carry their identities
     (``result.contacts[k].identity``, from 1: module notes); ``Solved.of``
@@ -207,6 +222,12 @@ class Solved:
     pressure: np.ndarray
     centroid: np.ndarray | None
     contact_centroids: tuple = ()
+    drawn_forces: np.ndarray | None = None
+
+    @property
+    def forces_drawn(self) -> np.ndarray:
+        """``(m, 3)`` node forces as drawn: :attr:`drawn_forces`, else the result's."""
+        return self.result.forces if self.drawn_forces is None else self.drawn_forces
 
     @classmethod
     def of(cls, grid: SensorGrid, stress, result: Reconstruction, *, frame: int = 0, time: float = 0.0,
@@ -216,6 +237,41 @@ class Solved:
         return cls(frame, time, np.asarray(stress, dtype=float), result, solve_ms, auto,
                    read_only(forces[:, 2] / grid.pitch**2), load_centroid(grid.positions, forces[:, 2]),
                    tuple(read_only(c.centre) for c in result.contacts))
+
+
+class ForceSmoothing:
+    """Exponential smoothing of the node forces drawn, over the frames' time. Qt-free.
+
+    Each frame moves the drawn forces ``d`` towards the solved ones ``f`` by
+    ``d += (1 - exp(-dt / tau)) * (f - d)``, ``dt`` the time since the frame
+    before, so frames skipped by playback count by their time. A frame
+    solved again (other parameters) is smoothed from where its first solve
+    started; a frame before the last (a seek back) starts afresh.
+    """
+
+    def __init__(self):
+        self.reset()
+
+    def reset(self) -> None:
+        self._key = self._time = self._base = self._value = None
+        self._alpha = 1.0
+
+    def __call__(self, solved: Solved, time_constant: float, pitch: float) -> Solved:
+        """``solved`` with its drawn forces and pressure smoothed over ``time_constant`` s (0: itself)."""
+        if time_constant <= 0:
+            self.reset()
+            return solved
+        forces = solved.result.forces
+        key = (solved.frame, solved.time)
+        if key == self._key and self._base.shape == forces.shape:
+            base, alpha = self._base, self._alpha  # the same frame solved again
+        elif self._value is None or self._value.shape != forces.shape or solved.time < self._time:
+            base, alpha = forces, 1.0  # nothing before it to smooth with
+        else:
+            base, alpha = self._value, -math.expm1(-(solved.time - self._time) / time_constant)
+        value = read_only(base + alpha * (forces - base))
+        self._key, self._time, self._base, self._alpha, self._value = key, solved.time, base, alpha, value
+        return replace(solved, drawn_forces=value, pressure=read_only(value[:, 2] / pitch**2))
 
 
 def load_centroid(positions, fz) -> np.ndarray | None:
@@ -300,7 +356,9 @@ class ViewerModel:
         self.shear_ratio = 0.0
         self.shear_direction = 0.0  # radians
         self.display = Display()
-        self.last: Solved | None = None
+        self.last: Solved | None = None  # the frame solved last, as solved (exports, read-out)
+        self.drawn: Solved | None = None  # the same as the scene draws it (display.smoothing)
+        self._smoothing = ForceSmoothing()
         self.recording_changed = Signal()
         self.frame_changed = Signal()
         self.parameters_changed = Signal()
@@ -393,7 +451,8 @@ class ViewerModel:
         self.source = source
         self.reconstructor = reconstructor
         self.kernel = reconstructor.kernel
-        self.last = None
+        self.last = self.drawn = None
+        self._smoothing.reset()
         self._tracker, self._tracked = ContactTracker(reconstructor.grid), None  # numbers from 1 again
         self._unshown = self._waiting = False
         if not same:
@@ -561,7 +620,11 @@ class ViewerModel:
     def set_display(self, **changes):
         display = replace(self.display, **changes)
         if display != self.display:
+            smoothing = display.smoothing != self.display.smoothing
             self.display = display
+            if smoothing and self.last is not None:  # smoothed afresh from the frame shown
+                self._smoothing.reset()
+                self._show(self.last)
             self.display_changed.emit()
 
     def describe(self) -> dict:
@@ -636,9 +699,14 @@ class ViewerModel:
         job = self._job()
         if job is None:
             return None
-        self.last = self._track(self._compute(job))
+        self._show(self._track(self._compute(job)))
         self.solved.emit(self.last)
         return self.last
+
+    def _show(self, solved: Solved) -> None:
+        # the frame solved, and as it is drawn (smoothed over time when the display asks)
+        self.last = solved
+        self.drawn = self._smoothing(solved, self.display.smoothing, self.reconstructor.grid.pitch)
 
     def _schedule(self):
         # what is shown changed: solve it on the worker (newest request wins)
@@ -667,7 +735,7 @@ class ViewerModel:
         if job.generation != self._generation:
             return  # solved with a solver that has been replaced since
         solved = self._track(solved)
-        self.last = solved
+        self._show(solved)
         self._unshown = self.pace and self.live
         self.solved.emit(solved)
 

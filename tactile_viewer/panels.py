@@ -16,7 +16,7 @@ from PyQt6 import QtCore, QtWidgets
 
 from solver.kernels import KERNELS
 
-from .model import KERNEL_HELP, MAX_SHEAR_RATIO, Solved, ViewerModel, geometry_text
+from .model import KERNEL_HELP, MAX_SHEAR_RATIO, MAX_SMOOTHING, Solved, ViewerModel, geometry_text
 from .source import RecordingSource
 
 __all__ = ["ParametersPanel", "DisplayPanel", "PlaybackPanel", "status_text", "status_details", "MAP_CHOICES",
@@ -298,6 +298,10 @@ class DisplayPanel(QtWidgets.QGroupBox):
                                                   prefix="x ")
         self.gain_spin.setValue(model.display.in_plane_gain)
         self.gain_spin.valueChanged.connect(lambda v: model.set_display(in_plane_gain=v))
+        self.smoothing_spin = _number_field(decimals=2, maximum=MAX_SMOOTHING, singleStep=0.05,
+                                            prefix="smooth ", suffix=" s")
+        self.smoothing_spin.setSpecialValueText("no smoothing")  # at 0
+        self.smoothing_spin.valueChanged.connect(lambda v: model.set_display(smoothing=v))
         self.axes_box = QtWidgets.QCheckBox("axes")
         self.axes_box.setChecked(model.display.axes)
         self.axes_box.toggled.connect(lambda on: model.set_display(axes=on))
@@ -322,6 +326,10 @@ class DisplayPanel(QtWidgets.QGroupBox):
                                      "of its pressing load (the frame's total when no contact was found)"),
                 (self.scale_spin, "Arrow length per newton, mm/N; the scene states it as '1 mm = ... mN'"),
                 (self.threshold_spin, "Taxels with a smaller force (in-plane: shear) draw no arrow, mN"),
+                (self.smoothing_spin, "Smooth the arrows and the pressure map over this time constant "
+                                      "(exponentially, over the frames' time) so that node forces stop "
+                                      "flickering; they then lag the data by about this much. Off by "
+                                      "default; never applied to exports, the read-out or the numbers"),
                 (self.arrow_range_box, "The arrows' colours span 0 to this frame's largest shown force (on), "
                                        "or 0 to the value beside on every frame, so colours compare across "
                                        "frames (off)"),
@@ -343,7 +351,7 @@ class DisplayPanel(QtWidgets.QGroupBox):
                 (self.range_box, self.range_spin),
                 (self.arrows_box, self.resultant_box),
                 (QtWidgets.QLabel("arrow scale"), self.scale_spin),
-                (QtWidgets.QLabel("hide below"), self.threshold_spin),
+                (QtWidgets.QLabel("hide below"), self.threshold_spin, self.smoothing_spin),
                 (self.arrow_range_box, self.arrow_range_spin),
                 (self.in_plane_box, self.gain_spin),
                 (self.axes_box, self.ids_box),
@@ -380,11 +388,13 @@ class DisplayPanel(QtWidgets.QGroupBox):
             _show_number(self.arrow_range_spin, d.arrow_range_max * 1e3)
             self.in_plane_box.setChecked(d.in_plane)
             _show_number(self.gain_spin, d.in_plane_gain)
+            _show_number(self.smoothing_spin, d.smoothing)
             self.axes_box.setChecked(d.axes)
             self.ids_box.setChecked(d.taxel_ids)
         _quietly([self.map_box, self.colormap_box, self.arrows_box, self.resultant_box, self.scale_spin,
                   self.threshold_spin, self.range_box, self.range_spin, self.arrow_range_box,
-                  self.arrow_range_spin, self.in_plane_box, self.gain_spin, self.axes_box, self.ids_box],
+                  self.arrow_range_spin, self.in_plane_box, self.gain_spin, self.smoothing_spin,
+                  self.axes_box, self.ids_box],
                  apply)
         self.range_spin.setEnabled(not d.auto_range)
         self.arrow_range_spin.setEnabled(not d.arrow_auto_range)

@@ -269,7 +269,7 @@ class Scene:
         if self.grid is None:
             raise RuntimeError("set_grid must come before update")
         self._shown = (solved, display)
-        forces = solved.result.forces
+        forces = solved.forces_drawn
         p = self.grid.pitch * MM
         # the map
         values = np.asarray(solved.stress if display.map == "stress" else solved.pressure, dtype=float)
@@ -319,7 +319,9 @@ class Scene:
         legend = self._actors["arrow_scale"]
         legend.SetVisibility(bool(shown.size))
         if shown.size:  # 1 mm of arrow is this many mN
-            legend.SetInput(f"{'shear ' if display.in_plane else ''}arrows: 1 mm = {MM / scale:.3g} mN")
+            legend.SetInput(f"{'shear ' if display.in_plane else ''}arrows: 1 mm = {MM / scale:.3g} mN"
+                            + (f", smoothed over {display.smoothing:.3g} s (they lag about that much)"
+                               if solved.drawn_forces is not None else ""))
 
         self._draw_resultants(solved, display)
         self._show_overlays(display, low, high)

@@ -854,3 +854,89 @@ def test_live_frames_delivered_by_the_worker_carry_their_numbers(threaded, cross
         posted.run(model)  # the hand-over
         posted.run(model)  # the result
         assert model.last.frame == 100 + k and sides(model.last) == {"left": 2, "right": 1}
+
+
+# -- smoothing the forces drawn (issue 31, item 17) --------------------------------------------------
+
+def pressed(frames, dt, rng):
+    """A constant 1 N Hertz press on the 6x5 skin, fresh 1% noise each frame ``dt`` seconds apart."""
+    grid = SensorGrid.regular(6, 5, PITCH, THICKNESS)
+    stress = [loads.simulate(grid, loads.hertz((0.0, 0.0), 3e-3, 1.0), noise=0.01, rng=rng).stress
+              for _ in range(frames)]
+    return Recording(grid, stress, np.arange(frames) * dt, description="held press")
+
+
+def drawn_and_solved(model, frames):
+    drawn, solved = [], []
+    for k in range(frames):
+        model.set_frame(k)
+        model.solve()
+        drawn.append(model.drawn.forces_drawn[:, 2])
+        solved.append(model.last.result.forces[:, 2])
+    return np.array(drawn), np.array(solved)
+
+
+def test_smoothing_steadies_the_drawn_node_forces_and_leaves_the_solved_ones(reconstructor):
+    # before: on a constant press the node Fz drawn varied frame to frame as much as the noise made it
+    recording = pressed(40, 1 / 30, np.random.default_rng(21))  # fixed seed; 30 frames per second
+    model = ViewerModel()
+    model.set_source(RecordingSource(recording, "held.npz"), reconstructor)
+    model.set_auto(False)  # one member of the family for every frame: only the noise moves the forces
+    _, plain = drawn_and_solved(model, 40)
+    model.set_frame(0)
+    model.set_display(smoothing=0.2)
+    drawn, solved = drawn_and_solved(model, 40)
+    # what exports and the read-out see is untouched (to the warm start's last bits)
+    np.testing.assert_allclose(solved, plain, rtol=0, atol=1e-12)
+    loaded = plain.mean(axis=0) > 0.5 * plain.mean(axis=0).max()  # the press's core nodes
+    step_plain = np.median(np.abs(np.diff(plain[:, loaded], axis=0)))
+    step_drawn = np.median(np.abs(np.diff(drawn[10:, loaded], axis=0)))  # once the start has passed
+    # white noise through one exponential step of alpha per frame changes by sqrt(alpha/(2 - alpha))
+    # as much: alpha = 1 - exp(-1/6) = 0.15, so 0.29 times
+    assert step_drawn < 0.45 * step_plain
+    np.testing.assert_allclose(drawn.mean(axis=0)[loaded], plain.mean(axis=0)[loaded], rtol=0.1)
+    pitch = recording.grid.pitch
+    np.testing.assert_allclose(model.drawn.pressure, model.drawn.forces_drawn[:, 2] / pitch**2)
+    assert model.last.drawn_forces is None and model.last.forces_drawn is model.last.result.forces
+
+
+def test_smoothing_follows_a_step_with_the_lag_it_states(model):
+    from tactile_viewer.model import ForceSmoothing
+
+    model.solve()
+    base = model.last
+    grid = model.reconstructor.grid
+    smooth = ForceSmoothing()
+
+    def at(time, level, frame=None):
+        forces = np.zeros((grid.size, 3))
+        forces[:, 2] = level
+        frame = round(time * 100) if frame is None else frame
+        return replace(base, frame=frame, time=time, result=replace(base.result, forces=forces))
+
+    assert smooth(at(0.0, 0.0), 0.1, grid.pitch).forces_drawn[0, 2] == 0.0
+    for k in range(1, 11):  # a step to 1 N at t = 0.01 s, frames every 0.01 s, tau 0.1 s
+        drawn = smooth(at(k / 100, 1.0), 0.1, grid.pitch)
+    assert drawn.forces_drawn[0, 2] == pytest.approx(1 - math.exp(-1))  # 63% after one time constant
+    skipped = smooth(at(0.3, 1.0), 0.1, grid.pitch)  # playback skipped frames: their time counts
+    assert skipped.forces_drawn[0, 2] == pytest.approx(1 - math.exp(-3))
+    again = smooth(at(0.3, 0.5), 0.1, grid.pitch)  # the same frame solved again with other parameters
+    # from where the frame's first solve started (63% at 0.1 s), 0.2 s towards 0.5 N
+    assert again.forces_drawn[0, 2] == pytest.approx(0.5 + math.exp(-2) * ((1 - math.exp(-1)) - 0.5))
+    back = smooth(at(0.05, 0.25), 0.1, grid.pitch)  # a seek back starts afresh
+    assert back.forces_drawn[0, 2] == 0.25
+    assert smooth(at(0.06, 0.7), 0.0, grid.pitch).drawn_forces is None  # off: the frame as solved
+
+
+def test_smoothing_is_checked_and_switching_it_redraws_from_the_frame_shown(model):
+    with pytest.raises(ValueError, match=r"smoothing must be finite and >= 0, got -0.1"):
+        Display(smoothing=-0.1)
+    with pytest.raises(ValueError, match=r"smoothing must be at most 10 s, got 11"):
+        Display(smoothing=11)
+    model.solve()
+    events = listen(model)
+    model.set_display(smoothing=0.5)
+    assert names(events) == ["display_changed"]
+    np.testing.assert_array_equal(model.drawn.forces_drawn, model.last.result.forces)  # nothing before it
+    model.set_display(smoothing=0.0)
+    assert model.drawn is model.last
