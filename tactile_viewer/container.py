@@ -866,11 +866,11 @@ def _chunk_records(scan: _Scan, metadata: list) -> None:
 
 
 def _assemble(scan: _Scan, metadata: list, tares: list, size: int, version: str):
-    """Chunks, receive times, tares (numbered as loaded) and what is lost, from a scan."""
+    """Chunks, receive times, tares (numbered as loaded), what is lost and when, from a scan."""
     path = scan.path
     _chunk_records(scan, metadata)
-    # spans: (chunk position, written number of its first frame or None, count, loaded number)
-    chunks, log_times, lost, spans, gaps = [], [], [], [], []
+    # kept: (chunk position, written number of its first frame or None, count, loaded number)
+    chunks, log_times, lost, kept, gaps = [], [], [], [], []
     loaded = written = 0
     certain = True  # the written number of the next frame is known
     for found in sorted(scan.chunks.values(), key=lambda chunk: chunk.position):
@@ -893,7 +893,7 @@ def _assemble(scan: _Scan, metadata: list, tares: list, size: int, version: str)
             continue
         chunks.append(_Chunk(found.data_offset, found.length, found.crc, loaded, offsets))
         log_times.append(times)
-        spans.append((found.position, first, len(offsets), loaded))
+        kept.append((found.position, first, len(offsets), loaded))
         certain = first is not None
         written = first + len(offsets) if certain else written
         loaded += len(offsets)
@@ -901,11 +901,13 @@ def _assemble(scan: _Scan, metadata: list, tares: list, size: int, version: str)
     origin = int(times[0]) if len(times) else 0
     damage = []
     damage = [_lost(*chunk, origin) for chunk in lost]
+    spans = tuple(((int(span[0]) - origin) * 1e-9, (int(span[-1]) - origin) * 1e-9)
+                  for _position, _first, _count, span, _exact in lost)
     for first, count in gaps:
         damage.append(f"frames {first} to {first + count - 1} as recorded are lost: their chunk is damaged "
                       "beyond finding")
-    tares = _renumbered(tares, spans, scan, damage)
-    return tuple(chunks), times, tares, tuple(damage)
+    tares = _renumbered(tares, kept, scan, damage)
+    return tuple(chunks), times, tares, tuple(damage), spans
 
 
 def _lost(position, first, count, span, exact, origin) -> str:
@@ -923,16 +925,16 @@ def _lost(position, first, count, span, exact, origin) -> str:
     return f"{what} are lost: their chunk at byte {position} is damaged"
 
 
-def _renumbered(tares: list, spans: list, scan: _Scan, damage: list) -> list:
+def _renumbered(tares: list, kept: list, scan: _Scan, damage: list) -> list:
     # tares name the frame they apply from as numbered when written; frames lost before it move it.
     # A tare that cannot be placed, or whose record is damaged or lost, is said
     def loaded_after(position):  # the first frame kept from a chunk written after ``position``
-        return next((loaded for at, _first, _count, loaded in spans if at > position), None)
+        return next((loaded for at, _first, _count, loaded in kept if at > position), None)
     def offset_from(position):
         after = loaded_after(position)
         return f": frames from {after} on may be offset" if after is not None else ""
-    known = [(first, count) for _at, first, count, _loaded in spans if first is not None]
-    uncounted = len(known) < len(spans)
+    known = [(first, count) for _at, first, count, _loaded in kept if first is not None]
+    uncounted = len(known) < len(kept)
     placed = []
     for meta in tares:
         if meta.checksum == "bad":
@@ -1037,8 +1039,8 @@ def _opened(scan: _Scan) -> Recording:
     raw_dtype = np.dtype(RAW_DTYPES[dtype])
     tares = [meta for meta in ours if meta.name == "tactile-viewer.tare"]
     chunk_records = [meta for meta in good if meta.name == "tactile-viewer.chunk"]
-    chunks, log_times, tares, damage = _assemble(scan, chunk_records, tares,
-                                                 _MESSAGE_HEAD + taxels * raw_dtype.itemsize, version)
+    chunks, log_times, tares, damage, lost = _assemble(scan, chunk_records, tares,
+                                                       _MESSAGE_HEAD + taxels * raw_dtype.itemsize, version)
     try:
         calibration = StressCalibration.from_fields(
             taxels, **_loads(metadata["tactile-viewer.calibration"], "calibration", path),
@@ -1055,6 +1057,6 @@ def _opened(scan: _Scan) -> Recording:
     t = (times - times[0]) * 1e-9
     try:
         return Recording(grid, frames, t, None, info.get("description", ""), received=times[0] * 1e-9,
-                         truncated=scan.cut, damage=damage)
+                         truncated=scan.cut, damage=damage, lost_spans=lost)
     except ValueError as exc:
         raise RecordingError(f"{path}: {exc}") from None

@@ -323,6 +323,9 @@ class Recording:
         What the file holds that could not be read, a sentence each (MCAP:
         frames of a chunk that failed its checksum, a tare whose record is
         damaged or lost); empty when nothing is.
+    lost_spans : tuple of (float, float)
+        When the frames lost to damage were received, seconds on :attr:`t`'s
+        clock, first and last (the time plots shade them).
     """
 
     grid: SensorGrid
@@ -334,6 +337,7 @@ class Recording:
     received: float | None = None
     truncated: bool = False
     damage: tuple = ()
+    lost_spans: tuple = ()
 
     def __post_init__(self):
         lazy = not isinstance(self.frames, (np.ndarray, list, tuple))

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 import pyqtgraph as pg  # takes the Qt binding already imported (the window's PyQt6), else PyQt6 first
-from PyQt6 import QtCore, QtWidgets
+from PyQt6 import QtCore, QtGui, QtWidgets
 
 from solver.checks import real_number
 from solver.inverse import MAX_STRESS
@@ -51,7 +51,12 @@ REFRESH_MS = 300  # partial series and live frames reach the curves this often
 CURSOR_WAIT_MS = 100  # the cursor's lines wait this long for the frame's result before moving alone
 SETTLE_MS = 250  # parameters must stay this long before their series is solved (a slider drag)
 LIVE_SPAN_S = 60.0  # a live source's plots hold this much of its history
-ROW_PX = 80  # the least height of one plot: below it the dock scrolls instead of squashing them
+ROW_PX = 50  # the least height of one plot: below it the dock scrolls instead of squashing them
+AXIS_PX = 35  # the time axis under the lowest plot shown
+# the rows shown at first: three plots and the time axis fit the dock's first height at 1280x800
+# (all eight rows did not: 2.3 of them showed, and no time axis); the Rows button shows the others,
+# the errors against a recording's truth among them
+FIRST_ROWS = ("fz", "tangential", "direction")
 CACHED = 4  # series kept per source and solver (Auto on and off again costs nothing)
 MAX_CONTACT_CURVES = 8  # contacts drawn with curves of their own (those present on the most frames)
 
@@ -86,6 +91,7 @@ ANGLE_TICKS = [[(v, str(v)) for v in (-180, -90, 0, 90, 180)]]
 
 # on white, as the scene: the plots read alike on screen, in the PNG export and in print
 ESTIMATE_PEN = pg.mkPen((31, 119, 180), width=2)
+LOST_BRUSH = pg.mkBrush(176, 0, 32, 50)  # the NO DATA red, faint
 TRUTH_PEN = pg.mkPen((255, 127, 14), width=2, style=QtCore.Qt.PenStyle.DashLine)
 ERROR_PENS = (pg.mkPen((214, 39, 40), width=2), pg.mkPen((44, 160, 44), width=2))
 # one colour per contact identity (cycling), none of them the estimate's, the truth's or the errors'
@@ -199,6 +205,8 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         self._cursor_x = math.nan  # the time of the frame the model shows
         self._lines_x = math.nan  # where the cursor lines stand: the frame drawn
         self._truth_shown = None
+        self.rows_shown = set(FIRST_ROWS)
+        self.lost_marks: list = []  # (plot, region) shading frames a damaged file lost
 
         body = QtWidgets.QWidget()
         column = QtWidgets.QVBoxLayout(body)
@@ -214,7 +222,21 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         self.png_button.clicked.connect(
             lambda: self._save_dialog("Save the time plots", "time_plots.png", "PNG image (*.png)",
                                       self.export_png))
+        self.rows_button = QtWidgets.QToolButton()
+        self.rows_button.setText("Rows")
+        self.rows_button.setToolTip("Choose the plots shown (the CSV holds every series)")
+        self.rows_button.setPopupMode(QtWidgets.QToolButton.ToolButtonPopupMode.InstantPopup)
+        rows_menu = QtWidgets.QMenu(self.rows_button)
+        self.row_actions: dict[str, QtGui.QAction] = {}
+        for key, label, _unit, _ in (*ROWS, *ERROR_ROWS):
+            action = rows_menu.addAction(f"{label}: {TIPS[key].split(',')[0].split(':')[0]}")
+            action.setCheckable(True)
+            action.setChecked(key in self.rows_shown)
+            action.toggled.connect(lambda on, key=key: self.show_rows(**{key: on}))
+            self.row_actions[key] = action
+        self.rows_button.setMenu(rows_menu)
         bar.addWidget(self.status, 1)
+        bar.addWidget(self.rows_button)
         bar.addWidget(self.csv_button)
         bar.addWidget(self.png_button)
         column.addLayout(bar)
@@ -312,9 +334,24 @@ class TimePlotsDock(QtWidgets.QDockWidget):
             plot.addItem(curve)
         return curve
 
-    def _arrange(self, truth: bool):
+    def show_rows(self, **shown: bool):
+        """Show (True) or hide (False) rows by key (:data:`ROWS`, :data:`ERROR_ROWS`); one stays."""
+        unknown = set(shown) - set(self.plots)
+        if unknown:
+            raise ValueError(f"rows must be among {sorted(self.plots)}, got {sorted(unknown)}")
+        rows = {key for key in self.rows_shown if shown.get(key, True)} | {k for k, on in shown.items() if on}
+        if not rows & {key for key, *_ in ROWS}:
+            rows.add("fz")  # a plot with no row has no time axis to stand on
+        self.rows_shown = rows
+        for key, action in self.row_actions.items():
+            action.blockSignals(True)
+            action.setChecked(key in rows)
+            action.blockSignals(False)
+        self._arrange(bool(self._truth_shown), again=True)
+
+    def _arrange(self, truth: bool, again: bool = False):
         # the truth curves and the error rows are there when the series has a truth, only then
-        if truth == self._truth_shown:
+        if truth == self._truth_shown and not again:
             return
         self._truth_shown = truth
         layout = self.graphics.ci
@@ -324,17 +361,17 @@ class TimePlotsDock(QtWidgets.QDockWidget):
                 plot.addItem(curve)  # the legend takes it by its name
             elif not truth and curve in plot.items:
                 plot.removeItem(curve)  # and gives it back here
-        keys = [key for key, *_ in ROWS] + ([key for key, *_ in ERROR_ROWS] if truth else [])
-        for key, *_ in ERROR_ROWS:
-            if self.plots[key] in layout.items:
-                layout.removeItem(self.plots[key])
+        keys = [key for key, *_ in ROWS if key in self.rows_shown] + (
+            [key for key, *_ in ERROR_ROWS if key in self.rows_shown] if truth else [])
+        for plot in self.plots.values():
+            if plot in layout.items:
+                layout.removeItem(plot)
         for row, key in enumerate(keys):
-            if self.plots[key] not in layout.items:
-                layout.addItem(self.plots[key], row=row, col=0)
+            layout.addItem(self.plots[key], row=row, col=0)
         for key, plot in self.plots.items():
             # one time axis, under the lowest plot: the others share it
             plot.showAxis("bottom", key == keys[-1])
-        self.graphics.setMinimumHeight(ROW_PX * len(keys))
+        self.graphics.setMinimumHeight(ROW_PX * len(keys) + AXIS_PX)
 
     # -- following the model -----------------------------------------------------------------
 
@@ -356,6 +393,7 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         self._cancel()
         model = self.model
         self._live = None
+        self._mark_lost(() if model.live or model.recording is None else model.recording.lost_spans)
         if model.live:
             self._live = SeriesBuilder(model.grid, kernel=model.kernel, mode="as shown",
                                        source=model.source.label, span=self.live_span)
@@ -371,6 +409,20 @@ class TimePlotsDock(QtWidgets.QDockWidget):
             # another recording: its curves replace these as they are solved, none of these stay meanwhile
             self._draw(SeriesBuilder(model.grid).series())
         self._start()
+
+    def _mark_lost(self, spans):
+        # frames a damaged file lost: shaded on every row, so that a gap in the curves is not read
+        # as a quiet skin
+        for plot, mark in self.lost_marks:
+            plot.removeItem(mark)
+        self.lost_marks = []
+        for start, stop in spans:
+            for plot in self.plots.values():
+                mark = pg.LinearRegionItem(values=(start, stop), movable=False, brush=LOST_BRUSH,
+                                           pen=pg.mkPen(None))
+                mark.setToolTip(f"frames lost to damage in the file, t {start:.3f} to {stop:.3f} s")
+                plot.addItem(mark, ignoreBounds=True)
+                self.lost_marks.append((plot, mark))
 
     def _on_parameters(self):
         if self.model.live or not self.model.is_open:

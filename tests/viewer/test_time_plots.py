@@ -178,7 +178,7 @@ def test_a_double_click_undoes_a_zoom(window, shown, qtbot):
 def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(window, shown, qtbot):
     from dataclasses import replace
 
-    from tactile_viewer.time_plots import ERROR_ROWS, ROWS
+    from tactile_viewer.time_plots import ERROR_ROWS, FIRST_ROWS, ROWS
 
     layout = shown.graphics.ci
     series = shown.series
@@ -188,7 +188,9 @@ def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(
     np.testing.assert_allclose(shown.truth_curves["fz"].yData, window.model.recording.truth_forces[:, :, 2].sum(1) * 1e3)
     assert legend_names(shown.plots["fz"]) == ["estimate", "truth"]
     for key, *_ in ERROR_ROWS:
-        assert shown.plots[key] in layout.items
+        assert (shown.plots[key] in layout.items) == (key in FIRST_ROWS)
+    shown.show_rows(direction_error=True)
+    assert shown.plots["direction_error"] in layout.items
     np.testing.assert_allclose(shown.error_curves["error"][0].yData, series.errors.normal * 100)
     np.testing.assert_allclose(shown.error_curves["direction_error"][0].yData, series.errors.direction_deg)
 
@@ -200,8 +202,11 @@ def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(
         assert shown.plots[key] not in layout.items
     assert legend_names(shown.plots["fz"]) == ["estimate"]
     # one time axis, under the lowest plot shown
-    assert shown.plots["centroid_y"].getAxis("bottom").isVisible()
+    assert shown.plots["direction"].getAxis("bottom").isVisible()
     assert not shown.plots["fz"].getAxis("bottom").isVisible()
+    shown.show_rows(centroid_y=True)
+    assert shown.plots["centroid_y"].getAxis("bottom").isVisible()
+    assert not shown.plots["direction"].getAxis("bottom").isVisible()
 
 
 def test_each_contact_has_curves_of_its_own_when_there_are_several(window, shown, qtbot):
@@ -393,3 +398,47 @@ def test_the_cursor_moves_when_the_frames_solve_fails(window, shown, qtbot):
         model.set_frame(7)
     assert model.last.frame == 0  # nothing drawn for frame 7: the lines still wait for it
     qtbot.waitUntil(lambda: lines_at(shown, recording.t[7]), timeout=5000)
+
+
+def test_at_1280x800_the_rows_shown_and_their_time_axis_are_in_view(window, shown, qtbot):
+    # before: all 8 rows were stacked, 80 px each, in a 190 px dock: 2.3 of them in view and no time axis
+    from tests.viewer.test_main_window import in_view
+
+    window.resize(1280, 760)
+    qtbot.waitUntil(lambda: window.height() == 760, timeout=5000)
+    view = shown.graphics.parentWidget().parentWidget()  # the scroll area's viewport and the area
+    assert view.verticalScrollBar().maximum() == 0
+    # (the plots' own view: the scroll area around it covers it whole)
+    assert in_view(window, shown.graphics.viewport()) and in_view(window, shown.rows_button)
+    lowest = shown.plots["direction"]
+    assert lowest.getAxis("bottom").isVisible()
+    assert shown.graphics.rect().contains(shown.graphics.mapFromScene(lowest.getAxis("bottom").sceneBoundingRect())
+                                          .boundingRect())
+    # the Rows menu shows and hides; one row always stays
+    shown.row_actions["centroid_x"].trigger()
+    assert shown.plots["centroid_x"] in shown.graphics.ci.items and "centroid_x" in shown.rows_shown
+    shown.show_rows(fz=False, tangential=False, direction=False, centroid_x=False)
+    assert shown.rows_shown == {"fz"} and shown.row_actions["fz"].isChecked()
+    with pytest.raises(ValueError, match=r"rows must be among .*, got \['speed'\]"):
+        shown.show_rows(speed=True)
+
+
+def test_frames_a_damaged_file_lost_are_shaded_on_every_row(window, qtbot, tmp_path):
+    # before: a damaged recording opened with no mark where its frames were missing
+    from tests.viewer.test_container import chunk_positions, flipped, tared_recording
+
+    path = tmp_path / "damaged.mcap"
+    tared_recording(path)
+    position = chunk_positions(path)[1]
+    flipped(path, position, 0x20)
+    flipped(path, position + 200)  # frames 6 to 10 (t 0.6 to 1.0 s) lost
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        assert window.open(path)
+    dock = window.time_plots
+    assert window.model.recording.lost_spans == (pytest.approx((0.6, 1.0)),)
+    assert len(dock.lost_marks) == len(dock.plots)
+    for plot, mark in dock.lost_marks:
+        assert mark in plot.items and mark.getRegion() == pytest.approx((0.6, 1.0)) and not mark.movable
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        assert window.open(SAMPLES / "hertz_static.npz")
+    assert dock.lost_marks == []
