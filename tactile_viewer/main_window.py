@@ -105,6 +105,16 @@ def about_text() -> str:
             f"Log: {log_path if log_path else 'standard error only'}")
 
 
+def first_size(width: int, height: int) -> tuple[int, int]:
+    """The window's size on its first run on a screen of ``width`` x ``height`` free pixels.
+
+    Most of a large screen (it opened at 1280x760 on 1920x1080), all of a laptop's 1280x800 but
+    its title bar, and never more than the screen.
+    """
+    return (min(width, max(1280, round(0.8 * width))),
+            min(height - TITLE_BAR_PX, max(760, round(0.85 * height))))
+
+
 class MainWindow(QtWidgets.QMainWindow):
     """The viewer window.
 
@@ -530,7 +540,7 @@ class MainWindow(QtWidgets.QMainWindow):
         if geometry is not None and self.restoreGeometry(geometry):
             return
         screen = self.screen().availableGeometry()
-        self.resize(min(1280, screen.width()), min(760, screen.height() - TITLE_BAR_PX))
+        self.resize(*first_size(screen.width(), screen.height()))
 
     def closeEvent(self, event):
         save_layout("geometry", self.saveGeometry())

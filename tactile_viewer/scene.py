@@ -246,7 +246,8 @@ class Scene:
             return None
         p = grid.pitch * MM
         digits = len(str(nodes[-1]))
-        height = min(0.3 * p, 0.85 * p / (DIGIT_ADVANCE * digits))
+        # as tall as the square's width allows them (they were 0.3 p, 4 px in a 1280x800 window)
+        height = min(0.5 * p, 0.95 * p / (DIGIT_ADVANCE * digits))
         centres = grid.positions[nodes] * MM
         points, triangles, owner = _numbers(nodes, centres, height)
         mesh = pv.PolyData(np.column_stack([points, np.full(len(points), LIFT_TEXT * p)]),

@@ -447,7 +447,7 @@ class Board:
     """
 
     def __init__(self, layout: SensorLayout, *, scene="circle", fmt="binary", rate=100.0, noise=0.01,
-                 garbage=0.0, dropout=0.0, seed=0, checksum=False):
+                 garbage=0.0, dropout=0.0, seed=0, checksum=False, unloaded=0.0):
         one_of("fmt", fmt, ("binary", "text"))
         if checksum and fmt != "text":
             raise ValueError(f"checksum applies to the text format only (binary frames always carry a CRC), "
@@ -456,12 +456,15 @@ class Board:
                            valid=lambda r: math.isfinite(r) and r > 0)
         noise = real_number("noise", noise, rule="a finite number >= 0 (relative to the frame's peak)",
                             valid=lambda n: math.isfinite(n) and n >= 0)
+        unloaded = real_number("unloaded", unloaded, rule="a finite number of seconds >= 0",
+                               valid=lambda u: math.isfinite(u) and u >= 0)
         garbage, dropout = (real_number(name, value, rule="a probability in [0, 1]",
                                         valid=lambda p: 0 <= p <= 1)
                             for name, value in (("garbage", garbage), ("dropout", dropout)))
         self.layout, self.fmt, self.rate, self.checksum = layout, fmt, rate, checksum
         self.rng = np.random.default_rng(seed)
         self.noise = noise
+        self.unloaded = unloaded  # seconds of nothing on the skin first: a tare's moment
         self.garbage, self.dropout = garbage, dropout
         self._closed = False
         self.cycle = shared_cycle(scene, layout.grid).acquire()  # last: nothing to undo if anything fails
@@ -478,7 +481,8 @@ class Board:
         """The bytes for the next frame (possibly garbage only, or nothing when dropped)."""
         seq, self.seq = self.seq, self.seq + 1
         k = self.index(seq)
-        stress = self.cycle[k] + self.rng.normal(0, self.noise * self.cycle.peak(k), self.layout.count)
+        load = self.cycle[k] if seq >= self.unloaded * self.rate else np.zeros(self.layout.count)
+        stress = load + self.rng.normal(0, self.noise * self.cycle.peak(k), self.layout.count)
         out = b""
         if self.garbage and self.rng.random() < self.garbage:
             burst = self.rng.integers(0, 256, self.rng.integers(1, 41), dtype=np.uint8).tobytes()
@@ -568,6 +572,9 @@ def main(argv=None) -> int:
     parser.add_argument("--dropout", type=float, default=0.0, help="probability of dropping a frame")
     parser.add_argument("--duration", type=float, default=math.inf, help="seconds, then exit")
     parser.add_argument("--seed", type=int, default=0, help="seed of the noise and garbage (default 0)")
+    parser.add_argument("--unloaded", type=float, default=0.0, metavar="S",
+                        help="send S seconds of noise alone, nothing touching, before the scene starts: "
+                             "time to connect and tare (default 0)")
     parser.add_argument("--url", help="write to this pyserial URL instead of a pseudo-terminal")
     parser.add_argument("--link", type=Path, help="symlink to the pseudo-terminal (a stable device path)")
     parser.add_argument("--layout", type=Path, help="write the matching sensor layout JSON here")
@@ -581,6 +588,8 @@ def main(argv=None) -> int:
     if args.checksum and args.format != "text":
         parser.error(f"--checksum needs --format text (binary frames always carry a CRC), "
                      f"got --format {args.format}")
+    if not (math.isfinite(args.unloaded) and args.unloaded >= 0):
+        parser.error(f"--unloaded must be a finite number of seconds >= 0, got {args.unloaded:g}")
     for name in ("garbage", "dropout"):
         if not 0 <= getattr(args, name) <= 1:
             parser.error(f"--{name} must be a probability in [0, 1], got {getattr(args, name):g}")
@@ -611,7 +620,8 @@ def main(argv=None) -> int:
     # when it is sent (tens of milliseconds), the rest of the cycle in the background ahead of the
     # stream; should that fall behind, the stream waits for it and catches up in a burst
     board = Board(layout, scene=args.scene, fmt=args.format, rate=args.rate, noise=args.noise,
-                  garbage=args.garbage, dropout=args.dropout, seed=args.seed, checksum=args.checksum)
+                  garbage=args.garbage, dropout=args.dropout, seed=args.seed, checksum=args.checksum,
+                  unloaded=args.unloaded)
     total = math.ceil(args.duration * args.rate) if math.isfinite(args.duration) else math.inf
     unsent = 0
     start = time.perf_counter()

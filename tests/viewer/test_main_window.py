@@ -683,6 +683,15 @@ def test_the_window_fits_a_1280x800_screen_and_remembers_its_size(window, qtbot)
     again.close()
 
 
+@pytest.mark.parametrize(("screen", "size"), [((1280, 800), (1280, 760)), ((1920, 1080), (1536, 918)),
+                                              ((2560, 1400), (2048, 1190)), ((1024, 600), (1024, 560))])
+def test_the_first_size_takes_most_of_a_large_screen_and_all_of_a_small_one(screen, size):
+    # before: 1280x760 on every screen larger than a laptop's
+    from tactile_viewer.main_window import first_size
+
+    assert first_size(*screen) == size
+
+
 def test_a_long_status_line_and_a_taxel_read_out_do_not_widen_the_window(opened, qtbot):
     from PyQt6 import QtWidgets
 

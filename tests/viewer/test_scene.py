@@ -758,15 +758,19 @@ def test_taxel_numbers_one_on_each_taxel(scene, frame):
     assert set(owner) == set(range(grid.size))  # one label per taxel
     p = grid.pitch * MM
     assert np.ptp(points[:, 2]) == 0 and scene._map.points[:, 2].max() < points[0, 2] < 0.05 * p
-    widths = np.zeros(grid.size)
+    widths, heights = np.zeros(grid.size), np.zeros(grid.size)
     for node in range(grid.size):
         mine = points[owner == node, :2]
         low, high = mine.min(axis=0), mine.max(axis=0)
-        np.testing.assert_allclose((low + high) / 2, grid.positions[node] * MM, rtol=0, atol=0.05 * p)
-        assert np.all(high - low < 0.9 * p)  # within its square
+        np.testing.assert_allclose((low + high) / 2, grid.positions[node] * MM, rtol=0, atol=0.08 * p)
+        assert np.all(high - low < 0.96 * p)  # within its square
         widths[node] = high[0] - low[0]
+        heights[node] = high[1] - low[1]
     # two digits are about twice as wide as one: the labels are the numbers, not one glyph
     assert 1.6 < np.median(widths[10:]) / np.median(widths[:10]) < 2.6
+    # as tall as the widest number lets them be: they were 0.3 p, 4 px at 1280x800
+    digits = len(str(grid.size - 1))
+    assert np.median(heights) >= 0.9 * min(0.5 * p, 0.95 * p / (0.8 * digits)) > 0.35 * p
     # readable: dark numbers on the light squares, light numbers on the dark ones
     colours = np.asarray(scene._labels.point_data["rgb"])
     brightest, darkest = np.argmax(result.forces[:, 2]), np.argmin(result.forces[:, 2])

@@ -119,6 +119,19 @@ def test_noise_is_gaussian_relative_to_the_frames_peak(layout, make_board):
     assert abs(residual.mean()) < 0.05
 
 
+def test_an_unloaded_start_gives_a_tare_its_moment_then_the_scene(layout, make_board):
+    # before: the simulator's contact never left the skin, so every tare taken on it warned
+    from tactile_viewer.live_source import loaded_while_taring
+
+    board = make_board(layout, rate=50.0, noise=0.01, seed=12, unloaded=1.0)  # fixed seed; 50 frames unloaded
+    _, frames = decode("binary", layout.count, stream(board, 100))
+    values = np.array([f.values for f in frames])
+    assert loaded_while_taring(values[:50] * 1e3, np.zeros(layout.count)) is None  # kPa on the wire
+    assert np.abs(values[:50]).max() < 0.1 * np.abs(values[50:]).max()  # then the contact comes
+    np.testing.assert_allclose(values[50:], [clean(board, k) for k in range(50, 100)],
+                               atol=6 * 0.01 * max(board.cycle.peak(k) for k in range(100)))
+
+
 def test_boards_with_the_same_seed_send_the_same_bytes(layout, make_board):
     a = make_board(layout, noise=0.01, garbage=0.2, dropout=0.1, seed=3)  # fixed seed
     b = make_board(layout, noise=0.01, garbage=0.2, dropout=0.1, seed=3)
@@ -210,6 +223,7 @@ def test_board_sends_in_the_layout_units(make_board):
     (dict(garbage=1.5), r"garbage must be a probability in \[0, 1\], got 1.5$"),
     (dict(dropout=-0.1), r"dropout must be a probability in \[0, 1\], got -0.1$"),
     (dict(fmt="hex"), r"fmt must be one of \('binary', 'text'\), got 'hex'$"),
+    (dict(unloaded=-1.0), r"unloaded must be a finite number of seconds >= 0, got -1.0$"),
 ])
 def test_board_refuses_bad_arguments_naming_them(layout, options, message, monkeypatch):
     monkeypatch.setattr(simulator, "_CYCLES", {})
