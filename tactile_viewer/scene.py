@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pyvista as pv
 from vtkmodules.util.numpy_support import vtk_to_numpy
-from vtkmodules.vtkRenderingCore import vtkTextActor
+from vtkmodules.vtkRenderingCore import vtkRenderer, vtkTextActor
 from vtkmodules.vtkRenderingFreeType import vtkVectorText
 
 from solver import SensorGrid
@@ -95,11 +95,21 @@ class Scene:
         # one arrow along +x from 0 to 1, as triangles: every node's arrow is a
         # scaled, turned copy (done in numpy; VTK's glyph filter is slower here)
         self._arrow_points, self._arrow_normals, self._arrow_triangles = _solid_arrow(0.3, 0.12, 0.05)
-        self._resultant_template = _solid_arrow(0.2, 0.07, 0.03)
+        # thicker than a node's arrow for its length, and drawn over them (a layer of its own)
+        self._resultant_template = _solid_arrow(0.2, 0.1, 0.045)
         # the same shapes flat in the x-y plane, for in-plane arrows (zero height: the Top view's
         # shear picture, never hidden inside the map)
         self._flat_arrow = _flat_arrow(0.3, 0.12, 0.05)
-        self._flat_resultant = _flat_arrow(0.2, 0.07, 0.03)
+        self._flat_resultant = _flat_arrow(0.2, 0.1, 0.045)
+        # the resultants' own renderer, a layer over the scene's with the same camera and lights: a
+        # contact's total force is never hidden among its node arrows
+        self._over = vtkRenderer()
+        self._over.SetLayer(1)
+        self._over.InteractiveOff()
+        self._over.SetActiveCamera(plotter.renderer.GetActiveCamera())
+        self._over.SetLightCollection(plotter.renderer.GetLights())
+        plotter.ren_win.SetNumberOfLayers(2)
+        plotter.ren_win.AddRenderer(self._over)
 
     # -- building ----------------------------------------------------------------
 
@@ -107,6 +117,7 @@ class Scene:
         """Build the static parts for a grid (regular or not) and an empty map and arrow set."""
         for actor in self._actors.values():
             self.plotter.remove_actor(actor, render=False)
+        self._over.RemoveAllViewProps()
         for title in list(self.plotter.scalar_bars.keys()):
             self.plotter.remove_scalar_bar(title, render=False)
         self._actors, self._bars = {}, {}
@@ -161,6 +172,8 @@ class Scene:
         self.resultants = pv.Arrow()
         self._actors["resultant"] = self.plotter.add_mesh(
             self.resultants, color=RESULTANT_COLOUR, name="resultant", pickable=False, **SHADED)
+        self.plotter.renderer.RemoveActor(self._actors["resultant"])
+        self._over.AddActor(self._actors["resultant"])
         self.arrows.copy_from(pv.PolyData())  # drawn empty until the first frame
         self.resultants.copy_from(pv.PolyData())
         self.resultant_tips, self.resultant_vectors = np.zeros((0, 3)), np.zeros((0, 3))

@@ -65,7 +65,7 @@ MAX_CONTACT_CURVES = 8  # contacts drawn with curves of their own (those present
 ROWS = (
     ("fz", "Fz", "mN", lambda q: q.fz * 1e3),
     ("tangential", "|Ft|", "mN", lambda q: q.tangential * 1e3),
-    ("direction", "Ft dir", "deg", lambda q: np.degrees(q.direction)),
+    ("direction", "dir", "deg", lambda q: np.degrees(q.direction)),
     ("shear_ratio", "|Ft|/Fz", "", lambda q: q.shear_ratio),
     ("centroid_x", "x", "mm", lambda q: q.centroid_x * 1e3),
     ("centroid_y", "y", "mm", lambda q: q.centroid_y * 1e3),
@@ -267,6 +267,14 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         scroll.setFrameShape(QtWidgets.QFrame.Shape.NoFrame)
         scroll.setWidget(self.graphics)
         column.addWidget(scroll, 1)
+        # before anything is open: a sentence, not empty axes from 0 to 1 and a legend of nothing
+        self.placeholder = QtWidgets.QLabel("The forces over time show here once a recording is open "
+                                            "(File > Open) or a board connected (Live > Connect)")
+        self.placeholder.setAlignment(QtCore.Qt.AlignmentFlag.AlignCenter)
+        self.placeholder.setWordWrap(True)
+        column.addWidget(self.placeholder, 1)
+        self._plots_area = scroll
+        scroll.hide()
         self.setWidget(body)
         self._set_exports()
 
@@ -293,7 +301,8 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         if key in ("fz", "error"):
             # before its curves: a legend lists the named curves added after it
             plot.addLegend(offset=(-10, 5), brush=(255, 255, 255, 200), labelTextColor=INK)  # over the curves
-        plot.setLabel("left", f"{label} ({unit})" if unit else label, color="#282828")
+        # small and short: it runs along a row 45 px high at 1280x800 (the tooltip spells it out)
+        plot.setLabel("left", f"{label} {unit}" if unit else label, color="#282828", **{"font-size": "8pt"})
         for side in ("left", "bottom"):
             plot.getAxis(side).setPen(INK)
             plot.getAxis(side).setTextPen(INK)
@@ -393,6 +402,8 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         self._cancel()
         model = self.model
         self._live = None
+        self.placeholder.hide()
+        self._plots_area.show()
         self._mark_lost(() if model.live or model.recording is None else model.recording.lost_spans)
         if model.live:
             self._live = SeriesBuilder(model.grid, kernel=model.kernel, mode="as shown",

@@ -923,3 +923,17 @@ def test_top_looks_down_with_in_plane_arrows_and_iso_brings_3d_arrows_back(opene
     assert np.ptp(points[..., 2]) > 0
     with pytest.raises(ValueError, match=r"camera must be one of \('top', 'iso'\), got 'side'"):
         opened.display_panel.view("side")
+
+
+def test_resultants_are_drawn_over_the_node_arrows_with_the_scene_camera(scene, frame):
+    # before: a contact's red resultant stood among its node arrows and was hidden by them
+    show(scene, frame)
+    actor, main, over = scene._actors["resultant"], scene.plotter.renderer, scene._over
+    assert over.HasViewProp(actor) and not main.HasViewProp(actor) and actor.GetVisibility()
+    assert over.GetLayer() == 1 and scene.plotter.ren_win.GetNumberOfLayers() == 2
+    for preset in ("top", "iso"):
+        scene.camera(preset)
+        assert over.GetActiveCamera().GetAddressAsString("vtkCamera") == \
+            main.GetActiveCamera().GetAddressAsString("vtkCamera")
+    scene.set_grid(frame[0])  # a new grid: the old resultants go with the rest
+    assert not over.HasViewProp(actor) and over.HasViewProp(scene._actors["resultant"])

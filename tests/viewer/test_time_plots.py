@@ -442,3 +442,13 @@ def test_frames_a_damaged_file_lost_are_shaded_on_every_row(window, qtbot, tmp_p
     with qtbot.waitSignal(window.ready, timeout=20000):
         assert window.open(SAMPLES / "hertz_static.npz")
     assert dock.lost_marks == []
+
+
+def test_an_empty_window_says_where_the_plots_come_from_instead_of_empty_axes(window, qtbot):
+    # before: axes from 0 to 1 and a legend of nothing
+    dock = window.time_plots
+    assert dock.placeholder.isVisible() and "File > Open" in dock.placeholder.text()
+    assert not dock.graphics.isVisible()
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        assert window.open(SAMPLES / "hertz_static.npz")
+    assert dock.graphics.isVisible() and not dock.placeholder.isVisible()
