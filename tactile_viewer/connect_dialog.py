@@ -7,6 +7,7 @@ from pathlib import Path
 
 from PyQt6 import QtCore, QtWidgets
 
+from .device import announced_boards
 from .live_source import MAX_BAUDRATE, check_baudrate
 from .preferences import Settings
 from .protocol import FORMATS
@@ -31,11 +32,22 @@ def settings() -> Settings:
     return Settings("live")
 
 
-def available_ports() -> list[tuple[str, str]]:
-    """``(device, description)`` of the serial ports present."""
+def available_ports() -> list[tuple[str, str, dict]]:
+    """``(device, description, facts)`` of the serial ports present, then of tactile-sim boards running.
+
+    Serial ports come with their links (``/dev/serial/by-id/...``); a simulated board (a
+    pseudo-terminal, in no list of serial ports) by its link when it has one, with its layout file
+    and format in ``facts`` (empty for a serial port).
+    """
     from serial.tools import list_ports
 
-    return [(p.device, p.description or "") for p in sorted(list_ports.comports(), key=lambda p: p.device)]
+    ports = [(p.device, p.description or "", {})
+             for p in sorted(list_ports.comports(include_links=True), key=lambda p: p.device)]
+    for board in announced_boards():
+        described = (f"tactile-sim, scene {board.get('scene')}, {board.get('format')}"
+                     + (f", on {board['device']}" if board.get("link") else ""))
+        ports.append((board.get("link") or board["device"], described, board))
+    return ports
 
 
 class ConnectDialog(QtWidgets.QDialog):
@@ -44,9 +56,12 @@ class ConnectDialog(QtWidgets.QDialog):
     def __init__(self, parent=None):
         super().__init__(parent)
         self.setWindowTitle("Connect to a sensor board")
+        self.setMinimumWidth(560)  # room for a device path and its description (it was 320 px)
         form = QtWidgets.QFormLayout(self)
         self.port_box = QtWidgets.QComboBox(editable=True)
+        self.port_box.setInsertPolicy(QtWidgets.QComboBox.InsertPolicy.NoInsert)
         self._fill_ports()
+        self.port_box.activated.connect(self._port_chosen)
         self.port_box.lineEdit().setPlaceholderText("/dev/ttyACM0, loop://, socket://host:port")
         form.addRow("port or URL", _with_button(self.port_box, "Refresh", self._refresh))
         self.baud_box = QtWidgets.QComboBox(editable=True)
@@ -58,7 +73,9 @@ class ConnectDialog(QtWidgets.QDialog):
         self.layout_edit = QtWidgets.QLineEdit()
         form.addRow("sensor layout", _with_button(self.layout_edit, "Browse...", self._browse))
         for widget, tip in (
-                (self.port_box, "A serial port of this machine, or a pyserial URL (socket://host:port, loop://)"),
+                (self.port_box, "A serial port of this machine, a tactile-sim board running here (its "
+                                "layout and format come with it), or a pyserial URL (socket://host:port, "
+                                "loop://)"),
                 (self.baud_box, "The board's baud rate (ignored by pseudo-terminals and sockets)"),
                 (self.format_box, "binary: framed float32 frames with sequence numbers and CRC; text: one "
                                   "line of values per frame"),
@@ -76,10 +93,23 @@ class ConnectDialog(QtWidgets.QDialog):
         self._restore()
 
     def _fill_ports(self):
-        for device, description in available_ports():
-            self.port_box.addItem(device, device)
+        for device, description, facts in available_ports():
+            self.port_box.addItem(f"{device}  ({description})" if description else device, (device, facts))
             self.port_box.setItemData(self.port_box.count() - 1, description,
                                       QtCore.Qt.ItemDataRole.ToolTipRole)
+
+    def _port_chosen(self, index: int):
+        # the list shows "device  (description)": the field keeps the device; a simulated board
+        # brings its own layout file and format
+        data = self.port_box.itemData(index)
+        if not data:
+            return
+        device, facts = data
+        self.port_box.setEditText(device)
+        if facts.get("layout"):
+            self.layout_edit.setText(facts["layout"])
+        if facts.get("format") in FORMATS:
+            self.format_box.setCurrentText(facts["format"])
 
     def _refresh(self):
         text = self.port_box.currentText()

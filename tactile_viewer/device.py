@@ -29,12 +29,17 @@ reconnection (:attr:`DeviceCheck.notice`).
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
+import tempfile
 from dataclasses import dataclass
+from pathlib import Path
 from typing import NamedTuple
 
 __all__ = ["DeviceIdentity", "identify", "DeviceCheck", "unknown_identity_notice",
-           "DeviceMismatch", "Verdict", "SAME_DEVICE_RULE"]
+           "DeviceMismatch", "Verdict", "SAME_DEVICE_RULE", "announce_board", "announced_boards",
+           "forget_board"]
 
 SAME_DEVICE_RULE = ("the same device has the same USB VID:PID and serial number, or, when it has no serial "
                     "number, the same VID:PID, description and USB location")
@@ -329,3 +334,54 @@ def _check_identity(identity, method: str) -> None:
     if identity is not None and not isinstance(identity, DeviceIdentity):
         raise TypeError(f"{method}() takes a DeviceIdentity or None (unknown), "
                         f"got {type(identity).__name__}: {identity!r}")
+
+
+# -- simulated boards running on this machine ---------------------------------------------------------
+# A pseudo-terminal is in no list of serial ports, and tactile-sim's links can be anywhere: each
+# running tactile-sim leaves a small note (its device, link, layout file, format) where the Connect
+# dialog looks, and takes it away when it ends. A note whose process is gone is ignored.
+
+
+def _boards_folder() -> Path:
+    chosen = os.environ.get("TACTILE_VIEWER_CONFIG")  # the settings folder, when one is chosen
+    if chosen:
+        return Path(chosen) / "boards"
+    runtime = os.environ.get("XDG_RUNTIME_DIR") or tempfile.gettempdir()
+    return Path(runtime) / f"tactile-sim-{os.getuid()}"
+
+
+def announce_board(**facts) -> Path | None:
+    """Note a simulated board as running (its ``device``, ``link``, ``layout``, ``format``, ``scene``).
+
+    Returns the note's path (remove it when the board stops), or None when it could not be
+    written (the board runs all the same; only the Connect dialog's list misses it).
+    """
+    folder = _boards_folder()
+    note = folder / f"sim-{os.getpid()}.json"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        note.write_text(json.dumps({**facts, "pid": os.getpid()}))
+    except OSError:
+        return None
+    return note
+
+
+def announced_boards() -> list[dict]:
+    """The notes of the simulated boards running now (their process alive, their device there)."""
+    boards = []
+    for note in sorted(_boards_folder().glob("sim-*.json")):
+        try:
+            facts = json.loads(note.read_text())
+            os.kill(int(facts["pid"]), 0)  # raises when the process is gone
+        except (OSError, ValueError, KeyError, TypeError, RecursionError):
+            continue
+        if isinstance(facts.get("device"), str) and os.path.exists(facts["device"]):
+            boards.append(facts)
+    return boards
+
+
+def forget_board(note: Path | None) -> None:
+    """Remove a note made by :func:`announce_board` (the board stopped)."""
+    if note is not None:
+        with contextlib.suppress(OSError):
+            note.unlink()

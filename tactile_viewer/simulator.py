@@ -43,6 +43,7 @@ import numpy as np
 from solver import SensorGrid, loads
 from solver.checks import one_of, real_number, whole_number
 
+from .device import announce_board, forget_board
 from .layout import SensorLayout, save_layout
 from .protocol import encode_binary, encode_text
 
@@ -615,6 +616,9 @@ def main(argv=None) -> int:
         master, slave, name = _open_pty(args.link)
         os.set_blocking(master, False)
         write = lambda data: _write_all(master, data, stall=1.0)  # noqa: E731
+        note = announce_board(device=name, link=str(args.link) if args.link else None,
+                              layout=str(args.layout.resolve()) if args.layout else None, format=args.format,
+                              scene=args.scene, rate=args.rate)
         print(name + (f" (link {args.link})" if args.link else ""), flush=True)
     # the device exists from here on: a viewer may connect at once. The first frame is computed
     # when it is sent (tens of milliseconds), the rest of the cycle in the background ahead of the
@@ -639,6 +643,8 @@ def main(argv=None) -> int:
         board.close()
         if args.link:
             args.link.unlink(missing_ok=True)
+        if not args.url:
+            forget_board(note)
     print(f"sent {board.sent} frames, dropped {board.dropped}, garbage bursts {board.garbage_bursts} "
           f"({board.garbage_bytes} bytes), unsent writes {unsent}", file=sys.stderr, flush=True)
     return 0

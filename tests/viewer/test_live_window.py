@@ -245,3 +245,25 @@ def test_a_recording_in_progress_shows_in_the_title_and_the_live_bar_in_view(liv
     qtbot.waitUntil(lambda: live.windowTitle() == f"tactile-viewer - live: {live.live_panel.reader.label}",
                     timeout=3000)
     assert not live.live_panel.recording_indicator.isVisible()
+
+
+def test_the_connect_dialog_lists_a_running_simulator_with_its_layout(qtbot, board):
+    # before: 320 px wide, and a pseudo-terminal or its link was in no list: the path had to be typed
+    from tactile_viewer.connect_dialog import ConnectDialog, available_ports
+
+    board.start("--rate", "50", "--format", "text", "--scene", "two")
+    listed = {device: (description, facts) for device, description, facts in available_ports()}
+    assert str(board.link) in listed
+    description, facts = listed[str(board.link)]
+    assert description.startswith("tactile-sim, scene two, text, on /dev/pts/")
+    assert facts["layout"] == str(board.layout.resolve())
+    dialog = ConnectDialog()
+    qtbot.addWidget(dialog)
+    assert dialog.minimumWidth() >= 560
+    index = next(i for i in range(dialog.port_box.count()) if dialog.port_box.itemData(i)[0] == str(board.link))
+    dialog.port_box.setCurrentIndex(index)
+    dialog.port_box.activated.emit(index)  # as a click in the list does
+    chosen = dialog.connection()
+    assert (chosen.url, chosen.fmt, chosen.layout) == (str(board.link), "text", str(board.layout.resolve()))
+    board.stop()  # its note goes with it
+    assert str(board.link) not in [device for device, *_ in available_ports()]
