@@ -260,6 +260,8 @@ class LivePanel(QtWidgets.QFrame):
                 parts.append(mismatch)
         if reader.reconnects:
             parts.append(f"reconnected {reader.reconnects}x")
+        if reader.backlog_bytes:
+            parts.append(f"dropped {reader.backlog_bytes} B queued before connecting")
         if reader.identity_notice:
             parts.append(reader.identity_notice)
         if reader.failures:

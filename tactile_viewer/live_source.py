@@ -242,6 +242,7 @@ class LiveSource(Source):
         self.error = ""
         self.reconnects = 0
         self.failures = 0  # chunks whose handling raised (shown in the live status)
+        self.backlog_bytes = 0  # bytes queued before a connection, dropped when it opened
         self._reconnect_interval = reconnect_interval
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -405,6 +406,29 @@ def check_baudrate(baudrate) -> int:
     return baudrate
 
 
+BACKLOG_PAUSE_S = 0.0005  # nothing more after this long: the backlog is out, the board's present comes
+BACKLOG_LIMIT_S = 0.25  # the most a connection spends dropping what was queued before it
+
+
+def drain_backlog(port, *, pause: float = BACKLOG_PAUSE_S, limit: float = BACKLOG_LIMIT_S) -> int:
+    """Read and drop what ``port`` holds already, until nothing more comes within ``pause``; bytes dropped.
+
+    A backlog comes at memory speed, a board's frames at its pace: what is still waiting, or comes
+    within ``pause`` of the last read, is the backlog. Stops after ``limit`` seconds however busy
+    the port is.
+    """
+    dropped, start = 0, time.monotonic()
+    while time.monotonic() - start < limit:
+        waiting = port.in_waiting
+        if not waiting:
+            time.sleep(pause)
+            if not port.in_waiting:
+                break
+            continue
+        dropped += len(port.read(waiting))
+    return dropped
+
+
 class SerialReader(LiveSource):
     """The serial board: a :class:`LiveSource` over pyserial's ``serial_for_url``.
 
@@ -452,6 +476,9 @@ class SerialReader(LiveSource):
                 port.close()
                 raise
         port.reset_input_buffer()  # stale bytes queued before we connected
+        # and what a pseudo-terminal or a driver still pushes of them: a backlog stamped on arrival
+        # would read as a burst of thousands of frames a second (a real board sends at its pace)
+        self.backlog_bytes += drain_backlog(port)
         return port
 
     def _read(self, port) -> bytes:

@@ -51,6 +51,7 @@ __all__ = ["Board", "CYCLE", "Cycle", "SCENES", "Scene", "contact_cycle", "main"
            "scene_frame", "shared_cycle"]
 
 CYCLE = 100  # frames per period of every scene
+BLOCKED_WRITE_S = 0.1  # a write that waited this long for room: nobody was reading
 TAU = 2 * math.pi
 PRESS_PRESSURE = 10e3  # press: mean pressure at full force, pascals
 # twist: peak torque over force times radius (30% of a Hertzian contact's full-slip torque)
@@ -616,6 +617,7 @@ def main(argv=None) -> int:
         master, slave, name = _open_pty(args.link)
         os.set_blocking(master, False)
         write = lambda data: _write_all(master, data, stall=1.0)  # noqa: E731
+
         note = announce_board(device=name, link=str(args.link) if args.link else None,
                               layout=str(args.layout.resolve()) if args.layout else None, format=args.format,
                               scene=args.scene, rate=args.rate)
@@ -627,15 +629,23 @@ def main(argv=None) -> int:
                   garbage=args.garbage, dropout=args.dropout, seed=args.seed, checksum=args.checksum,
                   unloaded=args.unloaded)
     total = math.ceil(args.duration * args.rate) if math.isfinite(args.duration) else math.inf
-    unsent = 0
+    unsent = unread = 0
     start = time.perf_counter()
+    blocked = False
     try:
         while not stopping and board.seq < total:  # --duration: exactly its frames, however slow
             now = time.perf_counter() - start
             due = min(int(now * args.rate) + 1, total)
+            # nobody read (the last write waited for room): as a real board's, the frames of that
+            # time are gone, not queued to arrive later in a burst a reader would stamp all at once
+            if blocked and due - board.seq > 1:
+                unread += due - 1 - board.seq
+                board.seq = due - 1
             chunk = b"".join(board.next_bytes() for _ in range(due - board.seq))
+            writing = time.perf_counter()
             if chunk and not write(chunk):
                 unsent += 1
+            blocked = time.perf_counter() - writing > BLOCKED_WRITE_S
             time.sleep(max(0.0, (board.seq / args.rate) - (time.perf_counter() - start)))
     except KeyboardInterrupt:
         pass
@@ -646,7 +656,8 @@ def main(argv=None) -> int:
         if not args.url:
             forget_board(note)
     print(f"sent {board.sent} frames, dropped {board.dropped}, garbage bursts {board.garbage_bursts} "
-          f"({board.garbage_bytes} bytes), unsent writes {unsent}", file=sys.stderr, flush=True)
+          f"({board.garbage_bytes} bytes), unsent writes {unsent}, frames skipped while nobody read "
+          f"{unread}", file=sys.stderr, flush=True)
     return 0
 
 

@@ -869,3 +869,52 @@ def test_cli_streams_a_scene(tmp_path, processes):
     cycle = Cycle("two", layout.grid)  # computes only the frames asked for
     index = (np.array([f.seq for f in frames]) / 100 / 4.0 * len(cycle)).astype(int) % len(cycle)
     np.testing.assert_allclose([f.values for f in frames], [cycle[k] * 1e-3 for k in index], rtol=1e-6)
+
+
+def test_frames_queued_before_a_reader_came_are_dropped_not_stamped_as_a_burst(tmp_path, processes):
+    # before: frames queued while nobody read the pseudo-terminal came all at once when a reader
+    # came, and tactile-record stamped seconds of old frames on arrival (a 2,720 frames/s burst)
+    import serial
+
+    from tactile_viewer.live_source import drain_backlog
+
+    process, link, _layout = run_sim(tmp_path, "--rate", "100", "--nx", "4", "--ny", "4", "--noise", "0")
+    processes.append(process)
+    process.stdout.readline()
+    started = time.monotonic()  # the board's clock starts about now
+    while time.monotonic() - started < 4.0:  # nobody reads for 4 s: the board's writes block
+        assert process.poll() is None
+        time.sleep(0.1)
+    decoder = BinaryDecoder(16)
+    with serial.Serial(str(link), timeout=0.05) as port:
+        port.reset_input_buffer()  # what a reader does on opening: what the terminal had queued,
+        drain_backlog(port)  # and what it still pushes of it
+        opened = time.monotonic() - started
+        frames = []
+        while not frames:
+            frames = decoder.feed(port.read(max(1, port.in_waiting)))
+    process.terminate()
+    _out, err = process.communicate(timeout=10)
+    # the first frame read is of the board's present, not of the seconds nobody read
+    assert frames[0].seq >= (opened - 0.5) * 100, (frames[0].seq, opened)
+    assert int(re.search(r"frames skipped while nobody read (\d+)", err).group(1)) > 0
+
+
+def test_draining_a_backlog_takes_what_is_there_and_stops_when_nothing_more_comes():
+    class Port:  # a backlog in three pushes, then a board's frame 20 ms later
+        def __init__(self):
+            self.pushes, self.later = [b"x" * 4095, b"y" * 4095, b"z" * 100], time.monotonic() + 0.02
+            self.read_bytes = 0
+
+        @property
+        def in_waiting(self):
+            return len(self.pushes[0]) if self.pushes else (80 if time.monotonic() > self.later else 0)
+
+        def read(self, n):
+            return self.pushes.pop(0) if self.pushes else b"f" * n
+
+    from tactile_viewer.live_source import drain_backlog
+
+    port = Port()
+    assert drain_backlog(port) == 4095 * 2 + 100  # the board's frame is left for the reader
+    assert port.in_waiting == 0  # (it comes later)
