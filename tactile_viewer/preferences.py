@@ -34,7 +34,8 @@ from .model import Display
 log = logging.getLogger(__name__)
 
 __all__ = ["Settings", "window_settings", "saved_layout", "save_layout", "RecentFiles", "last_folder",
-           "remember_folder", "saved_view", "save_view", "PER_SOURCE", "RECENT_MAX", "MAX_SETTINGS_BYTES"]
+           "remember_folder", "saved_view", "save_view", "saved_rows", "save_rows", "PER_SOURCE",
+           "RECENT_MAX", "MAX_SETTINGS_BYTES"]
 
 RECENT_MAX = 8  # entries of File > Open recent
 # Display fields every new source sets from its own loads (model._display_scales), and the in-plane
@@ -189,6 +190,20 @@ class RecentFiles:
 
     def _store(self, paths):
         window_settings().set_value(self.KEY, [str(p) for p in paths])
+
+
+TIME_PLOT_ROWS = "time_plots/rows"  # the rows the user chose (a list of row keys)
+
+
+def saved_rows(known) -> set[str] | None:
+    """The time plots' rows chosen last run, those of ``known`` (None: none saved or none known)."""
+    rows = {key for key in _strings(window_settings().value(TIME_PLOT_ROWS)) if key in known}
+    return rows or None
+
+
+def save_rows(rows) -> None:
+    """Keep the time plots' rows for the next run."""
+    window_settings().set_value(TIME_PLOT_ROWS, sorted(rows))
 
 
 def last_folder() -> Path:

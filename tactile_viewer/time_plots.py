@@ -40,6 +40,7 @@ from solver.inverse import MAX_STRESS
 
 from .export import derived_name
 from .model import ViewerModel
+from .preferences import save_rows, saved_rows
 from .recording import written_whole
 from .series import MAX_FRAMES, Series, SeriesBuilder, compute_series, nearest_frame, spread_frames
 from .tasks import TaskRunner
@@ -205,7 +206,8 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         self._cursor_x = math.nan  # the time of the frame the model shows
         self._lines_x = math.nan  # where the cursor lines stand: the frame drawn
         self._truth_shown = None
-        self.rows_shown = set(FIRST_ROWS)
+        # as the user left them last run, else the first three
+        self.rows_shown = saved_rows({key for key, *_ in (*ROWS, *ERROR_ROWS)}) or set(FIRST_ROWS)
         self.lost_marks: list = []  # (plot, region) shading frames a damaged file lost
 
         body = QtWidgets.QWidget()
@@ -352,6 +354,7 @@ class TimePlotsDock(QtWidgets.QDockWidget):
         if not rows & {key for key, *_ in ROWS}:
             rows.add("fz")  # a plot with no row has no time axis to stand on
         self.rows_shown = rows
+        save_rows(rows)
         for key, action in self.row_actions.items():
             action.blockSignals(True)
             action.setChecked(key in rows)

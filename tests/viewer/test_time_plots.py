@@ -419,6 +419,15 @@ def test_at_1280x800_the_rows_shown_and_their_time_axis_are_in_view(window, show
     assert shown.plots["centroid_x"] in shown.graphics.ci.items and "centroid_x" in shown.rows_shown
     shown.show_rows(fz=False, tangential=False, direction=False, centroid_x=False)
     assert shown.rows_shown == {"fz"} and shown.row_actions["fz"].isChecked()
+    shown.show_rows(shear_ratio=True)
+    # the next window shows the rows chosen last
+    from tactile_viewer.main_window import MainWindow
+
+    again = MainWindow()
+    qtbot.addWidget(again)
+    assert again.time_plots.rows_shown == {"fz", "shear_ratio"}
+    assert again.time_plots.row_actions["shear_ratio"].isChecked()
+    again.close()
     with pytest.raises(ValueError, match=r"rows must be among .*, got \['speed'\]"):
         shown.show_rows(speed=True)
 
