@@ -63,7 +63,7 @@ def _row(name, force, ratio, direction, centroid, note) -> tuple[str, ...]:
 class ContactsPanel(QtWidgets.QGroupBox):
     """A small table of the contacts of the last solved frame (follows the model's ``solved``)."""
 
-    VISIBLE_ROWS = 3  # more scroll: the controls column must fit a 1280x800 screen
+    VISIBLE_ROWS = 3  # at least; the table takes the column's height left (a 1280x800 screen: 3)
 
     def __init__(self, model: ViewerModel, parent=None):
         super().__init__("Contacts", parent)
@@ -81,9 +81,12 @@ class ContactsPanel(QtWidgets.QGroupBox):
         self.table.setToolTip("Each contact's resultant and its own shear parameters "
                               "(the red arrows in the scene)")
         row_height = self.table.verticalHeader().defaultSectionSize()
-        self.table.setFixedHeight(self.table.horizontalHeader().sizeHint().height()
-                                  + self.VISIBLE_ROWS * row_height + 2 * self.table.frameWidth())
-        box.addWidget(self.table)
+        self.table.setMinimumHeight(self.table.horizontalHeader().sizeHint().height()
+                                    + self.VISIBLE_ROWS * row_height + 2 * self.table.frameWidth())
+        # its own size hint (a dozen rows) would make the column scroll: it takes what is left
+        policy = QtWidgets.QSizePolicy.Policy
+        self.table.setSizePolicy(policy.Expanding, policy.Ignored)
+        box.addWidget(self.table, 1)
         model.solved.connect(self.follow)
         model.recording_changed.connect(lambda: self.table.setRowCount(0))
 

@@ -728,6 +728,9 @@ def test_at_1280x800_the_timeline_and_every_control_are_in_view_unscrolled(opene
     for widget in (opened.playback.play_button, opened.playback.frame_slider, opened.playback.time_label,
                    opened.parameters.auto_box, opened.display_panel.ids_box, opened.contacts_panel.table):
         assert in_view(opened, widget), widget
+    # the contacts table takes the height left: three rows at least, whole
+    table = opened.contacts_panel.table
+    assert table.viewport().height() >= 3 * table.verticalHeader().defaultSectionSize()
     # the timeline sits under the scene
     scene = opened.plotter.interactor
     assert opened.playback.mapTo(opened, QtCore.QPoint(0, 0)).y() >= scene.mapTo(opened, QtCore.QPoint(0, 0)).y() + scene.height()
