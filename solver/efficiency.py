@@ -27,7 +27,18 @@ import numpy as np
 
 from . import search
 from .checks import real_number, whole_number
-from .search import BOTH, DIRECTION, RATIO, fit_at, gauss_newton, load_patches, pairs_of, scipy_fit, workspace
+from .search import (
+    BOTH,
+    DIRECTION,
+    RATIO,
+    contact_stress,
+    fit_at,
+    gauss_newton,
+    load_patches,
+    pairs_of,
+    scipy_fit,
+    workspace,
+)
 
 __all__ = ["Frame", "Choice", "ContactFit", "NoShear", "FUNCTIONALS"]
 
@@ -310,8 +321,12 @@ class ContactFit:
             shown = evidence > self.shrinkage
             shared = (near.T.astype(np.int64) @ near.astype(np.int64)) > 0
             np.fill_diagonal(shared, False)
-            for c in np.flatnonzero(shown & (shared & shown).any(axis=1)):
-                gain[c] = self._shear_free_misfit(frame, pairs(p), g, g0, c) - rho[c]
+            refit = np.flatnonzero(shown & (shared & shown).any(axis=1))
+            if refit.size:
+                explained = contact_stress(frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact,
+                                           pairs(p), g, K)
+                for c in refit:
+                    gain[c] = self._shear_free_misfit(frame, explained, g0, c) - rho[c]
             evidence = self._evidence(frame, gain, variance, k)
         with np.errstate(divide="ignore", invalid="ignore"):
             keep = np.where(evidence > 0, np.maximum(0.0, 1.0 - self.shrinkage / evidence), 0.0)
@@ -323,17 +338,14 @@ class ContactFit:
         return self._choice(frame, pairs(p), g, residual, evidence, keep > 0, shear_free=g0)
 
     @staticmethod
-    def _shear_free_misfit(frame, shear, g, g0, c):
+    def _shear_free_misfit(frame, explained, g0, c):
         # |residual|^2 near contact c with its load refitted without shear (warm from the
-        # shear-free fit's set) and every other contact's load as fitted: a small NNLS on c's
-        # columns and the sensors near it
+        # shear-free fit's set) and every other contact's load as fitted (``explained`` (K, R),
+        # the stress of each contact's fitted load): a small NNLS on c's columns and the
+        # sensors near it
         mine, rows = frame.column_contact == c, frame.row_contact[:, c]
-        others = ~mine & (g > 0)
-        along = shear[frame.column_contact[others]]
-        held = (frame.fit_z[rows][:, others] @ g[others]
-                + frame.fit_x[rows][:, others] @ (along[:, 0] * g[others])
-                + frame.fit_y[rows][:, others] @ (along[:, 1] * g[others]))
-        b = frame.stress[rows] - held
+        held = explained.sum(axis=0) - explained[c]
+        b = frame.stress[rows] - held[rows]
         columns = np.ascontiguousarray(frame.fit_z.T[mine][:, rows])
         profile = np.zeros(columns.shape[0])
         steps, _ = search.lawson_hanson(columns, b, g0[mine] > 0, 3 * profile.size + 10, profile,

@@ -35,8 +35,8 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["warm_up", "contact_cores", "contact_labels", "gather", "template_misfit", "load_patches",
-           "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
+__all__ = ["warm_up", "contact_cores", "contact_labels", "gather", "template_misfit", "contact_stress",
+           "load_patches", "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
            "BOTH", "RATIO", "DIRECTION"]
 
 
@@ -64,6 +64,8 @@ def warm_up():
 _DEPENDENT = 1e-12
 # The optimality test's relative size (lawson_hanson).
 _OPTIMAL = 1e-12
+# Most columns entering the set at once (lawson_hanson).
+_ENTERING = 8
 
 
 def scipy_fit(matrix, stress):
@@ -247,35 +249,76 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
         steps += 1
         if steps > max_steps:
             return -1, k
+    chosen = np.empty(_ENTERING, np.int64)
+    height = np.empty(_ENTERING)
     while True:
-        # optimal on the set: the variable outside it with the steepest descent enters
+        # optimal on the set: the variables outside it with the steepest descent enter, up to
+        # _ENTERING of them at once (each scan of the columns costs n R, as much as the rest of a
+        # step; one at a time, a cold fit of a few contacts took 200 scans)
         for r in range(rows):
             residual[r] = b[r]
         for i in range(k):
             _axpy(-g[index[i]], columns[index[i]], residual)
+        before = k
         while True:
-            entering = -1
-            best = 0.0
+            found = 0
             for j in range(n):
                 if not free[j] and not barred[j]:
                     slope = _dot(columns[j], residual)
-                    if slope > scale * np.sqrt(norm2[j]) and slope > best:
-                        best, entering = slope, j
-            if entering < 0:
+                    if slope <= scale * np.sqrt(norm2[j]):
+                        continue
+                    if found < _ENTERING:
+                        at = found
+                        found += 1
+                    elif slope > height[_ENTERING - 1]:
+                        at = _ENTERING - 1
+                    else:
+                        continue
+                    while at > 0 and height[at - 1] < slope:  # kept in decreasing order of slope
+                        height[at], chosen[at] = height[at - 1], chosen[at - 1]
+                        at -= 1
+                    height[at], chosen[at] = slope, j
+            if found == 0:
                 return steps, k
+            for c in range(found):
+                if k >= size:
+                    break
+                j = chosen[c]
+                for i in range(k):
+                    gram[i] = _dot(columns[index[i]], columns[j])
+                if _append(factor, k, gram, norm2[j]):
+                    index[k] = j
+                    free[j] = True
+                    k += 1
+                else:
+                    barred[j] = True
+            if k > before:
+                break
             if k >= size:
                 return -1, k
-            for i in range(k):
-                gram[i] = _dot(columns[index[i]], columns[entering])
-            if _append(factor, k, gram, norm2[entering]):
-                break
-            barred[entering] = True
         steps += 1
         if steps > max_steps:
             return -1, k
-        index[k] = entering
-        free[entering] = True
-        k += 1
+        # entrants the least squares on the enlarged set does not keep positive leave again (they
+        # are at zero: the fit is unchanged; all of them but the steepest when none comes out
+        # positive, and the steepest alone comes out positive but for rounding), so every
+        # entrant left moves the fit downhill and the set never cycles
+        while k > before + 1:
+            for i in range(k):
+                rhs[i] = correlation[index[i]]
+            _forward(factor, k, rhs, forward, valid)
+            _backward(factor, k, forward, z)
+            valid = k
+            bad = 0
+            for i in range(before, k):
+                bad += z[i] <= 0
+            if bad == 0:
+                break
+            for i in range(k - 1, before - 1, -1):
+                if (z[i] <= 0 if bad < k - before else i > before):
+                    k = _leave(factor, index, free, k, i)
+                    valid = min(valid, i)
+        entering = index[before]
         # least squares on the set; while a variable is not positive, step from the current g
         # (feasible) towards it until the first variable reaches zero, and drop those at zero
         entered = True
@@ -285,7 +328,7 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
             _forward(factor, k, rhs, forward, valid)
             _backward(factor, k, forward, z)
             valid = k
-            if entered and z[k - 1] <= 0:
+            if entered and k == before + 1 and z[k - 1] <= 0:
                 # rounding: the entering column does not come out positive; it would only
                 # enter again and again, so it is barred (as scipy does)
                 k -= 1
@@ -645,6 +688,39 @@ def template_misfit(matrix, labels, shear, g, misfit):
             _axpy(-template[m + j], matrix[m + j], misfit)
             _axpy(-g[j], matrix[2 * m + j], misfit)
     return template
+
+
+@numba.njit(cache=True, nogil=True)
+def contact_stress(xt, yt, zt, contact, shear, g, contacts):
+    """The stress each contact's fitted template load explains on the fit's sensors.
+
+    Parameters
+    ----------
+    xt, yt, zt : (n, R) ndarray
+        Stress per newton of each column along x, y, z on the rows.
+    contact : (n,) ndarray of int
+        Contact of each column.
+    shear : (K, 2) ndarray
+        Each contact's pair ``s_k``.
+    g : (n,) ndarray
+        Normal force of each column, newtons.
+    contacts : int
+        ``K``.
+
+    Returns
+    -------
+    (K, R) ndarray
+        Pascals.
+    """
+    n, rows = zt.shape
+    out = np.zeros((contacts, rows))
+    for j in range(n):
+        if g[j] > 0:
+            c = contact[j]
+            sx, sy = g[j] * shear[c, 0], g[j] * shear[c, 1]
+            for r in range(rows):
+                out[c, r] += g[j] * zt[j, r] + sx * xt[j, r] + sy * yt[j, r]
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
