@@ -332,6 +332,10 @@ def press_frames(n, frames, *, seed=_PRESS_SEED):
     return grid, stress
 
 
+# The parameters a broad press is also solved with (a slider set by hand).
+GIVEN_RATIO, GIVEN_DIRECTION = 0.2, 0.5
+
+
 def broad_press(n, *, frames=3, memory=True):
     """Set-up, automatic solves and peak memory of a broad press (:func:`press_frames`) on ``n x n``.
 
@@ -358,7 +362,10 @@ def broad_press(n, *, frames=3, memory=True):
         ``fallbacks`` (solves that took a cheaper member than the accurate
         path, ``Reconstruction.fallback``) and ``fallback`` (the first one's
         note, empty without), ``rss_before`` and ``rss_peak`` (MB),
-        ``traced_peak`` (MB, NaN without ``memory``).
+        ``traced_peak`` (MB, NaN without ``memory``), ``given`` and
+        ``given_cpu`` (s, median over the frames of a solve with the
+        parameters given, :data:`GIVEN_RATIO` and :data:`GIVEN_DIRECTION`,
+        after the automatic ones: a slider set by hand).
     """
     grid, stress = press_frames(n, frames)
     layer.table(POISSON_RATIO)
@@ -367,6 +374,8 @@ def broad_press(n, *, frames=3, memory=True):
     solver = make_solver(grid)
     setup_wall, setup_cpu = time.perf_counter() - start, time.process_time() - start_cpu
     wall, cpu, results = timed_in_rounds(solver.solve, stress, 1)
+    given_wall, given_cpu, _ = timed_in_rounds(
+        lambda b: solver.solve(b, shear_ratio=GIVEN_RATIO, shear_direction=GIVEN_DIRECTION), stress, 1)
     rss_peak, traced, kind = _rss_mb(), math.nan, type(solver).__name__
     if memory:
         del solver  # its matrices are not counted twice
@@ -381,7 +390,8 @@ def broad_press(n, *, frames=3, memory=True):
                 found=float(np.median([len(r.contacts) for r in results])), solver=kind,
                 fallbacks=sum(bool(getattr(r, "fallback", "")) for r in results),
                 fallback=next((r.fallback for r in results if getattr(r, "fallback", "")), ""),
-                rss_before=rss_before, rss_peak=rss_peak, traced_peak=traced)
+                rss_before=rss_before, rss_peak=rss_peak, traced_peak=traced,
+                given=float(np.median(given_wall)), given_cpu=float(np.median(given_cpu)))
 
 
 def layer_tables(poisson_ratio=0.45):
@@ -518,7 +528,8 @@ def main(argv=None):
               f"{t['solves']} solves: wall median {t['wall']:.3f} p95 {t['wall_p95']:.3f}, CPU median "
               f"{t['cpu']:.3f} p95 {t['cpu_p95']:.3f}; contacts found, median {t['found']:g}; "
               f"cheaper fallback on {t['fallbacks']} of {t['solves']}{': ' if t['fallback'] else ''}"
-              f"{t['fallback']}; "
+              f"{t['fallback']}; given parameters ({GIVEN_RATIO}, {GIVEN_DIRECTION} rad) median "
+              f"{t['given']:.3f} s (CPU {t['given_cpu']:.3f} s); "
               f"peak RSS {t['rss_peak']:.0f} MB ({t['rss_before']:.0f} MB before its set-up); traced peak of "
               f"set-up and first solve (tracemalloc, untimed pass) {t['traced_peak']:.0f} MB", flush=True)
 

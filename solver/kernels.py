@@ -41,8 +41,8 @@ from . import layer
 from .checks import one_of, whole_number
 from .geometry import SensorGrid, check_poisson_ratio
 
-__all__ = ["KERNELS", "point_force_stress", "cell_force_stress", "layer_force_stress", "taxel_points",
-           "subcell_offsets", "stress_matrix", "PROFILES"]
+__all__ = ["KERNELS", "offset_tables", "point_force_stress", "cell_force_stress", "layer_force_stress",
+           "taxel_points", "subcell_offsets", "stress_matrix", "PROFILES"]
 
 KERNELS = ("layer", "cell", "point")
 PROFILES = ("uniform", "bilinear")
@@ -287,9 +287,31 @@ _TABLES_LOCK = threading.Lock()
 _BUILDING: dict = {}  # a lock per geometry whose tables are being computed, held meanwhile
 
 
-def _offset_tables(grid, kernel, subdivision, profile):
-    # per sub-cell q, (kx, ky, kz) of its source on the offsets (2ny-1, 2nx-1) of a regular
-    # grid, sensor minus node
+def offset_tables(grid, kernel, subdivision, profile):
+    """The kernel of a regular grid on every offset, sensor minus node.
+
+    Every kernel depends only on the offset, so these tables are the whole
+    matrix: :func:`stress_matrix` reads its columns from them, and
+    :mod:`solver.convolution` convolves with them. Kept per geometry (the
+    largest grid asked so far; a smaller one reads its middle).
+
+    Parameters
+    ----------
+    grid : SensorGrid
+        A regular grid, ``grid.shape == (ny, nx)``.
+    kernel : {"layer", "cell", "point"}
+    subdivision : int
+        Sub-cells per side of a cell (:func:`stress_matrix`).
+    profile : {"uniform", "bilinear"}
+        How a sub-cell's force is spread (:func:`stress_matrix`).
+
+    Returns
+    -------
+    list of [kx, ky, kz]
+        Per sub-cell ``q``, the stress per newton along x, y, z of its source:
+        ``(2 ny - 1, 2 nx - 1)`` arrays, offset (0, 0) at index ``(ny - 1, nx - 1)``,
+        pascals per newton. Shared: not to be written.
+    """
     ny, nx = grid.shape
     hats = subdivision > 1 and profile == "bilinear"
     key = (kernel, grid.pitch, grid.thickness, grid.poisson_ratio, grid.sensor_size, subdivision, hats)
@@ -418,7 +440,7 @@ def stress_matrix(grid: SensorGrid, kernel: str = "layer", *, subdivision: int =
     if grid.is_regular:
         # Translation invariance: the kernel on the (2ny-1, 2nx-1) offsets, once per sub-cell.
         ny, nx = grid.shape
-        for q, parts in enumerate(_offset_tables(grid, kernel, subdivision, profile)):
+        for q, parts in enumerate(offset_tables(grid, kernel, subdivision, profile)):
             for i, values in enumerate(parts):
                 start = (i * cells + q) * m
                 _spread_offsets(values, matrix[:, start:start + m])

@@ -26,7 +26,7 @@ from scipy import ndimage
 
 from .arrays import read_only
 from .checks import real_number, shown, whole_number
-from .convolution import NormalConvolution
+from .convolution import NormalConvolution, StressConvolution
 from .geometry import SensorGrid
 from .inverse import (
     Contact,
@@ -136,7 +136,9 @@ class RegionSolver:
         self._lock = threading.Lock()
         self._links = patch_links(grid)
         self._capacity = cache
-        self._convolution = None  # the whole skin's normal-only operator, made when first needed
+        # the whole skin's operators (normal-only, and C for the exact member), made when first needed
+        self._convolution = None
+        self._stress_convolution = None
         self.factorizations = 0  # windows set up so far, each inverting its matrices (the rest were reused)
 
     def _window(self, rows: int, columns: int) -> SensorGrid:
@@ -232,7 +234,7 @@ class RegionSolver:
         windows = self.windows(image)
         broad = [w for w in windows if (w[0].stop - w[0].start) * (w[1].stop - w[1].start) > DENSE_LIMIT]
         if broad:
-            return self._broad(image, windows, broad, shear_ratio, shear_direction)
+            return self._broad(image, windows, broad, shear_ratio, shear_direction, exact, normal_only)
         notes = []
         for rows, columns in windows:
             window = image[rows, columns]
@@ -282,44 +284,65 @@ class RegionSolver:
             region=read_only(region.ravel(), bool), exact=main.exact, contacts=tuple(contacts),
             fallback="; ".join(notes))
 
-    def _broad(self, image, windows, broad, shear_ratio, shear_direction):
+    def _broad(self, image, windows, broad, shear_ratio, shear_direction, exact, normal_only):
         # A window over DENSE_LIMIT nodes would need the dense matrices of a skin that size
-        # (gigabytes at 64x64): the frame gets the normal-only answer of the whole skin by
-        # convolution (solver.convolution), in memory that grows with the skin, not its square.
+        # (gigabytes at 64x64): the frame is solved over the whole skin by convolution
+        # (solver.convolution), in memory that grows with the skin, not its square. Automatic
+        # parameters: the normal-only answer. Given ones: the paper's member whose template is
+        # y = [mu cos(theta) g; mu sin(theta) g; g], g the positive part of the normal-only
+        # answer on the load windows (what Reconstructor gives a load beyond its fit's budget).
         grid = self.grid
+        max_condition = {k: v for k, v in self._options.items() if k == "max_condition"}
         if self._convolution is None:
-            self._convolution = NormalConvolution(grid, kernel=self.kernel,
-                                                  **{k: v for k, v in self._options.items()
-                                                     if k == "max_condition"})
-        fz, _ = self._convolution.solve(image.ravel())
-        forces = np.zeros((grid.size, 3))
-        forces[:, 2] = fz
+            self._convolution = NormalConvolution(grid, kernel=self.kernel, **max_condition)
+        b = image.ravel()
+        fz, _ = self._convolution.solve(b)
         region = np.zeros(grid.shape, dtype=bool)
-        contacts = []
+        for rows, columns in windows:
+            region[rows, columns] = True
         direction = _direction(0.0, 0.0, 0.0 if shear_direction is None else float(shear_direction))
+        given = not normal_only and (shear_ratio is not None or shear_direction is not None)
+        forces = np.zeros((grid.size, 3))
+        if given:
+            ratio = 0.0 if shear_ratio is None else float(shear_ratio)
+            angle = 0.0 if shear_direction is None else float(shear_direction)
+            g = np.where(region.ravel(), np.clip(fz, 0.0, None), 0.0)
+            forces[:] = g[:, None] * [ratio * math.cos(angle), ratio * math.sin(angle), 1.0]
+            if self._stress_convolution is None:
+                self._stress_convolution = StressConvolution(grid, kernel=self.kernel, **max_condition)
+            operator = self._stress_convolution
+            if exact:
+                forces, _ = operator.member(forces, b)
+            misfit = operator.apply(forces) - b
+            kind = "the template of the normal-only solution"
+            condition, regularized = operator.condition, exact and operator.shift > 0
+        else:
+            ratio = 0.0
+            forces[:, 2] = fz
+            misfit = self._convolution.apply(fz) - b
+            kind = "normal only"
+            condition, regularized = self._convolution.condition, self._convolution.shift > 0
+        contacts = []
         for rows, columns in windows:
             box = np.zeros(grid.shape, dtype=bool)
             box[rows, columns] = True
-            region |= box
             nodes = box.ravel()
-            pushed = np.clip(fz[nodes], 0.0, None)
+            pushed = np.clip(forces[nodes, 2], 0.0, None)
             centre = (grid.positions[nodes].T @ pushed / pushed.sum() if pushed.sum() > 0
                       else grid.positions[nodes].mean(axis=0))
-            contacts.append(Contact(nodes=read_only(nodes, bool), shear_ratio=0.0, shear_direction=direction,
-                                    evidence=math.nan, shear_detected=False,
+            contacts.append(Contact(nodes=read_only(nodes, bool), shear_ratio=ratio,
+                                    shear_direction=direction, evidence=math.nan, shear_detected=False,
                                     at_edge=bool(np.any(nodes & grid.border)),
                                     total_force=read_only(forces[nodes].sum(axis=0)),
                                     centre=read_only(centre)))
         contacts.sort(key=lambda c: -c.total_force[2])
         largest = max((w[0].stop - w[0].start) * (w[1].stop - w[1].start) for w in broad)
-        given = "" if shear_ratio is None and shear_direction is None else ", the given shear not applied"
         norm = float(np.linalg.norm(image))
-        misfit = self._convolution.apply(fz) - image.ravel()
         return Reconstruction(
-            forces=read_only(forces), shear_ratio=0.0, shear_direction=direction, efficiency=math.nan,
+            forces=read_only(forces), shear_ratio=ratio, shear_direction=direction, efficiency=math.nan,
             residual=float(np.linalg.norm(misfit)) / norm if norm > 0 else 0.0,
-            condition=self._convolution.condition, regularized=self._convolution.shift > 0,
-            normal_only=True, shear_detected=False, region=read_only(region.ravel(), bool), exact=True,
+            condition=condition, regularized=regularized, normal_only=not given, shear_detected=False,
+            region=read_only(region.ravel(), bool), exact=bool(exact) if given else True,
             contacts=tuple(contacts),
-            fallback=(f"normal only{given}: a load window of {largest} nodes, more than the "
+            fallback=(f"{kind}: a load window of {largest} nodes, more than the "
                       f"{DENSE_LIMIT} a window may have (solved by convolution over the whole skin)"))

@@ -120,11 +120,12 @@ def test_press_frames_load_most_of_the_skin():
 def test_broad_press_gives_set_up_solves_and_peak_memory():
     t = bench.broad_press(8, frames=2)
     assert set(t) == {"wall", "wall_p95", "cpu", "cpu_p95", "setup", "setup_cpu", "first", "first_cpu",
-                      "solves", "found", "solver", "fallbacks", "fallback", "rss_before", "rss_peak", "traced_peak"}
+                      "solves", "found", "solver", "fallbacks", "fallback", "rss_before", "rss_peak", "traced_peak",
+                      "given", "given_cpu"}
     assert t["solves"] == 2 and t["solver"] == "Reconstructor"
     assert 0 <= t["fallbacks"] <= 2 and isinstance(t["fallback"], str)
     assert bool(t["fallback"]) == (t["fallbacks"] > 0)
-    assert t["setup"] > 0 and t["first"] > 0 and t["wall_p95"] >= t["wall"]
+    assert t["setup"] > 0 and t["first"] > 0 and t["wall_p95"] >= t["wall"] and t["given"] > 0
     assert t["rss_peak"] >= t["rss_before"] > 0 and t["traced_peak"] > 0
     assert np.isnan(bench.broad_press(8, frames=1, memory=False)["traced_peak"])
 
@@ -143,5 +144,6 @@ def test_the_command_prints_the_multi_contact_frames_and_the_broad_press(capsys)
     assert re.search(rf"^8x8 broad press: set-up \(Reconstructor\) {x} s \(CPU {x} s\); first solve {x} s "
                      rf"\(CPU {x} s\); automatic solve s, 2 solves: wall median {x} p95 {x}, CPU median {x} "
                      rf"p95 {x}; contacts found, median {x}; cheaper fallback on [0-2] of 2(: .+)?; "
+                     rf"given parameters \(0.2, 0.5 rad\) median {x} s \(CPU {x} s\); "
                      rf"peak RSS {x} MB \({x} MB before its set-up\); traced peak of set-up and first solve "
                      rf"\(tracemalloc, untimed pass\) {x} MB$", out, re.M)

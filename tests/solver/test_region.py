@@ -305,13 +305,38 @@ def test_a_window_too_large_for_dense_matrices_gets_the_convolved_normal_only_an
     windows = region.windows(frame.stress)
     largest = max((r.stop - r.start) * (c.stop - c.start) for r, c in windows)
     assert largest > 100
-    for parameters in ({}, dict(shear_ratio=0.3, shear_direction=1.0)):
-        result = region.solve(frame.stress, **parameters)
-        given = ", the given shear not applied" if parameters else ""
-        assert result.fallback == (f"normal only{given}: a load window of {largest} nodes, more than the 100 a "
-                                   "window may have (solved by convolution over the whole skin)")
-        expected = Reconstructor(grid).solve_normal(frame.stress).forces
-        np.testing.assert_allclose(result.forces, expected, rtol=0, atol=1e-6 * np.abs(expected).max())
-        assert result.normal_only and len(result.contacts) == len(windows)
-        assert result.residual < 1e-6
-        assert all(c.shear_ratio == 0 and not c.shear_detected for c in result.contacts)
+    result = region.solve(frame.stress)
+    assert result.fallback == (f"normal only: a load window of {largest} nodes, more than the 100 a "
+                               "window may have (solved by convolution over the whole skin)")
+    dense = Reconstructor(grid)
+    expected = dense.solve_normal(frame.stress).forces
+    np.testing.assert_allclose(result.forces, expected, rtol=0, atol=1e-6 * np.abs(expected).max())
+    assert result.normal_only and len(result.contacts) == len(windows)
+    assert result.residual < 1e-6
+    assert all(c.shear_ratio == 0 and not c.shear_detected for c in result.contacts)
+
+    # Given parameters: the paper's member whose template is the normal-only answer's positive
+    # part on the load windows with the given pair, x = y + C+ (b - C y), as the dense matrices
+    # give it; C x = b. Without exact, the template itself.
+    ratio, theta = 0.3, 1.0
+    boxes = np.zeros(grid.shape, bool)
+    for rows, columns in windows:
+        boxes[rows, columns] = True
+    g = np.where(boxes.ravel(), np.clip(expected[:, 2], 0, None), 0.0)
+    y = np.concatenate([ratio * np.cos(theta) * g, ratio * np.sin(theta) * g, g])
+    member = y + dense.matrix.T @ np.linalg.solve(dense.matrix @ dense.matrix.T, frame.stress - dense.matrix @ y)
+    for exact, want in ((None, member), (False, y)):
+        result = region.solve(frame.stress, shear_ratio=ratio, shear_direction=theta, exact=exact)
+        assert result.fallback == (
+            f"the template of the normal-only solution: a load window of {largest} nodes, more than the 100 a "
+            "window may have (solved by convolution over the whole skin)")
+        np.testing.assert_allclose(result.forces, want.reshape(3, -1).T, rtol=0, atol=1e-6 * np.abs(want).max())
+        assert not result.normal_only and result.exact == (exact is None)
+        assert result.shear_ratio == pytest.approx(ratio) and result.shear_direction == pytest.approx(theta)
+        assert all(c.shear_ratio == pytest.approx(ratio) and not c.shear_detected for c in result.contacts)
+    explained = dense.matrix @ result.forces.T.ravel()  # the template's: short of the data
+    assert np.linalg.norm(explained - frame.stress) > 0.01 * np.linalg.norm(frame.stress)
+    exact_member = region.solve(frame.stress, shear_ratio=ratio, shear_direction=theta)
+    np.testing.assert_allclose(dense.matrix @ exact_member.forces.T.ravel(), frame.stress, rtol=0,
+                               atol=1e-6 * np.abs(frame.stress).max())
+    assert exact_member.residual < 1e-6
