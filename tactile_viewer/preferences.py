@@ -21,6 +21,7 @@ from __future__ import annotations
 import base64
 import binascii
 import dataclasses
+import gc
 import json
 import logging
 import os
@@ -84,11 +85,18 @@ class Settings:
         if len(data) > MAX_SETTINGS_BYTES:
             log.warning("settings: ignoring %s: over %d bytes", self.path, MAX_SETTINGS_BYTES)
             return {}
+        collecting = gc.isenabled()
+        # no garbage collection at the parser's depth: a finalizer run there (a closed plotter's)
+        # would hit the recursion limit itself and surface as an error no one can catch
+        gc.disable()
         try:
             values = json.loads(data)
         except (ValueError, RecursionError) as exc:  # RecursionError: a deeply nested edit
             log.warning("settings: ignoring %s: not JSON (%s)", self.path, exc)
             return {}
+        finally:
+            if collecting:
+                gc.enable()
         if not isinstance(values, dict):
             log.warning("settings: ignoring %s: not a JSON object", self.path)
             return {}

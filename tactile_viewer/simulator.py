@@ -51,7 +51,10 @@ __all__ = ["Board", "CYCLE", "Cycle", "SCENES", "Scene", "contact_cycle", "main"
            "scene_frame", "shared_cycle"]
 
 CYCLE = 100  # frames per period of every scene
-BLOCKED_WRITE_S = 0.1  # a write that waited this long for room: nobody was reading
+# A write that waited this long for room: nobody was reading, and the frames of that time are
+# skipped. A reader that falls behind for less (a busy machine) gets them late, as from a host's
+# buffer: at 0.1 s, a window starved by a loaded machine lost frames of a 1 kHz board.
+BLOCKED_WRITE_S = 0.5
 TAU = 2 * math.pi
 PRESS_PRESSURE = 10e3  # press: mean pressure at full force, pascals
 # twist: peak torque over force times radius (30% of a Hertzian contact's full-slip torque)

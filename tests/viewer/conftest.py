@@ -1,5 +1,6 @@
 """Fixtures: a real MainWindow under Xvfb (pytest-xvfb), no leaked plotters; a simulated board."""
 
+import logging
 import os
 import subprocess
 import sys
@@ -22,14 +23,43 @@ def no_plotter_leak():
     assert not leaked, f"plotters left open: {leaked}"
 
 
+class ErrorsShown(list):
+    """The error dialogs a window showed, as (title, text), and the errors it logged.
+
+    A test that provokes an error takes it (:meth:`take`, :meth:`take_logged`);
+    whatever is left when the test ends fails it: an error on screen is never a pass.
+    """
+
+    def __init__(self, caplog):
+        super().__init__()
+        self._caplog = caplog
+
+    def take(self):
+        """The dialogs shown so far, forgotten: the test expected them."""
+        shown = list(self)
+        self.clear()
+        return shown
+
+    def logged(self):
+        """Errors (level ERROR and above) the app logged and no test took."""
+        return [r for when in ("setup", "call") for r in self._caplog.get_records(when)
+                if r.levelno >= logging.ERROR and r.name.startswith("tactile_viewer")]
+
+    def take_logged(self):
+        """The errors logged so far in the test, forgotten: the test expected them."""
+        records = self.logged()
+        self._caplog.clear()  # the test's own records (those of the window's set-up stay)
+        return records
+
+
 @pytest.fixture
-def window(qtbot, no_plotter_leak, monkeypatch):
+def window(qtbot, no_plotter_leak, monkeypatch, caplog):
     from PyQt6 import QtWidgets
 
     from tactile_viewer.main_window import MainWindow
 
-    errors = []
-    # dialogs would block a test: record them instead
+    errors = ErrorsShown(caplog)
+    # dialogs would block a test: record them instead (and fail the test unless it takes them)
     monkeypatch.setattr(QtWidgets.QMessageBox, "critical",
                         staticmethod(lambda parent, title, text, *a, **k: errors.append((title, text))))
     win = MainWindow()
@@ -39,6 +69,8 @@ def window(qtbot, no_plotter_leak, monkeypatch):
     qtbot.waitExposed(win)
     yield win
     win.close()
+    left, logged = list(errors), [f"{r.name}: {r.getMessage()}" for r in errors.logged()]
+    assert not left and not logged, f"unexpected errors: dialogs {left}, logged {logged}"
 
 
 @pytest.fixture

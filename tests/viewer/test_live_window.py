@@ -89,7 +89,8 @@ def test_a_port_that_cannot_be_opened_is_reported_and_changes_nothing(opened, tm
     board.start("--rate", "50")
     shown = opened.model.recording
     assert not opened.live_panel.connect_live(str(tmp_path / "no-such-device"), board.layout)
-    assert opened.errors and "no-such-device" in opened.errors[-1][1]
+    refused = opened.errors.take()
+    assert refused and "no-such-device" in refused[-1][1]
     assert opened.model.recording is shown and not opened.model.live and opened.live_panel.reader is None
 
 
@@ -98,7 +99,8 @@ def test_a_bad_layout_is_reported(window, tmp_path, board):
     bad = tmp_path / "bad.json"
     bad.write_text('{"nx": 4}')
     assert not window.live_panel.connect_live(str(board.link), bad)
-    assert "bad.json" in window.errors[-1][1] and "missing" in window.errors[-1][1]
+    refused = window.errors.take()
+    assert "bad.json" in refused[-1][1] and "missing" in refused[-1][1]
     assert window.live_panel.reader is None
 
 
@@ -165,8 +167,9 @@ def test_a_recording_that_fails_to_close_is_reported_and_live_goes_on(live, qtbo
         raise OSError(28, "No space left on device")
     live.live_panel.reader.recorder.close = full_disk
     assert live.live_panel.stop_recording() is None
-    assert live.errors and live.errors[-1][0] == "Recording not completed"
-    assert "No space left on device" in live.errors[-1][1] and "the live view goes on" in live.errors[-1][1]
+    refused = live.errors.take()
+    assert refused and refused[-1][0] == "Recording not completed"
+    assert "No space left on device" in refused[-1][1] and "the live view goes on" in refused[-1][1]
     seen = live.model.last.frame
     qtbot.waitUntil(lambda: live.model.last.frame > seen, timeout=5000)  # still live
 

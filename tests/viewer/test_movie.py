@@ -315,7 +315,8 @@ def test_a_failing_window_movie_is_reported_and_leaves_nothing(opened, qtbot, tm
     with qtbot.waitSignal(opened.exports.movies.finished, timeout=120000) as finished:
         assert opened.exports.export_movie(tmp_path / "full.mp4", stop=5, size=SMALL)
     assert isinstance(finished.args[0], OSError)
-    assert opened.errors == [("Cannot export movie", f"{tmp_path / 'full.mp4'}: No space left on device")]
+    assert opened.errors.take() == [("Cannot export movie", f"{tmp_path / 'full.mp4'}: No space left on device")]
+    assert [r.getMessage() for r in opened.errors.take_logged()] == [f"movie {tmp_path / 'full.mp4'} failed"]
     assert list(tmp_path.iterdir()) == []
     # the window goes on: another frame is solved and drawn
     with qtbot.waitSignal(opened.rendered, timeout=10000):
@@ -334,18 +335,18 @@ def test_closing_the_window_during_a_movie_removes_its_file(opened, qtbot, tmp_p
 
 def test_a_window_movie_needs_a_recording(window, tmp_path):
     assert not window.exports.export_movie(tmp_path / "m.mp4", size=SMALL)
-    assert window.errors == [("Nothing to export", "a live source has no whole recording: record it first")]
+    assert window.errors.take() == [("Nothing to export", "a live source has no whole recording: record it first")]
     assert list(tmp_path.iterdir()) == []
 
 
 def test_a_window_movie_is_refused_with_its_reason(opened, tmp_path):
     assert not opened.exports.export_movie(tmp_path / "m.webm", size=SMALL)
-    title, text = opened.errors[-1]
+    title, text = opened.errors.take()[-1]
     assert title == "Cannot export movie" and "must end in .mp4, .mkv, .avi, .gif" in text
     assert not opened.exports.export_movie(tmp_path / "m.mp4", start=5, stop=5, size=SMALL)
-    assert "stop must be a whole number" in opened.errors[-1][1]
+    assert "stop must be a whole number" in opened.errors.take()[-1][1]
     assert not opened.exports.export_movie(tmp_path / "m.mp4", size=(321, 240))
-    assert "even width and height" in opened.errors[-1][1]
+    assert "even width and height" in opened.errors.take()[-1][1]
     assert list(tmp_path.iterdir()) == []
 
 
@@ -488,4 +489,5 @@ def test_the_movie_dialog_offers_every_movie_type(opened, tmp_path, monkeypatch)
                         staticmethod(lambda *a, **k: (str(tmp_path / "clip"), "MKV video (*.mkv)")))
     opened.exports.movie_dialog()
     assert len(asked) == 4
-    assert opened.errors[-1][0] == "Cannot export movie" and "clip.mkv" in opened.errors[-1][1]
+    refused = opened.errors.take()
+    assert refused[-1][0] == "Cannot export movie" and "clip.mkv" in refused[-1][1]

@@ -99,7 +99,8 @@ def test_partial_series_are_drawn_while_solving(window, dock, qtbot):
     assert len(dock.curves["fz"].xData) == len(dock.series)
     # a partial series is not exported
     assert not dock.csv_button.isEnabled() and dock.export_csv("unused.csv") is None
-    assert dock.errors[0][0] == "Series not complete" and "frames): export it when it is complete" in dock.errors[0][1]
+    refused = dock.errors.take()
+    assert refused[0][0] == "Series not complete" and "frames): export it when it is complete" in refused[0][1]
     with qtbot.waitSignal(dock.computed, timeout=30000):
         pass
     assert len(dock.curves["fz"].xData) == FRAMES
@@ -279,15 +280,16 @@ def test_csv_and_png_exports(window, shown, qtbot, tmp_path):
 
     assert shown.export_png(tmp_path / "missing" / "plots.png") is None
     assert shown.export_csv(tmp_path / "missing" / "series.csv") is None
-    assert [title for title, _ in shown.errors] == ["Cannot save the plots", "Cannot save the series"]
-    assert str(tmp_path / "missing" / "series.csv") in shown.errors[1][1]
+    refused = shown.errors.take()
+    assert [title for title, _ in refused] == ["Cannot save the plots", "Cannot save the series"]
+    assert str(tmp_path / "missing" / "series.csv") in refused[1][1]
     assert window.isVisible()  # the window goes on
 
 
 def test_nothing_to_export_before_a_recording(dock):
     assert dock.series is None and not dock.csv_button.isEnabled()
     assert dock.export_csv("series.csv") is None
-    assert dock.errors == [("Nothing to export", "no series has been solved yet")]
+    assert dock.errors.take() == [("Nothing to export", "no series has been solved yet")]
 
 
 def test_curves_are_not_drawn_across_an_outage():
@@ -366,7 +368,7 @@ def test_a_failed_series_is_reported_and_the_window_goes_on(window, dock, qtbot)
     with qtbot.waitSignal(window.ready, timeout=10000):
         window.model.set_source(RecordingSource(recording), solver)
     qtbot.waitUntil(lambda: bool(dock.errors), timeout=10000)
-    assert dock.errors == [("Time plots", "solving the series failed: the solver broke")]
+    assert dock.errors.take() == [("Time plots", "solving the series failed: the solver broke")]
     assert "could not be solved" in dock.status.text()
     assert window.isVisible() and not math.isnan(dock.cursor_time)
 
