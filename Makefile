@@ -20,7 +20,7 @@ $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
-	$(PY) -c "from solver.search import warm_up; warm_up()"  # compile the contact fit once (numba)
+	$(PY) -c "from solver.warmup import warm_up; warm_up()"  # compile the contact fit once (numba)
 	touch $(STAMP)
 
 system-deps:

@@ -21,10 +21,12 @@ from pathlib import Path
 
 import numpy as np
 
-from solver import Reconstructor, RegionSolver, loads, make_solver, metrics
+from solver import Reconstructor, loads, metrics
 from solver.bench import fastest_in_rounds
 from solver.geometry import SensorGrid
+from solver.inverse import DenseSolver
 from solver.quality import CONFIGURATIONS, Configuration
+from solver.region import RegionSolver
 
 from .cases import default_cases
 from .tables import DIRECTION, NORMAL, TANGENTIAL, Column, format_table, value
@@ -59,7 +61,7 @@ def measure(
     setup = math.inf
     for _ in range(repeat):
         start = time.perf_counter()
-        solver = make_solver(grid, quality=configuration)
+        solver = Reconstructor(grid, quality=configuration)
         setup = min(setup, time.perf_counter() - start)
     times, cpu, results = fastest_in_rounds(solver.solve, [case.frame.stress for case in cases], repeat)
     rows = [(case.shear_ratio, result.shear_ratio, metrics.compare(result.forces, case.frame.forces))
@@ -69,7 +71,7 @@ def measure(
     if memory:
         tracemalloc.start()
         try:
-            traced = make_solver(grid, quality=configuration)
+            traced = Reconstructor(grid, quality=configuration)
             for case in cases[:4]:
                 traced.solve(case.frame.stress)
             peak = tracemalloc.get_traced_memory()[1]
@@ -268,7 +270,7 @@ def large_skin(n: int, *, frames: int = 30, full: bool = False, seed: int = 5) -
     )
     if full:
         start = time.perf_counter()
-        Reconstructor(grid)
+        DenseSolver(grid)
         out["full_setup_s"] = time.perf_counter() - start
     return out
 

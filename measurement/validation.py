@@ -15,6 +15,7 @@ import numpy as np
 
 from solver import Reconstructor, loads, metrics
 from solver.efficiency import FUNCTIONALS, ContactFit
+from solver.inverse import DenseSolver
 from solver.kernels import KERNELS, PROFILES
 
 from .bounds import decision_bound, format_decision_bound, shear_bounds
@@ -122,7 +123,7 @@ def mismatch(*, noise: float = 0.01, kernels=("point", "cell", "layer"),
             made = {}
 
             def make(grid, kernel=kernel, made=made):
-                made[grid.thickness / grid.pitch] = Reconstructor(grid, kernel=kernel)
+                made[grid.thickness / grid.pitch] = DenseSolver(grid, kernel=kernel)
                 return made[grid.thickness / grid.pitch]
 
             rows = evaluate(cases, make)
@@ -377,7 +378,7 @@ def main(argv=None):
     if args.profile is not None and (args.decision_curve or args.load_decision or args.mismatch):
         parser.error("--profile applies to the validation and tuning sets, not to --decision-curve, "
                      "--load-decision or --mismatch (they use the solver's default profile)")
-    profile = args.profile or inspect.signature(Reconstructor).parameters["profile"].default
+    profile = args.profile or inspect.signature(DenseSolver).parameters["profile"].default
     if args.decision_curve:
         print(f"shear decision, seeds {DECISION_SEEDS[0]}-{DECISION_SEEDS[-1]}: 16x16, h/p 0.5 1 1.5, layer "
               f"data, noise {args.noise:g}; shear kept when F > c (default c = {ContactFit().shrinkage:g})")

@@ -1,14 +1,15 @@
 """GUI-free numerics of tactile-viewer: contact forces from normal-stress skins.
 
-numpy and scipy only; never imports Qt or pyvista.
+numpy and scipy only; never imports Qt or pyvista. :class:`Reconstructor` is
+the one way to a solver, for a skin of any size and any quality setting.
 """
 
 from . import efficiency, loads, metrics
 from .geometry import SensorGrid
-from .inverse import Contact, Reconstruction, Reconstructor
+from .inverse import Contact, Reconstruction
 from .quality import Configuration
-from .region import RegionSolver, make_solver
+from .reconstructor import Reconstructor
 from .tracking import ContactTracker as ContactTracker  # re-exported (solver.tracking)
 
-__all__ = ["SensorGrid", "Reconstructor", "RegionSolver", "make_solver", "Configuration", "Reconstruction",
-           "Contact", "loads", "metrics", "efficiency"]
+__all__ = ["SensorGrid", "Reconstructor", "Configuration", "Reconstruction", "Contact", "loads", "metrics",
+           "efficiency"]

@@ -4,7 +4,7 @@ Prints, for every kernel, the median per-frame ``solve`` time, wall and CPU,
 on an n x n skin (default 16; automatic parameters cold, after another frame
 and in playback, given parameters, a slider move, normal only) beside the
 dense-product floor measured in the same run, and the set-up time of
-:class:`solver.Reconstructor` for larger grids against ``numpy.linalg.pinv``
+:class:`solver.inverse.DenseSolver` for larger grids against ``numpy.linalg.pinv``
 of the same ``(m, 3m)`` matrix, as a ratio from the same run.
 
 Then the frames of several contacts (:func:`multi_contact`: one, two and three
@@ -28,9 +28,9 @@ import numpy as np
 
 from . import layer, loads
 from .geometry import SensorGrid
-from .inverse import Reconstructor
+from .inverse import DenseSolver
 from .kernels import KERNELS, stress_matrix
-from .region import make_solver
+from .reconstructor import Reconstructor
 
 __all__ = ["machine", "fastest_in_rounds", "timed_in_rounds", "per_frame", "contact_frames", "multi_contact",
            "press_frames", "broad_press", "layer_tables", "setup", "main"]
@@ -176,7 +176,7 @@ def per_frame(n=16, frames=40, kernel="layer", repeat=5):
     sliding = [loads.simulate(grid, loads.hertz((-1e-3 + 5e-5 * k, 0.5e-3), 5e-3, 1.0, shear_ratio=0.3,
                                                 shear_direction=0.4 + 0.01 * k), noise=0.01, rng=rng).stress
                for k in range(frames)]
-    r = Reconstructor(grid, kernel=kernel)
+    r = DenseSolver(grid, kernel=kernel)
     matrix = np.ascontiguousarray(r.matrix.T)  # (768, 256) at 16x16
 
     def slider(b, step=[0]):  # noqa: B006 - a counter kept between calls
@@ -268,7 +268,7 @@ def contact_frames(count, frames, *, n=16, seed=_CONTACT_SEED):
 def multi_contact(counts=CONTACT_COUNTS, *, n=16, frames=20, repeat=5):
     """Automatic solves of frames of one, two and three contacts (:func:`contact_frames`).
 
-    The solver is :func:`solver.make_solver` of the skin (the viewer's). One
+    The solver is :class:`solver.Reconstructor` of the skin (the viewer's). One
     untimed round over the frames first (compilation, caches), then
     ``repeat`` timed rounds over all frames (:func:`timed_in_rounds`: no solve
     follows one of the same frame).
@@ -296,7 +296,7 @@ def multi_contact(counts=CONTACT_COUNTS, *, n=16, frames=20, repeat=5):
     out = {}
     for count in counts:
         grid, stress = contact_frames(count, frames, n=n)
-        solver = make_solver(grid)
+        solver = Reconstructor(grid)
         found = [len(solver.solve(b).contacts) for b in stress]  # the untimed round
         wall, cpu, _ = timed_in_rounds(solver.solve, stress, repeat)
         out[count] = dict(_spread(wall, cpu), fastest=1e3 * float(np.median(wall.min(axis=0))),
@@ -339,8 +339,8 @@ GIVEN_RATIO, GIVEN_DIRECTION = 0.2, 0.5
 def broad_press(n, *, frames=3, memory=True):
     """Set-up, automatic solves and peak memory of a broad press (:func:`press_frames`) on ``n x n``.
 
-    The solver is :func:`solver.make_solver` of the skin (a dense
-    :class:`~solver.Reconstructor` up to 32x32, the region solver beyond);
+    The solver is :class:`solver.Reconstructor` of the skin (a dense
+    :class:`~solver.inverse.DenseSolver` up to 32x32, the region solver beyond);
     the layer tables of its Poisson ratio are computed before, not counted.
     Each frame is solved once, in order, so no solve follows one of the same
     frame; the first solve is also given alone (it meets the solver new, as
@@ -371,17 +371,17 @@ def broad_press(n, *, frames=3, memory=True):
     layer.table(POISSON_RATIO)
     rss_before = _rss_mb()
     start_cpu, start = time.process_time(), time.perf_counter()
-    solver = make_solver(grid)
+    solver = Reconstructor(grid)
     setup_wall, setup_cpu = time.perf_counter() - start, time.process_time() - start_cpu
     wall, cpu, results = timed_in_rounds(solver.solve, stress, 1)
     given_wall, given_cpu, _ = timed_in_rounds(
         lambda b: solver.solve(b, shear_ratio=GIVEN_RATIO, shear_direction=GIVEN_DIRECTION), stress, 1)
-    rss_peak, traced, kind = _rss_mb(), math.nan, type(solver).__name__
+    rss_peak, traced, kind = _rss_mb(), math.nan, type(solver.engine).__name__
     if memory:
         del solver  # its matrices are not counted twice
         tracemalloc.start()
         try:
-            make_solver(grid).solve(stress[0])
+            Reconstructor(grid).solve(stress[0])
             traced = tracemalloc.get_traced_memory()[1] / 2**20
         finally:
             tracemalloc.stop()
@@ -432,12 +432,12 @@ def setup(n, *, pinv=True, repeat=1, kernel="layer"):
     Returns
     -------
     ours : float
-        Seconds to build :class:`~solver.Reconstructor`.
+        Seconds to build :class:`~solver.inverse.DenseSolver`.
     reference : float or None
         Seconds of ``numpy.linalg.pinv``, None without ``pinv``.
     """
     grid = SensorGrid.regular(n, n, 2e-3, 2e-3)
-    ours = _median_ms(lambda: Reconstructor(grid, kernel=kernel), repeat) / 1e3
+    ours = _median_ms(lambda: DenseSolver(grid, kernel=kernel), repeat) / 1e3
     reference = None
     if pinv:
         C = stress_matrix(grid, kernel)
@@ -504,13 +504,13 @@ def main(argv=None):
     for n in args.sizes:
         ours, ref = setup(n, pinv=not args.no_pinv)
         cell, _ = setup(n, pinv=False, kernel="cell")
-        line = f"{n}x{n} set-up: Reconstructor {ours:.2f} s (cell kernel {cell:.2f} s)"
+        line = f"{n}x{n} set-up: DenseSolver {ours:.2f} s (cell kernel {cell:.2f} s)"
         if ref is not None:
             line += f", numpy.linalg.pinv {ref:.2f} s, ratio pinv/ours {ref / ours:.1f}x"
         print(line, flush=True)
     skin = "pitch 1.5 mm, h/pitch 1, nu 0.49, layer kernel, 1% noise"
     if args.contacts:
-        print(f"16x16 multi-contact frames ({skin}; make_solver; per count its own frames, each placed "
+        print(f"16x16 multi-contact frames ({skin}; Reconstructor; per count its own frames, each placed "
               f"and noised anew, one untimed round, then 5 rounds over all frames):", flush=True)
     for count in args.contacts:
         t = multi_contact([count], frames=args.contact_frames)[count]

@@ -46,7 +46,7 @@ class NormalConvolution:
     kernel : {"layer", "cell", "point"}, optional
         Stress kernel (:mod:`solver.kernels`). Default "layer".
     max_condition : float, optional
-        Largest condition accepted undamped, as :class:`~solver.Reconstructor`'s;
+        Largest condition accepted undamped, as :class:`~solver.inverse.DenseSolver`'s;
         the condition is estimated from the kernel's transform (the
         eigenvalues of the circulant that embeds ``Cz``). Default 100.
 
@@ -110,7 +110,7 @@ class StressConvolution:
     kernel : {"layer", "cell", "point"}, optional
         Stress kernel (:mod:`solver.kernels`). Default "layer".
     max_condition : float, optional
-        As :class:`~solver.Reconstructor`'s: ``C C^T`` is damped when its
+        As :class:`~solver.inverse.DenseSolver`'s: ``C C^T`` is damped when its
         condition estimate exceeds ``max_condition ** 2`` (the dense path's
         rule). The estimate is that of the circulant embedding: it bounds the
         largest eigenvalue from above, the smallest only approximately.
@@ -159,7 +159,7 @@ class StressConvolution:
 
         ``(C C^T + lambda I) w = b - C y`` by conjugate gradients, so
         ``C x - b = -lambda w`` (zero undamped), as
-        :meth:`solver.Reconstructor.solve` gives it on a dense skin.
+        :meth:`solver.inverse.DenseSolver.solve` gives it on a dense skin.
 
         Parameters
         ----------

@@ -11,7 +11,7 @@ choice of the same solver (on this frame after a slider move; in playback
 and live mode the frame before; or whatever the solver did last, on any
 thread), which may make the work cheaper but must not change the answer
 beyond rounding.
-:class:`solver.Reconstructor` takes any such object.
+:class:`solver.inverse.DenseSolver` takes any such object.
 
 Chosen: :class:`ContactFit` (see its notes and ``docs/efficiency.md`` for the
 measured comparison). Kept for comparison: :class:`NoShear`, the baseline

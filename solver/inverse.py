@@ -36,11 +36,11 @@ from .kernels import KERNELS, PROFILES, stress_matrix
 from .search import contact_labels, gather, template_misfit
 from .threads import one_blas_thread
 
-__all__ = ["Reconstructor", "Reconstruction", "Contact", "SymmetricInverse", "check_options",
+__all__ = ["DenseSolver", "Reconstruction", "Contact", "SymmetricInverse", "check_options",
            "check_arguments", "check_parameters", "WHOLE_CELLS"]
 
 # The contact fit takes whole cells instead of sub-cells for loads of up to this many times
-# Reconstructor's fit_budget nodes; beyond, the normal-only answer (Reconstructor.fit_budget).
+# DenseSolver's fit_budget nodes; beyond, the normal-only answer (DenseSolver.fit_budget).
 WHOLE_CELLS = 2
 # Beyond the fit's budget there is no load decision: a contact is reported when its normal-only
 # total stands this many noise deviations out (chosen on the load-decision frames of seeds 1 to
@@ -276,7 +276,7 @@ class _Seen:
     fallback: str = ""     # why the fit takes whole cells instead of sub-cells, if it does
 
 
-class Reconstructor:
+class DenseSolver:
     """Contact forces from normal stress readings, for one sensor geometry.
 
     Everything that depends only on the geometry (the stress matrices, the
@@ -597,7 +597,7 @@ class Reconstructor:
 
     # -- helpers ------------------------------------------------------------------
 
-    def sibling(self) -> Reconstructor:
+    def sibling(self) -> DenseSolver:
         """A reconstructor sharing this one's matrices, with its own last-frame state.
 
         :class:`~solver.region.RegionSolver` gives each window of a frame its
@@ -703,16 +703,16 @@ class Reconstructor:
 
 
 def check_options(grid, **options):
-    """Check the tuning arguments of :class:`Reconstructor` given, before any matrix is built.
+    """Check the tuning arguments of :class:`DenseSolver` given, before any matrix is built.
 
-    Only the arguments given are checked: the defaults are :class:`Reconstructor`'s own.
+    Only the arguments given are checked: the defaults are :class:`DenseSolver`'s own.
 
     Raises
     ------
     ValueError
         Naming the argument, the rule and what was received.
     TypeError
-        For an argument :class:`Reconstructor` does not take.
+        For an argument :class:`DenseSolver` does not take.
     """
     if not isinstance(grid, SensorGrid):
         raise ValueError(f"grid must be a SensorGrid, got {type(grid).__name__}")

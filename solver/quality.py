@@ -4,7 +4,7 @@ A :class:`Configuration` is one way to reconstruct (kernel, path, sub-cells and
 their profile, search resolution, regularization, region of interest) and builds its solver
 for a grid. :data:`CONFIGURATIONS` are the settings the speed/accuracy
 measurement (:mod:`measurement.tradeoff`) compares and the viewer's quality
-presets are picked from; :func:`solver.make_solver` ``(grid, quality=...)``
+presets are picked from; :class:`solver.Reconstructor` ``(grid, quality=...)``
 builds one.
 """
 
@@ -16,17 +16,17 @@ from dataclasses import dataclass
 from .checks import one_of
 from .efficiency import ContactFit
 from .geometry import SensorGrid
-from .inverse import Reconstructor, check_arguments
+from .inverse import DenseSolver, check_arguments
 from .region import RegionSolver
 
 __all__ = ["Configuration", "CONFIGURATIONS", "PATHS"]
 
 PATHS = ("fit", "exact", "normal", "region")
 
-# Reconstructor arguments a configuration sets itself: build() takes any other (max_shear_ratio ...)
+# DenseSolver arguments a configuration sets itself: build() takes any other (max_shear_ratio ...)
 _SET = ("kernel", "max_condition", "subdivision", "profile", "efficiency")
 # a configuration's defaults are the solver's: written once, in the signatures
-_SOLVER = inspect.signature(Reconstructor).parameters
+_SOLVER = inspect.signature(DenseSolver).parameters
 _SEARCH = inspect.signature(ContactFit).parameters
 
 
@@ -42,7 +42,7 @@ class Configuration:
         "cell" and "point" the paper's half-space kernels.
     path : {"fit", "exact", "normal", "region"}
         ``fit``: the fitted compressive, friction-shaped load of every contact
-        (the automatic answer of :meth:`solver.Reconstructor.solve`);
+        (the automatic answer of :meth:`solver.inverse.DenseSolver.solve`);
         ``exact``: the member of the exact solution family at the fitted
         parameters (the paper's answer); ``normal``: normal forces only;
         ``region``: ``fit`` on one window per contact.
@@ -51,7 +51,7 @@ class Configuration:
         whole cell, the previous profile).
     profile : {"bilinear", "uniform"}
         The load over each sub-cell in the contact fit (a bilinear hat, or
-        uniform; :class:`~solver.Reconstructor`). Without sub-cells (the
+        uniform; :class:`~solver.inverse.DenseSolver`). Without sub-cells (the
         point kernel, ``subdivision`` 1, a layer thinner than half a
         sub-cell) there is nothing to shape; the setting is kept as given.
     iterations : int
@@ -78,10 +78,11 @@ class Configuration:
                         max_condition=self.max_condition)
 
     def build(self, grid: SensorGrid, **options):
-        """A solver for ``grid``: an object with ``solve(stress, shear_ratio=, shear_direction=)``,
+        """The engine :class:`solver.Reconstructor` uses for this setting on ``grid``: an object
+        with ``solve(stress, *, shear_ratio=None, shear_direction=None, exact=None)``,
         ``solve_normal(stress)``, ``grid`` and ``kernel``.
 
-        ``options`` are further :class:`~solver.Reconstructor` arguments
+        ``options`` are further :class:`~solver.inverse.DenseSolver` arguments
         (``max_shear_ratio`` ...), checked as the solver checks them; those the
         configuration sets itself (kernel, max_condition, subdivision,
         profile, efficiency) are refused: change the configuration instead.
@@ -95,24 +96,21 @@ class Configuration:
                        subdivision=self.subdivision, profile=self.profile, efficiency=efficiency)
         if self.path == "region":
             return RegionSolver(grid, **options)
-        return _Configured(Reconstructor(grid, **options), self.path)
+        return _Configured(DenseSolver(grid, **options), self.path)
 
 
 class _Configured:
-    # a Reconstructor whose solve takes the configuration's path
-    def __init__(self, reconstructor: Reconstructor, path: str):
+    # a DenseSolver whose solve takes the configuration's path
+    def __init__(self, reconstructor: DenseSolver, path: str):
         self.reconstructor, self.path = reconstructor, path
         self.grid, self.kernel = reconstructor.grid, reconstructor.kernel
 
-    def solve(self, stress, *, shear_ratio=None, shear_direction=None):
+    def solve(self, stress, *, shear_ratio=None, shear_direction=None, exact=None):
+        # the path's answer; ``exact`` given overrides the path's choice of member
         if self.path == "normal":
             return self.reconstructor.solve_normal(stress)
-        return self.reconstructor.solve(
-            stress,
-            shear_ratio=shear_ratio,
-            shear_direction=shear_direction,
-            exact=self.path == "exact",
-        )
+        return self.reconstructor.solve(stress, shear_ratio=shear_ratio, shear_direction=shear_direction,
+                                        exact=self.path == "exact" if exact is None else exact)
 
     def solve_normal(self, stress):
         return self.reconstructor.solve_normal(stress)

@@ -5,7 +5,7 @@ so the stress matrix of any ``by x bx`` window of a regular grid is the same
 wherever the window sits. :class:`RegionSolver` therefore never forms the
 skin's full ``m x 3m`` matrix: per frame it finds the contacts in the data,
 cuts one window around each (the contact grown by the stress spread, a few
-layer thicknesses), and solves each window with a :class:`~solver.Reconstructor`
+layer thicknesses), and solves each window with a :class:`~solver.inverse.DenseSolver`
 built once per window shape and reused across frames. Cost follows the
 contacts, not the skin: a 128x128 skin (a dense matrix would take 6 GB)
 costs what its contact windows cost.
@@ -25,13 +25,13 @@ import numpy as np
 from scipy import ndimage
 
 from .arrays import read_only
-from .checks import real_number, shown, whole_number
+from .checks import real_number, whole_number
 from .convolution import NormalConvolution, StressConvolution
 from .geometry import SensorGrid
 from .inverse import (
     Contact,
+    DenseSolver,
     Reconstruction,
-    Reconstructor,
     _direction,
     check_options,
     check_parameters,
@@ -41,53 +41,12 @@ from .inverse import (
 from .search import contact_cores
 from .threads import one_blas_thread
 
-__all__ = ["RegionSolver", "make_solver", "DENSE_LIMIT"]
+__all__ = ["RegionSolver", "DENSE_LIMIT"]
 
-# Largest skin (sensors) solved with one dense Reconstructor: its sub-cell fit matrix is
+# Largest skin (sensors) solved with one DenseSolver: its sub-cell fit matrix is
 # 12 m^2 doubles (100 MB at 32x32, 1.6 GB at 64x64). Larger regular skins are solved
 # window by window.
 DENSE_LIMIT = 1024
-
-
-def make_solver(grid: SensorGrid, *, quality=None, **options):
-    """The solver for a skin of any size: the one place callers get one.
-
-    A :class:`~solver.Reconstructor` of the whole skin when it has at most
-    ``DENSE_LIMIT`` sensors (or is irregular), else a :class:`RegionSolver`
-    that solves each contact on its window: no path ever allocates the dense
-    matrices of a large skin. Both answer ``solve(stress, *, shear_ratio=None,
-    shear_direction=None, exact=None)`` and ``solve_normal(stress)`` with a
-    :class:`~solver.Reconstruction`.
-
-    With ``quality`` the solver is the one that setting builds
-    (:meth:`solver.quality.Configuration.build`), on ``kernel`` when given
-    (else the setting's own): its solve takes the setting's path and answers
-    ``solve(stress, *, shear_ratio=None, shear_direction=None)``.
-
-    Parameters
-    ----------
-    grid : SensorGrid
-    quality : solver.quality.Configuration, optional
-        A quality setting (one of :data:`solver.quality.CONFIGURATIONS`, a
-        viewer preset ...); None (default): the standard solve above.
-    **options
-        Tuning arguments of :class:`~solver.Reconstructor` (``kernel``,
-        ``max_condition`` ...), all checked before any matrix is built. With
-        ``quality``, ``kernel`` replaces the setting's and the others are passed
-        to :meth:`~solver.quality.Configuration.build`.
-    """
-    # quality builds through RegionSolver (defined below): imported here, not at the top
-    from .quality import Configuration
-
-    if quality is not None:
-        if not isinstance(quality, Configuration):
-            raise ValueError(f"quality must be a solver.quality.Configuration or None, got {shown(quality)}")
-        others = {k: v for k, v in options.items() if k != "kernel"}
-        return replace(quality, kernel=options.get("kernel", quality.kernel)).build(grid, **others)
-    check_options(grid, **options)
-    if grid.size <= DENSE_LIMIT or not grid.is_regular:
-        return Reconstructor(grid, **options)
-    return RegionSolver(grid, **options)
 
 
 class RegionSolver:
@@ -112,7 +71,7 @@ class RegionSolver:
     cache : int, optional
         Window set-ups (each a window's inverses) kept, least recently used dropped. Default 8.
     **options
-        Passed to each window's :class:`~solver.Reconstructor`
+        Passed to each window's :class:`~solver.inverse.DenseSolver`
         (``max_condition``, ``max_shear_ratio``, ``efficiency`` ...).
     """
 
@@ -146,12 +105,12 @@ class RegionSolver:
         return SensorGrid.regular(columns, rows, g.pitch, g.thickness,
                                   poisson_ratio=g.poisson_ratio, sensor_size=g.sensor_size)
 
-    def reconstructor(self, rows: int, columns: int, ordinal: int = 0) -> Reconstructor:
+    def reconstructor(self, rows: int, columns: int, ordinal: int = 0) -> DenseSolver:
         """The (cached) reconstructor of a ``rows x columns`` window.
 
         ``ordinal`` counts the windows of that shape in a frame (in the order
         of :meth:`windows`): each has its own last-frame state on the shared
-        inverses (:meth:`solver.Reconstructor.sibling`).
+        inverses (:meth:`solver.inverse.DenseSolver.sibling`).
         """
         key = (rows, columns)
         # one lock: the viewer's solve thread and an export may ask at the same time
@@ -159,7 +118,7 @@ class RegionSolver:
             if key in self._cache:
                 self._cache.move_to_end(key)
             else:
-                self._cache[key] = [Reconstructor(self._window(rows, columns), kernel=self.kernel,
+                self._cache[key] = [DenseSolver(self._window(rows, columns), kernel=self.kernel,
                                                   **self._options)]
                 self.factorizations += 1
                 if len(self._cache) > self._capacity:
@@ -290,7 +249,7 @@ class RegionSolver:
         # (solver.convolution), in memory that grows with the skin, not its square. Automatic
         # parameters: the normal-only answer. Given ones: the paper's member whose template is
         # y = [mu cos(theta) g; mu sin(theta) g; g], g the positive part of the normal-only
-        # answer on the load windows (what Reconstructor gives a load beyond its fit's budget).
+        # answer on the load windows (what DenseSolver gives a load beyond its fit's budget).
         grid = self.grid
         max_condition = {k: v for k, v in self._options.items() if k == "max_condition"}
         if self._convolution is None:

@@ -35,28 +35,9 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["warm_up", "contact_cores", "contact_labels", "gather", "template_misfit", "contact_stress",
+__all__ = ["contact_cores", "contact_labels", "gather", "template_misfit", "contact_stress",
            "load_patches", "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
            "BOTH", "RATIO", "DIRECTION"]
-
-
-def warm_up():
-    """Compile (or load from numba's cache) every path of the contact fit and the large-skin
-    windows: about 14 s the first time after an install or a change to this module, 0.2 s after.
-    ``make`` runs it once when it installs; without it the first automatic solve pays."""
-    from .geometry import SensorGrid  # the solver imports this module: not at the top
-    from .inverse import Reconstructor
-    from .region import RegionSolver
-
-    grid = SensorGrid.regular(6, 6, 1e-3, 1e-3)
-    x, y = grid.positions.T
-    # one kernel serves all: every kernel's fit columns are read-only arrays of one kind
-    solver = Reconstructor(grid, kernel="cell")
-    stress = solver.matrix[:, 2 * grid.size:] @ (0.01 * np.exp(-(x ** 2 + y ** 2) / (2 * 1.5e-3 ** 2)))
-    for parameters in ({}, dict(shear_ratio=0.2, shear_direction=0.3), dict(shear_direction=0.3),
-                       dict(shear_ratio=0.2)):
-        solver.solve(stress, **parameters)
-    RegionSolver(grid).windows(stress)  # the large-skin path's windows
 
 
 # Columns whose remaining norm after projecting out the set's columns is below this fraction

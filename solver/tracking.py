@@ -147,7 +147,7 @@ class ContactTracker:
 
     Examples
     --------
-    >>> from solver import Reconstructor, SensorGrid
+    >>> from solver import DenseSolver, SensorGrid
     >>> grid = SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3)
     >>> tracker = ContactTracker(grid)
     >>> tracker.max_step == 3 * grid.pitch, tracker.patience

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver import ContactTracker, make_solver, metrics
+from solver import ContactTracker, Reconstructor, metrics
 from solver.kernels import KERNELS
 
 from .model import KERNEL_HELP, Display, ViewerModel, geometry_text
@@ -43,7 +43,7 @@ def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direc
     recording = load(path)
     grid = recording.grid
     start = time.perf_counter()
-    reconstructor = make_solver(grid, kernel=kernel)
+    reconstructor = Reconstructor(grid, kernel=kernel)
     setup = time.perf_counter() - start
     print(f"{path}: {len(recording)} frames, {geometry_text(grid)}, kernel {kernel}; "
           f"set-up {setup * 1e3:.1f} ms", file=out)

@@ -4,7 +4,7 @@ a movie of the recording.
 The file formats are :mod:`tactile_viewer.export`'s and :mod:`tactile_viewer.movie`'s; here are
 the dialogs and the checks that keep a bad folder from ending the app. Whole-recording
 exports run as a task behind a progress dialog. A movie solves with the model's own solver
-(the solvers keep no per-call state, so it may be shared: see :mod:`tactile_viewer.series`,
+(a solver may be shared between threads: see :mod:`tactile_viewer.series`,
 whose rule the whole-recording force export and the time plots follow too) and renders its
 frames on the GUI thread (VTK draws on the thread that owns its windows), one per timer
 tick, so the window stays responsive behind the progress dialog.
@@ -300,8 +300,8 @@ class MovieRunner(QtCore.QObject):
     The movie shows what the window shows: the recording (its current tare), the kernel and
     quality, the display settings, Auto or the manual parameters, and the camera (copied
     whole: a zoomed, parallel Top view stays one), as they were when it started. It solves
-    with the model's own solver, ``model.reconstructor``: the solvers keep no per-call state
-    (``RegionSolver``'s cache is locked), so the movie on the GUI thread and the model's
+    with the model's own solver, ``model.reconstructor``: a solver may be shared between
+    threads (:mod:`tactile_viewer.series`), so the movie on the GUI thread and the model's
     worker thread may both solve with it, as the time plots and the whole-recording force
     export do (see :mod:`tactile_viewer.series`); nothing is built again. A single-shot timer
     renders one frame per tick on the GUI thread behind a window-modal progress dialog with

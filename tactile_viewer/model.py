@@ -40,7 +40,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from solver import ContactTracker, Reconstruction, Reconstructor, SensorGrid, make_solver
+from solver import ContactTracker, Reconstruction, Reconstructor, SensorGrid
 from solver.arrays import read_only
 from solver.checks import one_of
 from solver.inverse import MAX_STRESS
@@ -386,10 +386,10 @@ class ViewerModel:
 
         ``configuration`` is a :class:`solver.quality.Configuration` (a quality
         preset) whose kernel is replaced by ``kernel``; None is the standard
-        solve (:func:`solver.make_solver`: dense up to 32x32, contact by
+        solve (:class:`solver.Reconstructor`: dense up to 32x32, contact by
         contact beyond).
         """
-        return make_solver(grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO, quality=configuration)
+        return Reconstructor(grid, kernel=kernel, max_shear_ratio=MAX_SHEAR_RATIO, quality=configuration)
 
     # -- what is shown ---------------------------------------------------------------
 

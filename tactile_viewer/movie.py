@@ -563,10 +563,10 @@ class MovieExport:
     Parameters
     ----------
     recording : Recording
-    solver : Reconstructor or RegionSolver
+    solver : solver.Reconstructor
         Built for ``recording.grid`` (:meth:`ViewerModel.build`); it may be shared, the window's
-        model's own included (solving on the model's worker thread meanwhile): the solvers keep
-        no per-call state (see :mod:`tactile_viewer.series`).
+        model's own included (solving on the model's worker thread meanwhile): a solver may be
+        shared between threads (see :mod:`tactile_viewer.series`).
     path : str or Path
         The movie: ``.mp4``, ``.mkv``, ``.avi`` or ``.gif``. An existing file of that name is replaced
         once the movie is complete.

@@ -12,12 +12,15 @@ cancelled and hands out partial series while it runs; :class:`SeriesBuilder`
 collects rows as frames are solved (a live source's rolling window);
 :meth:`Series.to_csv` and :meth:`Series.from_csv` write and read it.
 
-Threading: the solvers (``solver.Reconstructor``, ``RegionSolver`` and the
-quality settings' wrappers) keep no per-call state: everything they store is
-built in their constructor and only read by a solve (the contact fit's warm
-starts live inside one call), and ``RegionSolver``'s cache of window
-factorizations is behind a lock. So the model's solver may serve a background
-series while the model's worker thread solves the frame on screen, as the
+Threading: a solver (``solver.Reconstructor``) may be shared between threads.
+What it builds in its constructor is only read by a solve; the one thing a solve
+leaves behind is the last frame's contacts and fit (a slider move on that frame
+reuses them, the next frame starts its fit from them), kept as one tuple that a
+solve replaces whole, so a solve on another thread reads either the old or the
+new one, and its answer depends on which only by rounding (the docstring of
+``solver.inverse.DenseSolver.solve``); the large-skin engine's cache of window
+set-ups is behind a lock. So the model's solver may serve a background series
+while the model's worker thread solves the frame on screen, as the
 whole-recording force export already does.
 
 Contacts followed over time: beside the totals, a series holds the same six

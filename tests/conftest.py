@@ -6,7 +6,7 @@ each test's own, never the user's, in this process and the commands it starts.""
 import pytest
 from hypothesis import settings
 
-from solver.search import warm_up
+from solver.warmup import warm_up
 
 settings.register_profile("repeatable", derandomize=True)
 settings.load_profile("repeatable")

@@ -16,7 +16,7 @@ def lint_imports(*args):
 def test_the_contracts_are_kept():
     run = lint_imports()
     assert run.returncode == 0, run.stdout + run.stderr
-    assert "4 kept, 0 broken" in run.stdout
+    assert "5 kept, 0 broken" in run.stdout
 
 
 def test_a_broken_contract_is_caught(tmp_path):
@@ -28,3 +28,15 @@ def test_a_broken_contract_is_caught(tmp_path):
         'source_modules = ["tactile_viewer.main_window"]\nforbidden_modules = ["PyQt6"]\n')
     run = lint_imports("--config", str(config))
     assert run.returncode != 0 and "BROKEN" in run.stdout, run.stdout + run.stderr
+
+
+def test_an_import_cycle_in_the_solver_is_caught(tmp_path):
+    # the layers contract fails when a module imports one above it: the entry point imports the
+    # dense engine, so layers that put the engine above it are broken
+    config = tmp_path / "layers.toml"
+    config.write_text(
+        '[tool.importlinter]\nroot_packages = ["solver"]\n\n'
+        '[[tool.importlinter.contracts]]\nname = "engine above the entry point"\ntype = "layers"\n'
+        'containers = ["solver"]\nlayers = ["inverse", "reconstructor"]\n')
+    run = lint_imports("--config", str(config))
+    assert run.returncode != 0 and "BROKEN" in run.stdout and "solver.reconstructor" in run.stdout, run.stdout

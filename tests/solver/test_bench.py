@@ -33,7 +33,7 @@ def test_the_command_prints_each_kernel_against_the_floor(capsys):
                      "normal only", "dense-product floor"):
             assert re.search(rf"{path} [0-9.]+ \([0-9.]+\)", line), (path, line)
         assert re.search(r"auto / floor [0-9.]+x$", line)
-    assert re.search(r"^8x8 set-up: Reconstructor [0-9.]+ s \(cell kernel [0-9.]+ s\)$", out, re.M)
+    assert re.search(r"^8x8 set-up: DenseSolver [0-9.]+ s \(cell kernel [0-9.]+ s\)$", out, re.M)
     assert "contact" not in out and "broad press" not in out
 
 
@@ -122,7 +122,7 @@ def test_broad_press_gives_set_up_solves_and_peak_memory():
     assert set(t) == {"wall", "wall_p95", "cpu", "cpu_p95", "setup", "setup_cpu", "first", "first_cpu",
                       "solves", "found", "solver", "fallbacks", "fallback", "rss_before", "rss_peak", "traced_peak",
                       "given", "given_cpu"}
-    assert t["solves"] == 2 and t["solver"] == "Reconstructor"
+    assert t["solves"] == 2 and t["solver"] == "DenseSolver"
     assert 0 <= t["fallbacks"] <= 2 and isinstance(t["fallback"], str)
     assert bool(t["fallback"]) == (t["fallbacks"] > 0)
     assert t["setup"] > 0 and t["first"] > 0 and t["wall_p95"] >= t["wall"] and t["given"] > 0
@@ -135,13 +135,13 @@ def test_the_command_prints_the_multi_contact_frames_and_the_broad_press(capsys)
                 "--press-frames", "2"])
     out = capsys.readouterr().out
     assert out.startswith("machine: ")
-    assert "solve median wall (CPU) ms" not in out and "set-up: Reconstructor" not in out
+    assert "solve median wall (CPU) ms" not in out and "set-up: DenseSolver" not in out
     x = r"[0-9.]+"  # a number
     lines = re.findall(rf"^16x16 (\d) contacts? +automatic solve ms, 10 solves of 2 frames: wall median {x} "
                        rf"p95 {x}, CPU median {x} p95 {x}; each frame's fastest, median {x} \({x}\); "
                        rf"contacts found, median {x}$", out, re.M)
     assert lines == ["1", "3"]
-    assert re.search(rf"^8x8 broad press: set-up \(Reconstructor\) {x} s \(CPU {x} s\); first solve {x} s "
+    assert re.search(rf"^8x8 broad press: set-up \(DenseSolver\) {x} s \(CPU {x} s\); first solve {x} s "
                      rf"\(CPU {x} s\); automatic solve s, 2 solves: wall median {x} p95 {x}, CPU median {x} "
                      rf"p95 {x}; contacts found, median {x}; cheaper fallback on [0-2] of 2(: .+)?; "
                      rf"given parameters \(0.2, 0.5 rad\) median {x} s \(CPU {x} s\); "

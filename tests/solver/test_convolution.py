@@ -6,8 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from solver import Reconstructor, SensorGrid
+from solver import SensorGrid
 from solver.convolution import NormalConvolution, StressConvolution
+from solver.inverse import DenseSolver
 from solver.kernels import stress_matrix
 
 
@@ -26,7 +27,7 @@ def test_the_convolution_is_the_dense_product(kernel, shape):
 @pytest.mark.parametrize("thickness_ratio", [0.5, 1.0, 1.5])
 def test_the_solve_is_the_normal_only_answer(thickness_ratio):
     grid = SensorGrid.regular(13, 10, 1.5e-3, thickness_ratio * 1.5e-3, poisson_ratio=0.49)
-    dense = Reconstructor(grid)
+    dense = DenseSolver(grid)
     operator = NormalConvolution(grid)
     assert operator.shift == 0 and dense._normal.shift == 0
     b = np.random.default_rng(5).normal(100.0, 30.0, grid.size)  # fixed seed
@@ -92,7 +93,7 @@ def test_c_and_its_transpose_are_the_dense_products(kernel, shape):
 @pytest.mark.parametrize("thickness_ratio", [0.5, 1.0, 1.5])
 def test_the_member_is_the_dense_exact_member_and_fits_the_data(thickness_ratio):
     grid = SensorGrid.regular(12, 9, 1.5e-3, thickness_ratio * 1.5e-3, poisson_ratio=0.49)
-    dense = Reconstructor(grid)
+    dense = DenseSolver(grid)
     C = dense.matrix
     operator = StressConvolution(grid)
     assert operator.shift == 0 and dense._gram.shift == 0

@@ -8,15 +8,16 @@ from scipy import ndimage
 
 import solver.efficiency as efficiency
 import solver.search as search
-from solver import Reconstructor, SensorGrid, loads
+from solver import SensorGrid, loads
 from solver.efficiency import ContactFit, NoShear
+from solver.inverse import DenseSolver
 from solver.kernels import stress_matrix
 from solver.threads import one_blas_thread
 
 
 @pytest.fixture(scope="module")
 def reconstructor():
-    return Reconstructor(SensorGrid.regular(14, 12, 2e-3, 2e-3))
+    return DenseSolver(SensorGrid.regular(14, 12, 2e-3, 2e-3))
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +30,7 @@ def sheared(reconstructor):
 # -- the contact region ------------------------------------------------------------------------
 
 def _contacts_by_image(r, normal):
-    # the contact labelling of Reconstructor.contact_labels without splitting patches
+    # the contact labelling of DenseSolver.contact_labels without splitting patches
     # (separation 0: touching contacts join), written independently on the image with
     # scipy.ndimage (raster order numbers the contacts as the compiled one does)
     image = normal.reshape(r.grid.shape)
@@ -45,7 +46,7 @@ def _contacts_by_image(r, normal):
 
 def test_contacts_are_the_grown_patches_of_the_normal_solution(reconstructor, sheared):
     grid = reconstructor.grid
-    irregular = Reconstructor(SensorGrid(grid.positions, grid.thickness, grid.pitch, (grid.size,)))
+    irregular = DenseSolver(SensorGrid(grid.positions, grid.thickness, grid.pitch, (grid.size,)))
     rng = np.random.default_rng(8)  # fixed seed
     second = loads.simulate(grid, loads.hertz((-9e-3, 8e-3), 2e-3, 0.5)).stress
     distance = np.linalg.norm(grid.positions[:, None] - grid.positions[None], axis=2)
@@ -180,7 +181,7 @@ TWO = [((-9e-3, -8e-3), 1.0, 0.4, math.radians(30)), ((9e-3, 8e-3), 0.7, 0.3, ma
 def two_contacts():
     grid = SensorGrid.regular(20, 20, 2e-3, 2e-3)
     contacts = [loads.hertz(c, 4e-3, f, shear_ratio=mu, shear_direction=t) for c, f, mu, t in TWO]
-    return Reconstructor(grid), loads.simulate(grid, contacts)  # noise-free
+    return DenseSolver(grid), loads.simulate(grid, contacts)  # noise-free
 
 
 def nearest_node(grid, point):
@@ -255,7 +256,7 @@ def test_contacts_that_share_no_sensor_are_fitted_apart(two_contacts):
 
 def test_contacts_that_share_sensors_are_one_group():
     grid = SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3, poisson_ratio=0.49)
-    r = Reconstructor(grid)
+    r = DenseSolver(grid)
     pair = [loads.hertz((-4.5e-3, 0.0), 3e-3, 1.0), loads.hertz((4.5e-3, 0.0), 3e-3, 0.8)]
     frame = r._frame(loads.simulate(grid, pair).stress).frame
     assert frame.contacts == 2
@@ -269,7 +270,7 @@ def test_a_shear_free_contact_beside_a_sheared_one_gets_no_shear(gap):
     # counted as its own gain it gave the shear-free contact a ratio of 0.001 to 0.011 on each of
     # these noise-free frames. Its own gain (only its pair set to zero) gives none.
     grid = SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3, poisson_ratio=0.49)
-    r = Reconstructor(grid)
+    r = DenseSolver(grid)
     radius = 3e-3
     x = radius + gap * grid.pitch / 2
     for make in (loads.hertz, loads.cone):
@@ -285,7 +286,7 @@ def test_a_shear_free_contact_beside_a_sheared_one_gets_no_shear(gap):
 
 def test_alternative_functionals_plug_in(sheared):
     grid = sheared.grid
-    none = Reconstructor(grid, efficiency=NoShear()).solve(sheared.stress)
+    none = DenseSolver(grid, efficiency=NoShear()).solve(sheared.stress)
     assert none.shear_ratio == 0 and not none.shear_detected and not none.exact
     assert np.all(none.forces[:, :2] == 0) and none.forces[:, 2].min() >= 0
 
@@ -296,8 +297,8 @@ def test_alternative_functionals_plug_in(sheared):
         def choose(self, frame, *, shear_ratio=None, shear_direction=None, start=None):
             return ContactFit().choose(frame, shear_ratio=0.2, shear_direction=1.0)
 
-    plugged = Reconstructor(grid, efficiency=Fixed()).solve(sheared.stress)
-    given = Reconstructor(grid).solve(sheared.stress, shear_ratio=0.2, shear_direction=1.0, exact=False)
+    plugged = DenseSolver(grid, efficiency=Fixed()).solve(sheared.stress)
+    given = DenseSolver(grid).solve(sheared.stress, shear_ratio=0.2, shear_direction=1.0, exact=False)
     np.testing.assert_array_equal(plugged.forces, given.forces)
     assert plugged.shear_ratio == pytest.approx(0.2) and plugged.shear_direction == pytest.approx(1.0)
     assert set(efficiency.FUNCTIONALS) == {"contact_fit", "no_shear"}
@@ -346,7 +347,7 @@ def test_contact_fit_keeps_valid_arguments():
 ])
 def test_region_settings_are_checked(kwargs, message):
     with pytest.raises(ValueError, match=message):
-        Reconstructor(SensorGrid.regular(3, 3, 1e-3, 1e-3), **kwargs)
+        DenseSolver(SensorGrid.regular(3, 3, 1e-3, 1e-3), **kwargs)
 
 
 @pytest.mark.parametrize("ratio", [0.5, 1.0, 3.0])
@@ -354,12 +355,12 @@ def test_noise_alone_is_no_contact(ratio):
     # the load decision: no patch of a fit to noise stands out of it (seeds 300-302 fixed, not
     # those the threshold was chosen on); without it every one of these frames had contacts
     grid = SensorGrid.regular(16, 16, 2e-3, ratio * 2e-3)
-    r = Reconstructor(grid)
+    r = DenseSolver(grid)
     for seed in (300, 301, 302):
         result = r.solve(np.random.default_rng(seed).normal(0.0, 10.0, grid.size))
         assert result.contacts == () and not result.region.any() and np.all(result.forces == 0), seed
     # the load decision off (and the budget, whose pre-filter would drop noise contacts too)
-    unfiltered = Reconstructor(grid, efficiency=ContactFit(min_load_evidence=-math.inf), fit_budget=grid.size)
+    unfiltered = DenseSolver(grid, efficiency=ContactFit(min_load_evidence=-math.inf), fit_budget=grid.size)
     assert unfiltered.solve(np.random.default_rng(300).normal(0.0, 10.0, grid.size)).contacts
 
 

@@ -1,4 +1,4 @@
-"""Numerical stability of ``solver.Reconstructor`` at the extremes.
+"""Numerical stability of ``solver.DenseSolver`` at the extremes.
 
 Thickness from 0.05 to 10 pitches, forces from a micronewton to a kilonewton,
 degenerate frames (all zero, all tension, one hot taxel, a contact half off
@@ -22,7 +22,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from solver import Reconstructor, RegionSolver, SensorGrid, loads
+from solver import SensorGrid, loads
+from solver.inverse import DenseSolver
+from solver.region import RegionSolver
 
 KERNELS = ["layer", "cell", "point"]
 # each kernel meets data of its own physics here (the mismatch is measured in test_validation)
@@ -116,7 +118,7 @@ def test_thickness_from_005_to_10_pitches(kernel):
     conditions, normal_conditions = [], []
     for ratio in RATIOS:
         grid, frame = thick_case(ratio, kernel)
-        r = Reconstructor(grid, kernel=kernel)
+        r = DenseSolver(grid, kernel=kernel)
         results = {name: solve(frame.stress) for name, solve in all_solves(r).items()}
         truth_sum = np.abs(frame.forces).sum()
         for name, result in results.items():
@@ -158,7 +160,7 @@ def test_the_force_bound_catches_an_undamped_blow_up(ratio):
     # The same frames with damping pushed out of reach: the bound above must fail,
     # or it would not be testing anything (measured 3.9e4x to 4.6e5x the truth).
     grid, frame = thick_case(ratio)
-    r = Reconstructor(grid, kernel="cell", max_condition=1e8)
+    r = DenseSolver(grid, kernel="cell", max_condition=1e8)
     truth_sum = np.abs(frame.forces).sum()
     assert np.abs(r.solve(frame.stress, **SHEAR).forces).sum() > 10 * FORCE_BOUND * truth_sum
     assert np.abs(r.solve_normal(frame.stress).forces).sum() > 10 * FORCE_BOUND * truth_sum
@@ -170,7 +172,7 @@ def test_the_force_bound_catches_an_undamped_blow_up(ratio):
 @pytest.mark.parametrize("ratio", [1.0, 5.0], ids=["undamped", "damped"])
 def test_results_scale_linearly_with_the_load(kernel, ratio):
     grid = SensorGrid.regular(10, 10, PITCH, ratio * PITCH)
-    r = Reconstructor(grid, kernel=kernel)
+    r = DenseSolver(grid, kernel=kernel)
     reference_frame = hertz_frame(grid, force=1.0, kernel=kernel)
     reference = {name: solve(reference_frame.stress) for name, solve in all_solves(r).items()}
     assert reference["auto"].shear_detected  # so the automatic search really is exercised
@@ -195,7 +197,7 @@ def test_results_scale_linearly_with_the_load(kernel, ratio):
 @pytest.mark.parametrize("ratio", [1.0, 5.0], ids=["undamped", "damped"])
 def test_all_zero_frame(kernel, ratio):
     grid = SensorGrid.regular(8, 8, PITCH, ratio * PITCH)
-    r = Reconstructor(grid, kernel=kernel)
+    r = DenseSolver(grid, kernel=kernel)
     zero = np.zeros(grid.size)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -220,7 +222,7 @@ def test_all_zero_frame(kernel, ratio):
 @pytest.mark.parametrize("ratio", [1.0, 5.0], ids=["undamped", "damped"])
 def test_all_negative_frame(kernel, ratio):
     grid = SensorGrid.regular(8, 8, PITCH, ratio * PITCH)
-    r = Reconstructor(grid, kernel=kernel)
+    r = DenseSolver(grid, kernel=kernel)
     tension = -np.linspace(100.0, 300.0, grid.size)
     for name, solve in all_solves(r).items():
         result = solve(tension)
@@ -252,7 +254,7 @@ def test_all_negative_frame(kernel, ratio):
 @pytest.mark.parametrize("kernel", KERNELS)
 @pytest.mark.parametrize("taxel", [0, 27, 63], ids=["corner", "inside", "last"])
 def test_one_hot_taxel(kernel, taxel):
-    r = Reconstructor(SensorGrid.regular(8, 8, PITCH, PITCH), kernel=kernel)
+    r = DenseSolver(SensorGrid.regular(8, 8, PITCH, PITCH), kernel=kernel)
     hot = np.zeros(64)
     hot[taxel] = 5e3
     for name, solve in all_solves(r).items():
@@ -273,7 +275,7 @@ def test_one_hot_taxel(kernel, taxel):
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_one_hot_taxel_under_a_thick_layer_reports_its_residual(kernel):
     # Damped (h/p = 5): a single-taxel spike cannot be fitted, and the result says by how much
-    r = Reconstructor(SensorGrid.regular(8, 8, PITCH, 5 * PITCH), kernel=kernel)
+    r = DenseSolver(SensorGrid.regular(8, 8, PITCH, 5 * PITCH), kernel=kernel)
     hot = np.zeros(64)
     hot[27] = 5e3
     for name, solve in all_solves(r).items():
@@ -310,7 +312,7 @@ def test_contact_on_an_edge_and_in_a_corner(kernel, where, bound):
                            noise=0.01, rng=3, medium=MEDIUM[kernel])  # fixed seed
     on_skin = frame.forces[:, 2].sum()
     assert on_skin < 0.7  # a good part of the 1 N load is off the skin (0.68 and 0.46)
-    r = Reconstructor(grid, kernel=kernel)
+    r = DenseSolver(grid, kernel=kernel)
     for name, solve in all_solves(r).items():
         result = solve(frame.stress)
         assert np.isfinite(result.forces).all(), name
@@ -335,7 +337,7 @@ def test_contact_on_an_edge_and_in_a_corner(kernel, where, bound):
 @pytest.mark.parametrize("ratio", [0.05, 1.0, 10.0])
 def test_tiny_grids(nx, ny, kernel, ratio):
     grid = SensorGrid.regular(nx, ny, PITCH, ratio * PITCH)
-    r = Reconstructor(grid, kernel=kernel)
+    r = DenseSolver(grid, kernel=kernel)
     frame = loads.simulate(grid, loads.hertz((0.3e-3, 0.1e-3), 3e-3, 1.0, **SHEAR), medium=MEDIUM[kernel])
     for name, solve in all_solves(r).items():
         for stress in (frame.stress, frame.stress.reshape(grid.shape)):
@@ -359,15 +361,15 @@ def test_tiny_grids(nx, ny, kernel, ratio):
 
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_condition_of_a_single_taxel_is_not_below_one(kernel):
-    r = Reconstructor(SensorGrid.regular(1, 1, PITCH, PITCH), kernel=kernel)
+    r = DenseSolver(SensorGrid.regular(1, 1, PITCH, PITCH), kernel=kernel)
     assert r.solve_normal(np.array([1e3])).condition >= 1
 
 
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_a_row_and_a_column_are_mirror_images(kernel):
     # 7x1 and 1x7 with the contact mirrored about y = x: forces mirrored (Fx <-> Fy)
-    row = Reconstructor(SensorGrid.regular(7, 1, PITCH, PITCH), kernel=kernel)
-    column = Reconstructor(SensorGrid.regular(1, 7, PITCH, PITCH), kernel=kernel)
+    row = DenseSolver(SensorGrid.regular(7, 1, PITCH, PITCH), kernel=kernel)
+    column = DenseSolver(SensorGrid.regular(1, 7, PITCH, PITCH), kernel=kernel)
     theta = 0.4
     along_row = loads.simulate(row.grid, loads.hertz((0.3e-3, 0.1e-3), 3e-3, 1.0, shear_ratio=0.3,
                                                      shear_direction=theta), medium=MEDIUM[kernel])
@@ -395,7 +397,7 @@ def ten_by_ten():
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_direction_plus_and_minus_pi_are_the_same(kernel, ten_by_ten):
     grid, b = ten_by_ten
-    r = Reconstructor(grid, kernel=kernel)
+    r = DenseSolver(grid, kernel=kernel)
     for mu in (0.0, 0.3, 10.0):
         plus = r.solve(b, shear_ratio=mu, shear_direction=math.pi)
         minus = r.solve(b, shear_ratio=mu, shear_direction=-math.pi)
@@ -413,7 +415,7 @@ def test_direction_plus_and_minus_pi_are_the_same(kernel, ten_by_ten):
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_direction_wraps_around(kernel, ten_by_ten):
     grid, b = ten_by_ten
-    r = Reconstructor(grid, kernel=kernel)
+    r = DenseSolver(grid, kernel=kernel)
     base = r.solve(b, shear_ratio=0.3, shear_direction=1.0)
     for theta in (1.0 + 2 * math.pi, 1.0 - 4 * math.pi):
         wrapped = r.solve(b, shear_ratio=0.3, shear_direction=theta)
@@ -426,7 +428,7 @@ def test_direction_wraps_around(kernel, ten_by_ten):
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_shear_ratio_at_its_extremes(kernel, ten_by_ten):
     grid, b = ten_by_ten
-    r = Reconstructor(grid, kernel=kernel)
+    r = DenseSolver(grid, kernel=kernel)
     # no shear: the direction does not matter
     zero = [r.solve(b, shear_ratio=0.0, shear_direction=t).forces for t in (0.0, 2.0, -3.0)]
     # equal up to the rounding of warm starts from the previous solve (measured 1e-11)
@@ -454,12 +456,12 @@ def test_shear_ratio_at_its_extremes(kernel, ten_by_ten):
 def test_automatic_search_stays_within_its_bound(kernel, ten_by_ten):
     grid, b = ten_by_ten
     for limit in (0.0, 0.1, 1.5):
-        result = Reconstructor(grid, kernel=kernel, max_shear_ratio=limit).solve(b)
+        result = DenseSolver(grid, kernel=kernel, max_shear_ratio=limit).solve(b)
         assert result.shear_ratio <= limit + 1e-12
         assert np.isfinite(result.forces).all()
         assert -math.pi < result.shear_direction <= math.pi
     # with no room for shear it reports none
-    assert not Reconstructor(grid, kernel=kernel, max_shear_ratio=0.0).solve(b).shear_detected
+    assert not DenseSolver(grid, kernel=kernel, max_shear_ratio=0.0).solve(b).shear_detected
 
 
 # -- rejected input -------------------------------------------------------------------------------
@@ -482,7 +484,7 @@ def test_automatic_search_stays_within_its_bound(kernel, ten_by_ten):
 ], ids=["nan", "inf", "minus-inf", "nan-and-inf", "long", "short", "2d", "3d", "empty", "text", "complex",
         "huge"])
 def test_bad_stress_says_what_is_wrong(bad, message):
-    r = Reconstructor(SensorGrid.regular(4, 4, PITCH, PITCH))
+    r = DenseSolver(SensorGrid.regular(4, 4, PITCH, PITCH))
     for solve in (r.solve, r.solve_normal, lambda s: r.solve(s, shear_ratio=0.2, shear_direction=0.0)):
         with pytest.raises(ValueError, match=message):
             solve(bad(16))
@@ -503,7 +505,7 @@ def test_bad_stress_says_what_is_wrong(bad, message):
 ], ids=["negative", "tiny-negative", "nan-ratio", "inf-ratio", "nan-direction", "inf-direction", "minus-inf",
         "text-ratio", "list-direction", "exact-text", "exact-number"])
 def test_bad_parameters_say_what_is_wrong(kwargs, message):
-    r = Reconstructor(SensorGrid.regular(4, 4, PITCH, PITCH))
+    r = DenseSolver(SensorGrid.regular(4, 4, PITCH, PITCH))
     region = RegionSolver(SensorGrid.regular(4, 4, PITCH, PITCH))
     # on a frame with a contact and on an empty one (no window to pass them to)
     for solve, stress in ((r.solve, np.ones(16)), (region.solve, np.ones(16)), (region.solve, np.zeros(16))):

@@ -8,7 +8,8 @@ import pytest
 
 from solver import Reconstructor, SensorGrid, loads
 from solver.efficiency import ContactFit
-from solver.inverse import SymmetricInverse
+from solver.inverse import DenseSolver, SymmetricInverse
+from solver.region import RegionSolver
 
 KERNELS = ["cell", "point"]
 
@@ -16,7 +17,7 @@ KERNELS = ["cell", "point"]
 @pytest.fixture(scope="module", params=KERNELS)
 def small(request):
     grid = SensorGrid.regular(6, 5, pitch=2e-3, thickness=1.6e-3)
-    return Reconstructor(grid, kernel=request.param)
+    return DenseSolver(grid, kernel=request.param)
 
 
 def dense_pinv(r):
@@ -111,7 +112,7 @@ TEMPLATES = [(0.0, 0.0), (0.25, 2.0), (0.6, -0.8)]
 def test_exact_recovery_of_data_made_from_the_template_family(kernel, mu, theta):
     grid = SensorGrid.regular(12, 12, pitch=2e-3, thickness=2e-3)
     # one force per node, like the data, and no shrinkage: the fit's model holds the truth exactly
-    r = Reconstructor(grid, kernel=kernel, subdivision=1, efficiency=ContactFit(shrinkage=0))
+    r = DenseSolver(grid, kernel=kernel, subdivision=1, efficiency=ContactFit(shrinkage=0))
     truth, b = template_data(r, mu, theta)
     for exact in (True, False):
         given = r.solve(b, shear_ratio=mu, shear_direction=theta, exact=exact)
@@ -133,8 +134,8 @@ def test_exact_recovery_of_data_made_from_the_template_family(kernel, mu, theta)
 def test_found_ratio_is_shrunk_by_its_evidence(kernel, mu, theta):
     # the soft decision: mu <- mu max(0, 1 - shrinkage / F), F the contact's evidence
     grid = SensorGrid.regular(12, 12, pitch=2e-3, thickness=2e-3)
-    free = Reconstructor(grid, kernel=kernel, efficiency=ContactFit(shrinkage=0))
-    shrunk = Reconstructor(grid, kernel=kernel)  # default shrinkage 2
+    free = DenseSolver(grid, kernel=kernel, efficiency=ContactFit(shrinkage=0))
+    shrunk = DenseSolver(grid, kernel=kernel)  # default shrinkage 2
     truth, b = template_data(free, mu, theta)
     a, c = free.solve(b), shrunk.solve(b)
     F = c.contacts[0].evidence
@@ -229,13 +230,13 @@ def test_results_are_frozen_and_read_only(small):
 def test_constructor_checks_its_arguments():
     grid = SensorGrid.regular(3, 3, 1e-3, 1e-3)
     with pytest.raises(ValueError, match="kernel must be one of .* got 'gauss'"):
-        Reconstructor(grid, kernel="gauss")
+        DenseSolver(grid, kernel="gauss")
     with pytest.raises(ValueError, match="max_condition must be a finite number > 1, got 0.5"):
-        Reconstructor(grid, max_condition=0.5)
+        DenseSolver(grid, max_condition=0.5)
     with pytest.raises(ValueError, match="max_shear_ratio must be finite and >= 0, got -1"):
-        Reconstructor(grid, max_shear_ratio=-1)
+        DenseSolver(grid, max_shear_ratio=-1)
     with pytest.raises(ValueError, match="grid must be a SensorGrid, got tuple"):
-        Reconstructor((3, 3))
+        DenseSolver((3, 3))
 
 
 @pytest.mark.parametrize("kwargs, message", [
@@ -270,7 +271,7 @@ def test_options_are_checked_before_any_matrix_is_built(kwargs, message, monkeyp
     with pytest.raises(ValueError, match=message):
         solver.inverse.check_options(grid, **kwargs)
     with pytest.raises(ValueError, match=message):
-        Reconstructor(grid, **kwargs)
+        DenseSolver(grid, **kwargs)
 
 
 def test_options_check_only_what_is_given_and_refuse_what_reconstructor_does_not_take():
@@ -278,10 +279,10 @@ def test_options_check_only_what_is_given_and_refuse_what_reconstructor_does_not
 
     import solver.inverse
 
-    # every tuning argument of Reconstructor has its check
-    assert set(solver.inverse._OPTION_CHECKS) == set(inspect.signature(Reconstructor).parameters) - {"grid"}
+    # every tuning argument of DenseSolver has its check
+    assert set(solver.inverse._OPTION_CHECKS) == set(inspect.signature(DenseSolver).parameters) - {"grid"}
     grid = SensorGrid.regular(3, 3, 1e-3, 1e-3)
-    solver.inverse.check_options(grid)  # the defaults are Reconstructor's own, valid
+    solver.inverse.check_options(grid)  # the defaults are DenseSolver's own, valid
     solver.inverse.check_options(grid, profile="uniform", reach=0)
     with pytest.raises(TypeError, match="unexpected keyword argument 'thickness'"):
         solver.inverse.check_options(grid, thickness=1e-3)
@@ -290,18 +291,17 @@ def test_options_check_only_what_is_given_and_refuse_what_reconstructor_does_not
 
 
 def test_the_fit_reads_the_chosen_profile_on_every_path():
-    from solver import RegionSolver, make_solver
     from solver.kernels import stress_matrix
 
     grid = SensorGrid.regular(6, 6, 2e-3, 2e-3)
     hats = stress_matrix(grid, "layer", subdivision=2, profile="bilinear").T
     uniform = stress_matrix(grid, "layer", subdivision=2).T
     assert np.abs(hats - uniform).max() > 0.05 * np.abs(uniform).max()  # the two differ
-    default = Reconstructor(grid)
+    default = DenseSolver(grid)
     assert default.profile == "bilinear"
     np.testing.assert_array_equal(default._fit_columns, hats)
-    chosen = Reconstructor(grid, profile="uniform")
-    for r in (chosen, chosen.sibling(), make_solver(grid, profile="uniform")):
+    chosen = DenseSolver(grid, profile="uniform")
+    for r in (chosen, chosen.sibling(), Reconstructor(grid, profile="uniform").engine):
         assert r.profile == "uniform"
         np.testing.assert_array_equal(r._fit_columns, uniform)
     window = RegionSolver(SensorGrid.regular(40, 40, 2e-3, 2e-3), profile="uniform").reconstructor(6, 6)
@@ -311,15 +311,15 @@ def test_the_fit_reads_the_chosen_profile_on_every_path():
 
 def test_sub_cells_only_where_they_are_defined_and_resolved():
     pitch = 2e-3
-    assert Reconstructor(SensorGrid.regular(4, 4, pitch, pitch)).subdivision == 2
-    assert Reconstructor(SensorGrid.regular(4, 4, pitch, pitch), subdivision=3).subdivision == 3
-    assert Reconstructor(SensorGrid.regular(4, 4, pitch, pitch), kernel="point").subdivision == 1
+    assert DenseSolver(SensorGrid.regular(4, 4, pitch, pitch)).subdivision == 2
+    assert DenseSolver(SensorGrid.regular(4, 4, pitch, pitch), subdivision=3).subdivision == 3
+    assert DenseSolver(SensorGrid.regular(4, 4, pitch, pitch), kernel="point").subdivision == 1
     # pitch / s <= 2 h: at s = 2 the limit is h = pitch / 4
-    assert Reconstructor(SensorGrid.regular(4, 4, pitch, 0.25 * pitch)).subdivision == 2
-    assert Reconstructor(SensorGrid.regular(4, 4, pitch, 0.2499 * pitch)).subdivision == 1
+    assert DenseSolver(SensorGrid.regular(4, 4, pitch, 0.25 * pitch)).subdivision == 2
+    assert DenseSolver(SensorGrid.regular(4, 4, pitch, 0.2499 * pitch)).subdivision == 1
     grid = SensorGrid.regular(4, 4, pitch, pitch)
     irregular = SensorGrid(grid.positions, grid.thickness, grid.pitch, (grid.size,))
-    assert Reconstructor(irregular).subdivision == 1
+    assert DenseSolver(irregular).subdivision == 1
 
 
 def automatic_fit_invariants(r, result, b):
@@ -346,7 +346,7 @@ def automatic_fit_invariants(r, result, b):
 
 def test_a_shear_free_load_gets_a_shear_free_compressive_fit():
     grid = SensorGrid.regular(12, 12, 2e-3, 2e-3)
-    r = Reconstructor(grid)
+    r = DenseSolver(grid)
     frame = loads.simulate(grid, loads.hertz((0.5e-3, -0.3e-3), 5e-3, 1.0))  # clean, shear-free
     auto = r.solve(frame.stress)
     automatic_fit_invariants(r, auto, frame.stress)
@@ -365,7 +365,7 @@ def test_a_shear_free_load_gets_a_shear_free_compressive_fit():
 
 def test_automatic_answer_is_the_fitted_compressive_load():
     grid = SensorGrid.regular(12, 12, 2e-3, 2e-3)
-    r = Reconstructor(grid)
+    r = DenseSolver(grid)
     rng = np.random.default_rng(3)  # fixed seed: the same noisy frame every run
     frame = loads.simulate(grid, loads.hertz((0.0, 0.0), 5e-3, 1.0, shear_ratio=0.4, shear_direction=0.7),
                            noise=0.01, rng=rng)
@@ -406,7 +406,7 @@ def test_a_slider_move_on_the_frame_just_solved_gives_a_fresh_solves_answer(monk
     b = loads.simulate(grid, loads.hertz((1e-3, -0.5e-3), 4e-3, 1.0, shear_ratio=0.3, shear_direction=0.7),
                        noise=0.01, rng=rng).stress
     other = loads.simulate(grid, loads.hertz((-4e-3, 3e-3), 4e-3, 1.0), noise=0.01, rng=rng).stress
-    moved, fresh = Reconstructor(grid), Reconstructor(grid)
+    moved, fresh = DenseSolver(grid), DenseSolver(grid)
     moved.solve(b)
     framed, original = [], moved._frame
     monkeypatch.setattr(moved, "_frame", lambda stress: framed.append(1) or original(stress))
@@ -444,12 +444,12 @@ def test_given_parameters_do_not_depend_on_the_solves_before(radius, ratio):
     rng = np.random.default_rng(17)  # fixed seed
     frames = [loads.simulate(grid, loads.hertz(centre, radius, 1.0, shear_ratio=0.3, shear_direction=0.5),
                              noise=0.01, rng=rng).stress for centre in ((0.0, 0.0), (3e-3, -2e-3))]
-    used = Reconstructor(grid)
+    used = DenseSolver(grid)
     used.solve(frames[1], shear_ratio=0.3, shear_direction=0.5)  # the frame before
     after_another = used.solve(frames[0], shear_ratio=0.3, shear_direction=0.5)
     used.solve(frames[0], shear_ratio=0.8, shear_direction=0.5)  # a slider there and back
     round_trip = used.solve(frames[0], shear_ratio=0.3, shear_direction=0.5)
-    fresh = Reconstructor(grid).solve(frames[0], shear_ratio=0.3, shear_direction=0.5)
+    fresh = DenseSolver(grid).solve(frames[0], shear_ratio=0.3, shear_direction=0.5)
     for result in (after_another, round_trip):  # measured at most 4e-11 of the peak
         np.testing.assert_allclose(result.forces, fresh.forces, rtol=0, atol=1e-7 * np.abs(fresh.forces).max())
 
@@ -469,8 +469,8 @@ def test_found_parameters_do_not_depend_on_the_solves_before(ratio):
 
     before = [frame(-1.5e-3 + 0.05e-3 * k, 0.3, 0.4) for k in range(4)] + [frame(9e-3, 0.0, 0.0)]
     shown = frame(-1.3e-3, 0.3, 0.45)
-    fresh = Reconstructor(grid).solve(shown)
-    used = Reconstructor(grid)
+    fresh = DenseSolver(grid).solve(shown)
+    used = DenseSolver(grid)
     for b in before:
         used.solve(b)
         result = used.solve(shown)
@@ -487,18 +487,18 @@ def test_a_load_broader_than_the_fit_budget_gets_a_cheaper_member_and_says_so():
     grid = SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3, poisson_ratio=0.49)
     frame = loads.simulate(grid, loads.hertz((0.2e-3, -0.3e-3), 5 * 1.5e-3, 1.0, shear_ratio=0.2),
                            noise=0.01, rng=4)  # fixed seed
-    accurate = Reconstructor(grid).solve(frame.stress)
+    accurate = DenseSolver(grid).solve(frame.stress)
     covered = int(np.count_nonzero(accurate.region))
     assert accurate.fallback == "" and covered > 40 and WHOLE_CELLS == 2
     # up to twice the budget: the same fit on whole cells, compressive and still finding the shear
-    whole = Reconstructor(grid, fit_budget=covered // 2 + 1)
+    whole = DenseSolver(grid, fit_budget=covered // 2 + 1)
     result = whole.solve(frame.stress)
     assert result.fallback == (f"whole-cell fit: the contacts cover {covered} nodes, more than the sub-cell "
                                f"fit's budget of {covered // 2 + 1} (fit_budget)")
     assert result.forces[:, 2].min() >= 0 and result.shear_detected and not result.exact
-    np.testing.assert_allclose(result.forces, Reconstructor(grid, subdivision=1).solve(frame.stress).forces,
+    np.testing.assert_allclose(result.forces, DenseSolver(grid, subdivision=1).solve(frame.stress).forces,
                                rtol=0, atol=1e-9 * result.forces.max())
-    r = Reconstructor(grid, fit_budget=40)
+    r = DenseSolver(grid, fit_budget=40)
     m = grid.size
     # beyond: the normal-only answer, Cz Fz = b, every contact without shear
     result = r.solve(frame.stress)

@@ -1,4 +1,4 @@
-"""Quality settings (solver/quality.py) and make_solver(grid, quality=...): one factory."""
+"""Quality settings (solver/quality.py) and Reconstructor(grid, quality=...): one factory."""
 
 from dataclasses import replace
 
@@ -7,9 +7,11 @@ import pytest
 
 import solver
 from measurement.cases import default_cases
-from solver import Reconstructor, RegionSolver, SensorGrid, make_solver
+from solver import Reconstructor, SensorGrid
+from solver.inverse import DenseSolver
 from solver.kernels import stress_matrix
 from solver.quality import CONFIGURATIONS, PATHS, Configuration
+from solver.region import RegionSolver
 
 GRID = SensorGrid.regular(8, 8, 2e-3, 2e-3)
 
@@ -40,14 +42,14 @@ def test_the_settings_are_distinct_and_exported():
 
 @pytest.mark.parametrize("configuration", CONFIGURATIONS, ids=lambda c: c.name)
 @pytest.mark.parametrize("kernel", ["cell", None])
-def test_make_solver_builds_what_the_setting_builds(configuration, kernel, cases):
+def test_the_reconstructor_builds_what_the_setting_builds(configuration, kernel, cases):
     # the viewer's quality path: replace(configuration, kernel=kernel).build(grid)
     options = {} if kernel is None else {"kernel": kernel}
-    made = make_solver(GRID, quality=configuration, **options)
+    made = Reconstructor(GRID, quality=configuration, **options)
     direct = replace(configuration, kernel=kernel or configuration.kernel).build(GRID)
-    assert type(made) is type(direct) and made.grid is GRID
+    assert type(made.engine) is type(direct) and made.grid is GRID
     assert made.kernel == (kernel or configuration.kernel)
-    assert isinstance(made, RegionSolver) == (configuration.path == "region")
+    assert isinstance(made.engine, RegionSolver) == (configuration.path == "region")
     stress = cases[7].frame.stress
     np.testing.assert_allclose(made.solve(stress).forces, direct.solve(stress).forces, rtol=1e-9, atol=1e-15)
 
@@ -76,25 +78,25 @@ def test_a_configuration_the_solver_would_refuse_is_refused_when_made(setting, m
 
 
 def test_without_quality_the_standard_solver_is_made():
-    assert isinstance(make_solver(GRID, quality=None, kernel="cell"), Reconstructor)
+    assert isinstance(Reconstructor(GRID, quality=None, kernel="cell").engine, DenseSolver)
 
 
 @pytest.mark.parametrize("quality, shown", [("fast", "'fast'"), (1, "1"), (CONFIGURATIONS, r"\(Configuration")])
 def test_quality_must_be_a_configuration(quality, shown):
     with pytest.raises(ValueError, match=rf"quality must be a solver\.quality\.Configuration or None, got {shown}"):
-        make_solver(GRID, quality=quality)
+        Reconstructor(GRID, quality=quality)
 
 
 def test_further_options_reach_the_setting_s_solver():
-    fit = make_solver(GRID, quality=Configuration("fit"), max_shear_ratio=0.8)
-    assert fit.reconstructor.max_shear_ratio == 0.8
-    region = make_solver(GRID, quality=Configuration("r", path="region"), max_shear_ratio=0.8)
-    assert region.reconstructor(4, 4).max_shear_ratio == 0.8
-    # unset, the solver's own default: what make_solver gives without quality
-    assert make_solver(GRID, quality=Configuration("fit")).reconstructor.max_shear_ratio \
-        == make_solver(GRID).max_shear_ratio
+    fit = Reconstructor(GRID, quality=Configuration("fit"), max_shear_ratio=0.8)
+    assert fit.engine.reconstructor.max_shear_ratio == 0.8
+    region = Reconstructor(GRID, quality=Configuration("r", path="region"), max_shear_ratio=0.8)
+    assert region.engine.reconstructor(4, 4).max_shear_ratio == 0.8
+    # unset, the solver's own default: what Reconstructor gives without quality
+    assert Reconstructor(GRID, quality=Configuration("fit")).engine.reconstructor.max_shear_ratio \
+        == Reconstructor(GRID).engine.max_shear_ratio
     with pytest.raises(ValueError, match=r"max_shear_ratio must be finite and >= 0, got -1"):
-        make_solver(GRID, quality=Configuration("fit"), max_shear_ratio=-1)
+        Reconstructor(GRID, quality=Configuration("fit"), max_shear_ratio=-1)
 
 
 @pytest.mark.parametrize("option", ["max_condition", "subdivision", "profile", "efficiency"])
@@ -102,4 +104,4 @@ def test_what_the_setting_sets_is_not_overridden(option):
     with pytest.raises(ValueError, match=rf"options must not set what the configuration sets "
                                          rf"\(kernel, max_condition, subdivision, profile, efficiency\), "
                                          rf"got {option}"):
-        make_solver(GRID, quality=Configuration("fit"), **{option: 1})
+        Reconstructor(GRID, quality=Configuration("fit"), **{option: 1})

@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from solver import Reconstructor, SensorGrid, loads, make_solver, metrics
+from solver import Reconstructor, SensorGrid, loads, metrics
+from solver.inverse import DenseSolver
 from solver.region import RegionSolver
 
 PITCH = 2e-3
@@ -14,7 +15,7 @@ PITCH = 2e-3
 @pytest.fixture(scope="module")
 def skin():
     grid = SensorGrid.regular(16, 16, PITCH, PITCH)
-    return grid, Reconstructor(grid), RegionSolver(grid)
+    return grid, DenseSolver(grid), RegionSolver(grid)
 
 
 def test_single_contacts_agree_with_the_full_solve(skin):
@@ -96,7 +97,7 @@ def test_shear_free_loads_get_the_full_solves_answer():
     # The window changes no decision of the efficiency functional: where the full
     # solve finds no shear, neither does the window (and where it does, both do).
     grid = SensorGrid.regular(20, 20, PITCH, PITCH)
-    region, full = RegionSolver(grid), Reconstructor(grid)
+    region, full = RegionSolver(grid), DenseSolver(grid)
     rng = np.random.default_rng(44)  # fixed seed
     for shape in (loads.hertz, loads.cone):
         for _ in range(4):
@@ -182,14 +183,14 @@ def test_irregular_grids_and_bad_stress_are_rejected(skin):
         region.solve(np.ones(3))
 
 
-# -- one API for every skin size (make_solver) ------------------------------------------------------
+# -- one API for every skin size (Reconstructor) ------------------------------------------------------
 
 
-def test_make_solver_picks_the_path_by_skin_size():
-    assert isinstance(make_solver(SensorGrid.regular(32, 32, PITCH, PITCH)), Reconstructor)
-    assert isinstance(make_solver(SensorGrid.regular(33, 32, PITCH, PITCH)), RegionSolver)
+def test_the_reconstructor_picks_the_engine_by_skin_size():
+    assert isinstance(Reconstructor(SensorGrid.regular(32, 32, PITCH, PITCH)).engine, DenseSolver)
+    assert isinstance(Reconstructor(SensorGrid.regular(33, 32, PITCH, PITCH)).engine, RegionSolver)
     irregular = SensorGrid(np.random.default_rng(0).random((40, 2)) * 1e-2, PITCH, PITCH, (40,))  # fixed seed
-    assert isinstance(make_solver(irregular), Reconstructor)
+    assert isinstance(Reconstructor(irregular).engine, DenseSolver)
 
 
 @pytest.mark.parametrize("kwargs, message", [
@@ -199,10 +200,10 @@ def test_make_solver_picks_the_path_by_skin_size():
     (dict(reach=-1.0), "reach must be finite and >= 0 thicknesses, got -1.0"),
     (dict(max_condition="big"), "max_condition must be a finite number > 1, got 'big'"),
 ])
-def test_make_solver_checks_options_before_any_matrix(kwargs, message):
+def test_the_reconstructor_checks_options_before_any_matrix(kwargs, message):
     # a 128x128 skin: a dense matrix would take 6 GB, so the check must come first
     with pytest.raises(ValueError, match=message):
-        make_solver(SensorGrid.regular(128, 128, PITCH, PITCH), **kwargs)
+        Reconstructor(SensorGrid.regular(128, 128, PITCH, PITCH), **kwargs)
 
 
 def test_totals_do_not_drift_with_skin_size():
@@ -216,7 +217,7 @@ def test_totals_do_not_drift_with_skin_size():
     noise = rng.normal(0, 0.01 * peak, (12, 64, 64))
     for n in (16, 32, 64):
         grid = SensorGrid.regular(n, n, PITCH, PITCH)
-        solver = make_solver(grid)
+        solver = Reconstructor(grid)
         clean = loads.simulate(grid, contact)
         middle = slice(32 - n // 2, 32 + n // 2)
         draws = [metrics.compare(solver.solve(clean.stress + draw[middle, middle].ravel()).forces, clean.forces)
@@ -240,7 +241,7 @@ def test_thick_layers_keep_the_normal_total_and_add_no_tension(ratio, n):
     contact = loads.hertz((0.5e-3, -0.3e-3), max(2.5, ratio) * PITCH, 1.0)
     # the accurate path whatever the load's breadth (up to 443 nodes with the damped inverse's noise
     # patches): this is about the physics of thick layers, not about the budget
-    solver = make_solver(grid, fit_budget=grid.size)
+    solver = Reconstructor(grid, fit_budget=grid.size)
     for seed in (40, 41, 42):  # fixed seeds, none of them used to choose the load decision
         frame = loads.simulate(grid, contact, noise=0.01, rng=np.random.default_rng(seed))
         result = solver.solve(frame.stress)
@@ -254,7 +255,7 @@ def test_thick_layers_keep_the_normal_total_and_add_no_tension(ratio, n):
 def test_close_contacts_get_their_own_parameters():
     # two contacts 4 pitches apart edge to edge, and three, on one dense skin
     grid = SensorGrid.regular(28, 28, PITCH, PITCH)
-    solver = make_solver(grid)
+    solver = Reconstructor(grid)
     rng = np.random.default_rng(52)  # fixed seed: the same scenes every run
     errors = []
     for count in (2, 3):
@@ -279,8 +280,8 @@ def test_windows_of_one_shape_keep_their_own_last_frame(monkeypatch):
     region.solve(stress)
     assert region.factorizations == 1
     framed = []
-    original = Reconstructor._frame
-    monkeypatch.setattr(Reconstructor, "_frame", lambda self, b: framed.append(1) or original(self, b))
+    original = DenseSolver._frame
+    monkeypatch.setattr(DenseSolver, "_frame", lambda self, b: framed.append(1) or original(self, b))
     for ratio in (0.25, 0.35, 0.25):  # slider moves on the frame shown: no window is set up again
         moved = region.solve(stress, shear_ratio=ratio, shear_direction=0.1)
     assert framed == []
@@ -308,7 +309,7 @@ def test_a_window_too_large_for_dense_matrices_gets_the_convolved_normal_only_an
     result = region.solve(frame.stress)
     assert result.fallback == (f"normal only: a load window of {largest} nodes, more than the 100 a "
                                "window may have (solved by convolution over the whole skin)")
-    dense = Reconstructor(grid)
+    dense = DenseSolver(grid)
     expected = dense.solve_normal(frame.stress).forces
     np.testing.assert_allclose(result.forces, expected, rtol=0, atol=1e-6 * np.abs(expected).max())
     assert result.normal_only and len(result.contacts) == len(windows)

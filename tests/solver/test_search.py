@@ -6,7 +6,9 @@ from scipy import ndimage, sparse
 from scipy.optimize import nnls
 
 import solver.search as search
-from solver import Reconstructor, RegionSolver, SensorGrid, loads
+from solver import SensorGrid, loads
+from solver.inverse import DenseSolver
+from solver.region import RegionSolver
 from solver.search import contact_labels, load_patches, template_misfit
 
 
@@ -87,7 +89,7 @@ def test_a_cold_fit_takes_columns_in_batches_not_one_scan_each():
     rng = np.random.default_rng(3)  # fixed seed: the columns' random mix
     grid = SensorGrid.regular(9, 9, 1.5e-3, 1.5e-3)
     x, y = grid.positions.T
-    normal = Reconstructor(grid, kernel="cell").matrix[:, 2 * grid.size:]
+    normal = DenseSolver(grid, kernel="cell").matrix[:, 2 * grid.size:]
     A = np.hstack([normal, normal @ (np.eye(grid.size) + 0.3 * rng.random((grid.size, grid.size)))])[:, :160]
     b = A[:, :81] @ np.clip(1 - (x ** 2 + y ** 2) / (4e-3) ** 2, 0, None)
     g, steps, _ = lawson_hanson(A, b)
@@ -170,7 +172,7 @@ def test_after_warm_up_a_recorded_frame_compiles_nothing():
     grid = SensorGrid.regular(8, 8, 2e-3, 2e-3)
     x, y = grid.positions.T
     for kernel in ("layer", "cell", "point"):
-        r = Reconstructor(grid, kernel=kernel)
+        r = DenseSolver(grid, kernel=kernel)
         frame = (r.matrix[:, 2 * grid.size:] @ np.exp(-(x ** 2 + y ** 2) / (2 * 3e-3 ** 2))).reshape(grid.shape)
         frame.setflags(write=False)
         for parameters in ({}, dict(shear_ratio=0.2, shear_direction=0.3), dict(shear_direction=0.3),
@@ -186,7 +188,7 @@ def test_after_warm_up_a_recorded_frame_compiles_nothing():
 
 @pytest.mark.parametrize("threshold", [1.0, 2.0])
 def test_no_contact_when_nothing_is_above_the_threshold(threshold):
-    r = Reconstructor(SensorGrid.regular(4, 4, 1e-3, 1e-3), kernel="cell")
+    r = DenseSolver(SensorGrid.regular(4, 4, 1e-3, 1e-3), kernel="cell")
     normal = np.linspace(0.1, 1.0, 16)
     labels, near = _labels(r, normal, threshold=threshold)
     assert labels.shape == (16,) and not labels.any() and near.shape == (16, 0)
@@ -210,7 +212,7 @@ def _two_bumps(grid, dip):
 
 @pytest.fixture(scope="module")
 def plain():
-    return Reconstructor(SensorGrid.regular(15, 9, 1e-3, 1e-3), kernel="cell")
+    return DenseSolver(SensorGrid.regular(15, 9, 1e-3, 1e-3), kernel="cell")
 
 
 def test_a_patch_with_a_dip_between_two_peaks_is_two_contacts(plain):
@@ -317,7 +319,7 @@ def test_a_node_between_two_contacts_goes_to_the_nearer(plain):
     normal[np.isclose(x, -2)] = 1.0  # two single-node cores on the middle row, 3 pitches apart
     normal[np.isclose(x, 1)] = 1.0
     normal = np.where(np.abs(grid.positions[:, 1]) < 1e-9, normal, -1.0)
-    r = Reconstructor(plain.grid, kernel="cell", region_margin=2)
+    r = DenseSolver(plain.grid, kernel="cell", region_margin=2)
     labels, _ = _labels(r, normal)
     left, right = labels[np.isclose(x, -2) & (normal > 0)][0], labels[np.isclose(x, 1) & (normal > 0)][0]
     assert left != right

@@ -5,7 +5,8 @@ import threading
 import numpy as np
 import pytest
 
-from solver import Reconstructor, SensorGrid, loads
+from solver import SensorGrid, loads
+from solver.inverse import DenseSolver
 from solver.threads import local_libraries, one_blas_thread
 
 
@@ -69,7 +70,7 @@ def test_other_threads_keep_their_count(two_threads):
 
 def test_a_solve_runs_its_products_on_one_thread(two_threads, monkeypatch):
     grid = SensorGrid.regular(10, 10, 1.5e-3, 1.5e-3)
-    r = Reconstructor(grid)
+    r = DenseSolver(grid)
     frame = loads.simulate(grid, loads.hertz((0.0, 0.0), 3e-3, 1.0, shear_ratio=0.2))
     during = []
     choose = r.efficiency.choose

@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from solver import Contact, ContactTracker, Reconstruction, Reconstructor, SensorGrid, loads
+from solver import Contact, ContactTracker, Reconstruction, SensorGrid, loads
 from solver.arrays import read_only
+from solver.inverse import DenseSolver
 from solver.tracking import DEFAULT_PATIENCE
 
 GRID = SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3)
@@ -134,7 +135,7 @@ def test_a_newcomer_beside_a_broad_contact_does_not_take_its_number():
     then a 1 N finger (radius 1.5 mm) lands at (3.5, 0) mm, inside the resting contact's region."""
     rest = loads.hertz((-3e-3, 0.0), 4e-3, 1.2)
     finger = loads.hertz((3.5e-3, 0.0), 1.5e-3, 1.0)
-    solver = Reconstructor(GRID)
+    solver = DenseSolver(GRID)
     tracker = ContactTracker(GRID)
     for _ in range(2):
         alone = tracker.update(solver.solve(loads.simulate(GRID, [rest], noise=0.005, rng=10).stress))
@@ -229,7 +230,7 @@ def approach_touch_separate():
     frames = [loads.simulate(GRID, [loads.hertz((-x, 0.5e-3), 2.5e-3, 1.0),
                                     loads.hertz((x, -0.5e-3), 2.5e-3, 0.6)], noise=0.005, rng=k).stress
               for k, x in enumerate(half)]
-    solver = Reconstructor(GRID)
+    solver = DenseSolver(GRID)
     return half, [solver.solve(stress) for stress in frames]
 
 

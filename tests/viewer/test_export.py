@@ -67,7 +67,7 @@ def test_given_parameters_are_used_on_every_frame(recording, reconstructor):
     # every member of the family explains the data: C x = b
     for row in range(len(recording)):
         x = np.concatenate([table.forces[row, :, 0], table.forces[row, :, 1], table.forces[row, :, 2]])
-        np.testing.assert_allclose(reconstructor.matrix @ x, recording.frames[row], rtol=1e-8,
+        np.testing.assert_allclose(reconstructor.engine.matrix @ x, recording.frames[row], rtol=1e-8,
                                    atol=1e-8 * np.abs(recording.frames[row]).max())
 
 

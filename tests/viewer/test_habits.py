@@ -390,7 +390,7 @@ def test_a_normal_only_solve_lists_the_whole_frame(opened, qtbot):
 
 
 def test_each_contact_centroid_is_over_its_own_nodes():
-    from solver import SensorGrid, loads, make_solver
+    from solver import Reconstructor, SensorGrid, loads
     from tactile_viewer.model import Solved
 
     grid = SensorGrid.regular(16, 16, 2e-3, 2e-3, poisson_ratio=0.5)
@@ -398,7 +398,7 @@ def test_each_contact_centroid_is_over_its_own_nodes():
     # lies at its own contact, the frame's between them
     frame = loads.simulate(grid, [loads.hertz((-7e-3, -5e-3), 3.5e-3, 0.6),
                                   loads.hertz((7e-3, 6e-3), 4e-3, 0.4)])
-    solved = Solved.of(grid, frame.stress, make_solver(grid).solve(frame.stress))
+    solved = Solved.of(grid, frame.stress, Reconstructor(grid).solve(frame.stress))
     centres = sorted(tuple(c * 1e3) for c in solved.contact_centroids)
     np.testing.assert_allclose(centres, [(-7, -5), (7, 6)], atol=0.5)
     assert abs(solved.centroid[0] * 1e3) < 4  # the whole load's centre is between them

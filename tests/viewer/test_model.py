@@ -113,7 +113,7 @@ def test_set_source_rejects_a_reconstructor_for_another_pitch():
     grid = SensorGrid(positions, THICKNESS, PITCH, (16,))
     other = SensorGrid(positions, THICKNESS, 1.5 * PITCH, (16,))
     recording = Recording(grid, np.full((2, 16), 1e3), [0.0, 1.0])
-    assert not np.allclose(Reconstructor(grid).matrix, Reconstructor(other).matrix)  # really another geometry
+    assert not np.allclose(Reconstructor(grid).engine.matrix, Reconstructor(other).engine.matrix)  # really another geometry
     with pytest.raises(ValueError, match="another geometry"):
         ViewerModel().set_source(RecordingSource(recording), Reconstructor(other))
 
@@ -378,8 +378,8 @@ def test_large_skins_are_solved_contact_by_contact():
 
     small = ViewerModel.build(SensorGrid.regular(8, 8, 2e-3, 2e-3), "cell")
     large = ViewerModel.build(SensorGrid.regular(80, 80, 2e-3, 2e-3), "cell")
-    assert hasattr(small, "matrix")  # the full reconstructor
-    assert not hasattr(large, "matrix") and large.grid.size > DENSE_LIMIT  # no dense matrix
+    assert hasattr(small.engine, "matrix")  # the full reconstructor
+    assert not hasattr(large.engine, "matrix") and large.grid.size > DENSE_LIMIT  # no dense matrix
     assert large.solve(np.zeros(large.grid.size)).forces.shape == (6400, 3)
 
 

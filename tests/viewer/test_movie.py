@@ -273,7 +273,7 @@ def test_a_window_movie_is_solved_as_the_window_shows_it(opened, qtbot, tmp_path
     monkeypatch.setattr(ViewerModel, "build", staticmethod(lambda *a, **k: built.append(a)))
     with qtbot.waitSignal(opened.exports.movies.finished, timeout=120000) as finished:
         assert opened.exports.export_movie(tmp_path / "manual.mp4", start=3, stop=7, size=SMALL)
-        # the model's own solver, shared (the solvers keep no per-call state): nothing built again
+        # the model's own solver, shared (a solver may be shared between threads): nothing built again
         assert opened.exports.movies.export.solver is opened.model.reconstructor
     result = finished.args[0]
     assert isinstance(result, movie.MovieResult), result

@@ -18,7 +18,7 @@ import pyvista as pv
 from PyQt6 import QtCore
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
-from solver import Reconstruction, Reconstructor, SensorGrid, loads, make_solver
+from solver import Reconstruction, Reconstructor, SensorGrid, loads
 from tactile_viewer.model import Display, Solved
 from tactile_viewer.recording import load
 from tactile_viewer.scene import MAX_TAXEL_IDS, Scene, taxel_text
@@ -354,7 +354,7 @@ def two_contacts():
     """(grid, stress, automatic reconstruction) of the two-contact sample's frame 20."""
     recording = load(SAMPLES / "two_contacts.npz")
     stress = recording.frames[20]
-    return recording.grid, stress, make_solver(recording.grid).solve(stress)
+    return recording.grid, stress, Reconstructor(recording.grid).solve(stress)
 
 
 @pytest.mark.parametrize("in_plane", [False, True])

@@ -1,0 +1,27 @@
+"""Compile the solver's numba core once, ahead of the first solve."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import SensorGrid
+from .inverse import DenseSolver
+from .region import RegionSolver
+
+__all__ = ["warm_up"]
+
+
+def warm_up():
+    """Compile (or load from numba's cache) every path of the contact fit and the large-skin
+    windows: about 14 s the first time after an install or a change to :mod:`solver.search`,
+    0.2 s after. ``make`` runs it once when it installs; without it the first automatic solve
+    pays."""
+    grid = SensorGrid.regular(6, 6, 1e-3, 1e-3)
+    x, y = grid.positions.T
+    # one kernel serves all: every kernel's fit columns are read-only arrays of one kind
+    solver = DenseSolver(grid, kernel="cell")
+    stress = solver.matrix[:, 2 * grid.size:] @ (0.01 * np.exp(-(x ** 2 + y ** 2) / (2 * 1.5e-3 ** 2)))
+    for parameters in ({}, dict(shear_ratio=0.2, shear_direction=0.3), dict(shear_direction=0.3),
+                       dict(shear_ratio=0.2)):
+        solver.solve(stress, **parameters)
+    RegionSolver(grid).windows(stress)  # the large-skin path's windows
