@@ -27,13 +27,13 @@ from pathlib import Path
 import numpy as np
 
 from solver.bench import machine
-from tactile_viewer.recording import load
+from tactile_viewer.files import load
 
 OPEN_AND_SEEK = """
 import resource, sys, time
 import numpy as np
 start_cpu, start = time.process_time(), time.perf_counter()
-from tactile_viewer.recording import load
+from tactile_viewer.files import load
 imported = time.perf_counter()
 recording = load(sys.argv[1])
 opened = time.perf_counter()

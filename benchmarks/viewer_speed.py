@@ -184,8 +184,8 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
     import subprocess
     import tempfile
 
+    from tactile_viewer.files import load
     from tactile_viewer.main_window import MainWindow
-    from tactile_viewer.recording import load
 
     out = sys.stdout if out is None else out
     app = _application()

@@ -25,8 +25,9 @@ import numpy as np
 from solver import ContactTracker, Reconstructor, metrics
 from solver.kernels import KERNELS
 
+from .files import load
 from .model import KERNEL_HELP, Display, ViewerModel, geometry_text
-from .recording import RecordingError, facts, load
+from .recording import RecordingError, facts
 
 
 def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None, out=None):

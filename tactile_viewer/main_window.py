@@ -21,6 +21,7 @@ from pyvistaqt import QtInteractor  # noqa: E402
 
 from .contacts_panel import ContactsPanel  # noqa: E402
 from .export_dialogs import ExportActions  # noqa: E402
+from .files import load  # noqa: E402
 from .hover import TaxelReadout  # noqa: E402
 from .live_panel import LivePanel  # noqa: E402
 from .model import ViewerModel  # noqa: E402
@@ -35,7 +36,7 @@ from .preferences import (  # noqa: E402
     saved_view,
 )
 from .presets import PresetMeasurer  # noqa: E402
-from .recording import SUFFIXES, Recording, RecordingError, load  # noqa: E402
+from .recording import SUFFIXES, Recording, RecordingError  # noqa: E402
 from .scene import Scene  # noqa: E402
 from .source import RecordingSource, Source  # noqa: E402
 from .tasks import Dispatcher, TaskRunner  # noqa: E402

@@ -1,7 +1,8 @@
 """Recordings: a sensor grid, frames of stress and their timestamps, in MCAP, NPZ or CSV.
 
-:class:`Recording` is what every format loads into and :func:`load` reads any
-of them. Live recordings are written as MCAP by
+:class:`Recording` is what every format loads into
+(:func:`tactile_viewer.files.load` reads any of them, this module's
+:func:`load_npz` and :func:`load_csv` two). Live recordings are written as MCAP by
 :class:`tactile_viewer.container.Recorder` (raw values with their
 :class:`StressCalibration`, crash-safe, opened lazily); NPZ and CSV are export
 and import formats written whole by :func:`save`. :func:`grid_from_fields` /
@@ -38,9 +39,7 @@ import io
 import math
 import os
 import secrets
-import stat
 import zipfile
-import zlib
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -50,7 +49,8 @@ from solver import SensorGrid
 from solver.arrays import read_only
 from solver.checks import one_of
 
-__all__ = ["Recording", "RecordingError", "StressCalibration", "Tare", "load", "save", "grid_from_fields",
+__all__ = ["Recording", "RecordingError", "StressCalibration", "Tare", "load_npz", "load_csv", "save",
+           "grid_from_fields",
            "geometry_fields", "csv_geometry_header", "raw_to_pascals", "per_taxel", "json_ready",
            "MAX_TAXELS", "RAW_UNITS", "SUFFIXES", "facts"]
 
@@ -390,42 +390,6 @@ class Recording:
         return self.frames.sequence() if hasattr(self.frames, "sequence") else None
 
 
-def load(path) -> Recording:
-    """Read a recording (``.mcap``, ``.npz`` or ``.csv``); :class:`RecordingError` names what is wrong.
-
-    An MCAP recording opens lazily (:func:`tactile_viewer.container.open_recording`).
-    """
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in SUFFIXES:
-        raise RecordingError(f"{path}: unknown recording type {path.suffix!r}, expected one of {SUFFIXES}")
-    try:
-        # only a regular file: opening a named pipe blocks until something writes to it (File > Open
-        # froze the window), and a device never ends
-        kind = path.stat().st_mode
-        if not stat.S_ISREG(kind):
-            what = ("a folder" if stat.S_ISDIR(kind) else "a named pipe (FIFO)" if stat.S_ISFIFO(kind)
-                    else "a device" if stat.S_ISCHR(kind) or stat.S_ISBLK(kind) else "a socket"
-                    if stat.S_ISSOCK(kind) else "not a regular file")
-            raise RecordingError(f"{path}: not a recording file: it is {what}")
-        if suffix == ".mcap":
-            from .container import open_recording  # the container reads through this module
-
-            return open_recording(path)
-        if suffix == ".npz":
-            return _load_npz(path)
-        return _load_csv(path)
-    except RecordingError:
-        raise
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot read: {exc.strerror or exc}") from exc
-    except (ValueError, KeyError, TypeError) as exc:
-        raise RecordingError(f"{path}: {exc}") from exc
-    except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError) as exc:
-        # members are decompressed lazily, so a damaged archive can fail long after np.load
-        raise RecordingError(f"{path}: damaged NPZ archive ({exc})") from exc
-
-
 def _scalar(data, key, path, cast=float, default=None):
     if key not in data:
         if default is not None:
@@ -527,7 +491,8 @@ FORCE_EXPORT = ("a force export of this viewer (forces per node, not the sensor 
                 "holds): open the recording it was made from")
 
 
-def _load_npz(path) -> Recording:
+def load_npz(path) -> Recording:
+    """Read an NPZ recording (:func:`tactile_viewer.files.load` checks the path and names errors)."""
     with open(path, "rb") as handle:
         start = handle.read(24)
     # a zip (even a damaged one) or a bare .npy goes on to numpy, whose reasons say more
@@ -754,7 +719,8 @@ _MAX_CSV_LINE = 64 * 2**20
 _CSV_BLOCK = 2**16
 
 
-def _load_csv(path) -> Recording:
+def load_csv(path) -> Recording:
+    """Read a CSV recording (:func:`tactile_viewer.files.load` checks the path and names errors)."""
     # What bounds the memory, whatever the file says: a line is read no further than _MAX_CSV_LINE
     # characters (reading one peaks at twice that), a row's values are counted before they are parsed
     # (at most MAX_TAXELS + 2), and rows are packed as float64, 8 bytes a value where the file spent at

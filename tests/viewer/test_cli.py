@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tactile_viewer.__main__ import main
-from tactile_viewer.recording import load
+from tactile_viewer.files import load
 from tools import make_samples as samples
 
 SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"

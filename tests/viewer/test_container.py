@@ -14,7 +14,8 @@ from mcap.writer import CompressionType, Writer
 from solver import SensorGrid
 from tactile_viewer import container
 from tactile_viewer.container import Recorder, open_recording
-from tactile_viewer.recording import RecordingError, StressCalibration, Tare, load
+from tactile_viewer.files import load
+from tactile_viewer.recording import RecordingError, StressCalibration, Tare
 from tactile_viewer.source import Source, SourceFrame
 from tests.viewer.skins import NU, TAXEL, frames_for, grid32, grid_with_material
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import serial
 
-from tactile_viewer import live_source, recording
+from tactile_viewer import files, live_source
 from tactile_viewer.device import SAME_DEVICE_RULE, DeviceIdentity
 from tactile_viewer.layout import SensorLayout
 from tactile_viewer.live_source import NOT_A_STRESS, Calibration, LiveStats, SerialReader
@@ -231,7 +231,7 @@ def test_a_frame_that_is_no_stress_once_calibrated_is_rejected_and_counted(pty, 
     assert reader.rejected() == {NOT_A_STRESS: 2} and reader.failures == 0
     np.testing.assert_array_equal(reader.take_latest().stress, values(3) * 1000)
     assert recorder is reader.recorder
-    loaded = recording.load(reader.stop_recording())
+    loaded = files.load(reader.stop_recording())
     np.testing.assert_allclose(loaded.frames[:], [values(0) * 1000, values(3) * 1000], rtol=1e-12)
     # nor is such a frame averaged into a tare
     calibration = Calibration(SensorLayout(grid32(), "kPa"))
@@ -265,7 +265,7 @@ def test_reader_records_every_frame(pty, make_reader, tmp_path):
     wait_for(lambda: reader.published == 300, what="300 frames handed to the recorder")
     path = reader.stop_recording()
     assert path == tmp_path / "rec.mcap" and reader.recorder is None
-    loaded = recording.load(path)
+    loaded = files.load(path)
     np.testing.assert_array_equal(loaded.sequence(), np.arange(300))  # every frame, no gap
     np.testing.assert_allclose(loaded.frames[:], np.array([values(s % 7) for s in range(300)]) * 1000, rtol=1e-8)
     # the raw values as the board sent them (kPa, float32), the conversion beside them
@@ -386,7 +386,7 @@ def test_a_new_transport_is_one_subclass(tmp_path):
     assert source.opened == 2 and source.stats.lost == 0
     # a transport that cannot tell whether the same device came back ends the recording there:
     # two devices' frames never share a file
-    saved = recording.load(tmp_path / "queue.mcap")
+    saved = files.load(tmp_path / "queue.mcap")
     assert len(saved) == 3 and list(saved.sequence()) == [0, 1, 2]
     assert ("warning", "Recording ended at a reconnection") in [m[:2] for m in messages]
 
@@ -463,7 +463,7 @@ def test_a_tare_taken_while_recording_is_recorded_from_its_frame_and_a_loaded_on
     write_all(pty[0], b"".join(encode_binary(s, loaded + rng.normal(0, 0.01, 6)) for s in range(10, 20)))
     wait_for(lambda: reader.published == 20, what="twenty frames handed to the recorder")
     path = reader.stop_recording()
-    saved = recording.load(path)
+    saved = files.load(path)
     [tare] = saved.calibration.tares
     assert tare.from_frame == 14 and tare.frames == 5 and recorder.added == 20  # the frame completing it
     np.testing.assert_allclose(saved.frames[:10], np.tile(values(0), (10, 1)) * 1e3, rtol=1e-6)
@@ -563,7 +563,7 @@ def test_another_device_is_refused_unopened_until_the_first_comes_back(board, tm
     board.send(range(2, 4))
     wait_for(lambda: reader.published == 4, what="the first board's frames handed on")
     path = reader.stop_recording()
-    assert list(recording.load(path).sequence()) == [0, 1, 2, 3]  # one device, one file
+    assert list(files.load(path).sequence()) == [0, 1, 2, 3]  # one device, one file
     assert board.messages == [("info", "recording saved", str(path))]
 
 
@@ -608,7 +608,7 @@ def test_without_a_device_identity_a_reconnection_ends_the_recording(board, tmp_
     board.send(range(3, 5))
     wait_for(lambda: reader.stats.received == 5, what="frames after reconnecting")
     path = tmp_path / "rec.mcap"
-    assert list(recording.load(path).sequence()) == [0, 1, 2]  # only the first connection's frames
+    assert list(files.load(path).sequence()) == [0, 1, 2]  # only the first connection's frames
     assert board.messages[0] == ("info", "recording saved", str(path))
     assert board.messages[1][:2] == ("warning", "Recording ended at a reconnection")
     assert board.messages[1][2].startswith("loop:// reconnected and cannot be identified as the same device")

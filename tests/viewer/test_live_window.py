@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from tactile_viewer.recording import load
+from tactile_viewer.files import load
 
 
 @pytest.fixture

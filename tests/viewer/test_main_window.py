@@ -9,7 +9,8 @@ import pytest
 import pyvista as pv
 
 from tactile_viewer.export import load_forces, reconstruct_frames
-from tactile_viewer.recording import Recording, load
+from tactile_viewer.files import load
+from tactile_viewer.recording import Recording
 
 SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
 
@@ -599,7 +600,8 @@ def test_a_png_name_added_to_the_name_picked_never_replaces_a_file(opened, tmp_p
 
 def test_the_tare_of_a_live_recording_is_retaken_and_cleared_from_the_menu(window, qtbot, tmp_path):
     from tactile_viewer.container import Recorder
-    from tactile_viewer.recording import StressCalibration, Tare, load
+    from tactile_viewer.files import load
+    from tactile_viewer.recording import StressCalibration, Tare
 
     sample = load(SAMPLES / "hertz_shear_turning.npz")
     path = tmp_path / "take.mcap"

@@ -667,7 +667,8 @@ def test_a_tare_retaken_cleared_or_restored_changes_what_is_solved_not_the_file(
     import hashlib
 
     from tactile_viewer.container import Recorder
-    from tactile_viewer.recording import StressCalibration, Tare, load
+    from tactile_viewer.files import load
+    from tactile_viewer.recording import StressCalibration, Tare
 
     path = tmp_path / "take.mcap"
     offset = np.linspace(50.0, 80.0, recording.grid.size)  # a board's zero drifting per taxel, pascals
@@ -697,7 +698,8 @@ def test_a_tare_retaken_cleared_or_restored_changes_what_is_solved_not_the_file(
 
 def test_the_display_scales_follow_a_tare_cleared_or_taken(recording, reconstructor, tmp_path):
     from tactile_viewer.container import Recorder
-    from tactile_viewer.recording import StressCalibration, Tare, load
+    from tactile_viewer.files import load
+    from tactile_viewer.recording import StressCalibration, Tare
 
     # an untared board reads a large offset: cleared, the scales must be those of what is shown
     path = tmp_path / "take.mcap"
@@ -724,7 +726,7 @@ def test_the_fixed_map_range_holds_the_pressure_the_map_shows(name):
     # it came from the normal-only solve: the core of every contact saturated on most frames
     from pathlib import Path
 
-    from tactile_viewer.recording import load
+    from tactile_viewer.files import load
 
     recording = load(Path(__file__).resolve().parents[2] / "sample_data" / name)
     solver = ViewerModel.build(recording.grid, "layer")
@@ -744,7 +746,7 @@ def test_retare_errors_are_named(model):
 def test_a_damaged_chunk_is_reported_once_and_the_rest_of_the_recording_shows(recording, reconstructor,
                                                                              tmp_path):
     from tactile_viewer.container import Recorder
-    from tactile_viewer.recording import load
+    from tactile_viewer.files import load
 
     path = tmp_path / "damaged.mcap"
     recorder = Recorder(path, recording.grid, dtype="float64", flush_interval=0.1)

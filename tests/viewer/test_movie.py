@@ -13,8 +13,8 @@ import pytest
 
 from tactile_viewer import movie
 from tactile_viewer.__main__ import main
+from tactile_viewer.files import load
 from tactile_viewer.model import ViewerModel
-from tactile_viewer.recording import load
 from tactile_viewer.worker import Cancelled
 
 SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"

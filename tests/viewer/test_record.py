@@ -10,7 +10,8 @@ import time
 import numpy as np
 import pytest
 
-from tactile_viewer.recording import RecordingError, load
+from tactile_viewer.files import load
+from tactile_viewer.recording import RecordingError
 from tests.viewer.conftest import Board
 
 # tactile-record on a slow disk: every write of the file goes out in 4 KiB pieces 5 ms apart (a

@@ -13,7 +13,8 @@ import pytest
 
 import tactile_viewer.recording as recording_module
 from solver import SensorGrid
-from tactile_viewer.recording import Recording, RecordingError, grid_from_fields, load, save
+from tactile_viewer.files import load
+from tactile_viewer.recording import Recording, RecordingError, grid_from_fields, save
 from tests.viewer.skins import NU, TAXEL
 
 HEADER = "# nx=2\n# ny=1\n# pitch=1e-3\n# thickness=1e-3\n"  # a 2x1 grid: rows of t, v0, v1

@@ -19,8 +19,8 @@ from PyQt6 import QtCore
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
 from solver import Reconstruction, Reconstructor, SensorGrid, loads
+from tactile_viewer.files import load
 from tactile_viewer.model import Display, Solved
-from tactile_viewer.recording import load
 from tactile_viewer.scene import MAX_TAXEL_IDS, Scene, taxel_text
 
 SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from solver import SensorGrid
-from tactile_viewer.recording import Recording, load
+from tactile_viewer.files import load
+from tactile_viewer.recording import Recording
 from tactile_viewer.source import RecordingSource, Signal, Source, SourceFrame
 
 GRID = SensorGrid.regular(3, 2, 2e-3, 2e-3)

@@ -72,8 +72,8 @@ def test_the_curves_fill_in_with_one_point_per_frame(window, shown):
 
 
 def test_partial_series_are_drawn_while_solving(window, dock, qtbot):
+    from tactile_viewer.files import load
     from tactile_viewer.model import ViewerModel
-    from tactile_viewer.recording import load
     from tactile_viewer.source import RecordingSource
 
     class Slow:
@@ -211,7 +211,7 @@ def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(
 
 
 def test_each_contact_has_curves_of_its_own_when_there_are_several(window, shown, qtbot):
-    from tactile_viewer.recording import load
+    from tactile_viewer.files import load
     from tactile_viewer.time_plots import ROWS
 
     assert shown.series.identities == (1,) and shown.contact_curves == {}  # one contact: the totals say it
@@ -343,8 +343,8 @@ def test_a_live_source_draws_the_frames_solved_so_far(window, qtbot):
 
 
 def test_a_failed_series_is_reported_and_the_window_goes_on(window, dock, qtbot):
+    from tactile_viewer.files import load
     from tactile_viewer.model import ViewerModel
-    from tactile_viewer.recording import load
     from tactile_viewer.source import RecordingSource
 
     class Failing:
@@ -400,6 +400,7 @@ def test_the_cursor_moves_when_the_frames_solve_fails(window, shown, qtbot):
         model.set_frame(7)
     assert model.last.frame == 0  # nothing drawn for frame 7: the lines still wait for it
     qtbot.waitUntil(lambda: lines_at(shown, recording.t[7]), timeout=5000)
+    assert [r.getMessage() for r in window.errors.take_logged()] == ["solve of frame 7 failed"]
 
 
 def test_at_1280x800_the_rows_shown_and_their_time_axis_are_in_view(window, shown, qtbot):
