@@ -93,6 +93,7 @@ def test_layer_kernel_on_clean_layer_data_finds_the_shear(layer_clean):
     assert s["direction_deg"] <= 1.0
 
 
+@pytest.mark.slow
 def test_half_space_kernels_miss_the_shear_of_a_real_skin(capsys):
     rows = mismatch(noise=0.01)
     with capsys.disabled():
@@ -146,6 +147,7 @@ def test_accuracy_on_the_validation_set(validation_solvers, noise, tangential_ba
     assert decided["missed"] <= (2 if noise == 0.01 else 0)
 
 
+@pytest.mark.slow
 def test_the_load_decision_tells_load_from_noise_on_its_validation_seeds(capsys):
     # min_load_evidence was chosen on LOAD_TUNING_SEEDS; these frames come from other seeds
     summary = load_decision(LOAD_VALIDATION_SEEDS)

@@ -44,6 +44,7 @@ def _contacts_by_image(r, normal):
     return ndimage.label(grown, structure=np.ones((3, 3)))[0].ravel()
 
 
+@pytest.mark.slow
 def test_contacts_are_the_grown_patches_of_the_normal_solution(reconstructor, sheared):
     grid = reconstructor.grid
     irregular = DenseSolver(SensorGrid(grid.positions, grid.thickness, grid.pitch, (grid.size,)))

@@ -113,6 +113,7 @@ def thick_case(ratio, kernel="cell"):
     return grid, hertz_frame(grid, kernel=kernel)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kernel", KERNELS)
 def test_thickness_from_005_to_10_pitches(kernel):
     conditions, normal_conditions = [], []

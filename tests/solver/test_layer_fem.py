@@ -73,6 +73,7 @@ def test_fem_signs_and_symmetry(load):
     np.testing.assert_array_equal(sol(x, y), sol(x, -y))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("load", ["normal", "tangential"])
 def test_fem_mesh_convergence(load):
     # Element sizes / 1.25 move the field by < 1.5 % of the peak (measured

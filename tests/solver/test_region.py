@@ -230,6 +230,7 @@ def test_totals_do_not_drift_with_skin_size():
     assert max(tangential) <= 1.2 * min(tangential) + 0.002
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio, n", [(2.0, 16), (3.0, 16), (5.0, 16), (7.0, 16), (2.0, 32), (3.0, 32),
                                       (5.0, 32), (7.0, 32), (10.0, 32)])
 def test_thick_layers_keep_the_normal_total_and_add_no_tension(ratio, n):

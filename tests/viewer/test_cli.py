@@ -28,6 +28,7 @@ def test_bundled_samples_load_with_truth(name):
     assert recording.description
 
 
+@pytest.mark.slow
 def test_samples_are_reproducible_from_the_script(tmp_path):
     written = samples.make_all(tmp_path)
     assert sorted(p.name for p in written) == sorted(ALL)

@@ -63,6 +63,7 @@ def wait_for(condition, timeout=10.0):
         time.sleep(0.001)
 
 
+@pytest.mark.slow
 def test_killed_at_any_instant_the_file_opens_with_every_frame_but_the_last_second(board, tmp_path):
     rng = np.random.default_rng(21)  # fixed seed: the same kill instants every run
     inside_a_write = 0

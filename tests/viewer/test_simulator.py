@@ -614,6 +614,7 @@ def test_cycles_are_shared_by_scene_and_everything_of_the_grid():
     assert simulator.shared_cycle("twist", grid) is not cycle
 
 
+@pytest.mark.slow
 def test_boards_sharing_a_cycle_keep_it_computing_until_the_last_one_closes(monkeypatch):
     fake_frames(monkeypatch, lambda k: time.sleep(0.01))  # slower: the thread is seen at work
     layout = SensorLayout(SensorGrid.regular(3, 2, 2e-3, 2e-3), "Pa")
