@@ -162,8 +162,7 @@ class MainWindow(QtWidgets.QMainWindow):
                                     notify=self._notify)
         self.rendered.connect(self.live_panel.frame_drawn)
         # the title said "live" after a disconnect
-        self.live_panel.disconnected.connect(
-            lambda: self.setWindowTitle(f"tactile-viewer - {self.model.source.label} (disconnected)"))
+        self.live_panel.disconnected.connect(lambda: self._title(disconnected=True))
         # the title says a recording runs, whatever part of the window is in view
         self.live_panel.recording_to.connect(self._on_recording_to)
         self.presets = PresetMeasurer(self.model, self.parameters, self.tasks, notify=self._notify,
@@ -427,8 +426,7 @@ class MainWindow(QtWidgets.QMainWindow):
         source = self.model.source
         self.scene.set_grid(self.model.grid)
         name = source.path.name if getattr(source, "path", None) else "recording"
-        self.setWindowTitle(f"tactile-viewer - live: {source.label}" if source.live else
-                            f"tactile-viewer - {name}")
+        self._title()
         self._set_enabled(True)
         recording = self.model.recording
         if recording is not None and recording.truncated:
@@ -436,8 +434,6 @@ class MainWindow(QtWidgets.QMainWindow):
                              f"{name} ends at its last complete chunk or row (a crash or a full disk while "
                              "it was written); every frame before is kept")
         if recording is not None and recording.damage:
-            # the title keeps saying it after the status line has moved on
-            self.setWindowTitle(f"tactile-viewer - {name} (damaged)")
             self._on_message("warning", "Recording damaged:", f"{name}: " + "; ".join(recording.damage))
         if self.model.current is None and self.model.live:
             self.ready.emit()  # no frame yet: the first to arrive is solved and drawn as it comes
@@ -447,8 +443,24 @@ class MainWindow(QtWidgets.QMainWindow):
     def _on_recording_to(self, path: str):
         source = self.model.source
         if source is not None and source.live and source.state != "stopped":
-            self.setWindowTitle(f"tactile-viewer - live: {source.label}"
-                                + (f" - \u25cf REC {Path(path).name}" if path else ""))
+            self._title(recording_to=path)
+
+    def _title(self, *, recording_to: str = "", disconnected: bool = False):
+        # the one place the title is made: what is shown and its state, which the title keeps
+        # saying after the status line has moved on (a live board recorded, a damaged file)
+        source = self.model.source
+        if source is None:
+            title = "tactile-viewer"
+        elif disconnected:
+            title = f"tactile-viewer - {source.label} (disconnected)"
+        elif source.live:
+            title = f"tactile-viewer - live: {source.label}" + (
+                f" - \u25cf REC {Path(recording_to).name}" if recording_to else "")
+        else:
+            recording = self.model.recording
+            title = (f"tactile-viewer - {source.path.name if getattr(source, 'path', None) else 'recording'}"
+                     + (" (damaged)" if recording is not None and recording.damage else ""))
+        self.setWindowTitle(title)
 
     def retare(self, how: str) -> bool:
         """Retake ("here"), clear or restore ("recorded") the tare of the recording shown (not its file)."""

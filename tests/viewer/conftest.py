@@ -53,11 +53,23 @@ class ErrorsShown(list):
 
 
 @pytest.fixture
-def window(qtbot, no_plotter_leak, monkeypatch, caplog):
+def window(qtbot, no_plotter_leak, monkeypatch, caplog, request):
+    """A real MainWindow, shown; fails the test on an error it did not take (:class:`ErrorsShown`).
+
+    Two kinds of background work are off unless the test is marked for them: the quality
+    presets' measurement once a geometry has settled (``@pytest.mark.presets``: a process of
+    seconds of CPU) and the time plots' series of a recording (``@pytest.mark.series``).
+    """
     from PyQt6 import QtWidgets
 
     from tactile_viewer.main_window import MainWindow
+    from tactile_viewer.presets import PresetMeasurer
+    from tactile_viewer.time_plots import TimePlotsDock
 
+    if request.node.get_closest_marker("presets") is None:
+        monkeypatch.setattr(PresetMeasurer, "_measure_if_shown", lambda self: None)
+    if request.node.get_closest_marker("series") is None:
+        monkeypatch.setattr(TimePlotsDock, "_start", lambda self: None)
     errors = ErrorsShown(caplog)
     # dialogs would block a test: record them instead (and fail the test unless it takes them)
     monkeypatch.setattr(QtWidgets.QMessageBox, "critical",

@@ -156,6 +156,7 @@ def overflowing_csv(path, units):
     return path
 
 
+@pytest.mark.series
 def test_a_recording_whose_values_overflow_leaves_the_window_working(opened, qtbot, tmp_path):
     # In kPa the value is no number once in pascals: the file is refused, naming frame and taxel.
     shown = opened.model.recording
@@ -227,6 +228,7 @@ def test_screenshot_export_has_the_size_asked_and_is_not_blank(opened, tmp_path,
     assert sidecar["poisson_ratio"] == 0.5 and sidecar["sensor_size"] == 0.0  # the sample's material
 
 
+@pytest.mark.series
 def test_a_window_image_shows_the_scene_the_time_plots_and_the_controls(opened, qtbot, tmp_path):
     from PyQt6 import QtCore
 
@@ -342,6 +344,16 @@ def test_looped_playback_wraps_to_the_start(opened, qtbot):
     qtbot.waitUntil(lambda: any(b < a for a, b in zip(frames, frames[1:], strict=False)), timeout=10000)
     assert opened.playback.play_button.isChecked()  # still playing after the wrap
     opened.playback.set_playing(False)
+
+
+@pytest.mark.presets
+def test_a_settled_geometry_s_presets_are_measured_by_themselves(window, qtbot):
+    # no call: once a recording of a small skin has been shown a second, its presets are measured
+    # in the background and offered in the quality box
+    with qtbot.waitSignal(window.presets.measured, timeout=90000):
+        with qtbot.waitSignal(window.ready, timeout=20000):
+            assert window.open(Path(__file__).resolve().parents[2] / "sample_data" / "hertz_static.npz")
+    assert window.parameters.quality_box.count() > 1
 
 
 def test_quality_presets_are_measured_for_the_geometry_and_applied(opened, qtbot):

@@ -10,6 +10,8 @@ SAMPLES = Path(__file__).resolve().parents[2] / "sample_data"
 SAMPLE = SAMPLES / "hertz_shear_turning.npz"
 FRAMES = 60  # of the sample
 
+pytestmark = pytest.mark.series  # every test here needs the series the dock solves
+
 
 @pytest.fixture
 def dock(window):
