@@ -241,8 +241,8 @@ class LivePanel(QtWidgets.QFrame):
             self.banner.hide()
             self.status.setText(f"{reader.label}: stopped" if reader is not None else "")
             return
-        stats = reader.stats
-        silence = stats.silence(reader.now())
+        stats = reader.stats.snapshot(reader.now())  # one count: the reader thread goes on counting
+        silence = stats.silence
         self.banner.setVisible(silence > SILENCE_S)
         if silence > SILENCE_S:
             since = "no frame received yet" if silence == math.inf else f"no frame for {silence:.1f} s"
@@ -250,7 +250,7 @@ class LivePanel(QtWidgets.QFrame):
             self.banner.setText(f"NO DATA: {since} ({state})")
         rejected = reader.rejected()
         parts = [f"{reader.label}: {reader.state}",
-                 f"{stats.rate(reader.now()):.0f} fps received, {self.display_rate():.0f} fps on screen",
+                 f"{stats.rate:.0f} fps received, {self.display_rate():.0f} fps on screen",
                  f"received {stats.received}", f"lost {stats.lost}"]
         if rejected or reader.decoder.skipped_bytes:
             parts.append("rejected " + (", ".join(f"{k} {v}" for k, v in sorted(rejected.items())) or "0")

@@ -20,6 +20,7 @@ import math
 import threading
 import time
 from collections import Counter, deque
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -31,7 +32,7 @@ from .protocol import make_decoder
 from .recording import StressCalibration, Tare
 from .source import Source, SourceFrame
 
-__all__ = ["Calibration", "LiveStats", "LiveSource", "SerialReader", "loaded_while_taring",
+__all__ = ["Calibration", "LiveStats", "StatsSnapshot", "LiveSource", "SerialReader", "loaded_while_taring",
            "LOADED_TARE_NOISE"]
 
 
@@ -134,8 +135,37 @@ def loaded_while_taring(samples: np.ndarray, previous: np.ndarray) -> str | None
             "recording can be re-tared when it is opened).")
 
 
+@dataclass(frozen=True)
+class StatsSnapshot:
+    """The statistics of a live source at one instant, all of them from the same count.
+
+    Attributes
+    ----------
+    received, lost, out_of_order : int
+        Frames received, lost to sequence gaps, and out of order or repeated.
+    rate : float
+        Frames per second over the last window (:meth:`LiveStats.rate`).
+    silence : float
+        Seconds since the last frame (inf before the first).
+    longest_gap : float
+        The longest wait between two reads that brought frames, seconds.
+    """
+
+    received: int
+    lost: int
+    out_of_order: int
+    rate: float
+    silence: float
+    longest_gap: float
+
+
 class LiveStats:
     """Received frames, their rate from receive times, lost frames from sequence gaps.
+
+    The reader thread counts (:meth:`add`) while others read: :meth:`snapshot`
+    gives every figure from one instant (reading the attributes one by one
+    from another thread may mix two counts, and :meth:`rate` reads the
+    receive times the reader is changing).
 
     Parameters
     ----------
@@ -144,6 +174,7 @@ class LiveStats:
     """
 
     def __init__(self, window: float = 1.0):
+        self._lock = threading.Lock()
         self.window = window
         self.received = 0
         self.lost = 0
@@ -160,6 +191,16 @@ class LiveStats:
 
     def add(self, seq: int | None, t: float) -> int | None:
         """Count one frame received at ``t`` seconds; returns its unwrapped sequence number."""
+        with self._lock:
+            return self._add(seq, t)
+
+    def snapshot(self, now: float) -> StatsSnapshot:
+        """Every figure at ``now`` (seconds, the reader's clock), from one count."""
+        with self._lock:
+            return StatsSnapshot(self.received, self.lost, self.out_of_order, self.rate(now),
+                                 self.silence(now), self.longest_gap)
+
+    def _add(self, seq, t):
         self.received += 1
         if self.last_time is not None:
             self.longest_gap = max(self.longest_gap, t - self.last_time)

@@ -82,8 +82,8 @@ def main(argv=None) -> int:
     try:
         while not stop.wait(min(1.0, _left(start, args.duration))):
             elapsed = time.monotonic() - start
-            stats = reader.stats
-            print(f"{elapsed:7.1f} s  {stats.rate(reader.now()):7.1f} frames/s  recorded {recorder.added}  "
+            stats = reader.stats.snapshot(reader.now())
+            print(f"{elapsed:7.1f} s  {stats.rate:7.1f} frames/s  recorded {recorder.added}  "
                   + (f"not recorded {recorder.dropped} (the disk is slower)  " if recorder.dropped else "")
                   + f"lost {stats.lost}  rejected {sum(reader.rejected().values())}  {reader.state}"
                   + (f" ({reader.error})" if reader.error else ""), flush=True)

@@ -129,6 +129,33 @@ def test_new_connection_continues_the_numbering_without_loss():
     assert stats.lost == 1 and stats.out_of_order == 0  # only the real gap 1 -> 3
 
 
+def test_a_snapshot_is_of_one_count_while_the_reader_counts():
+    # every other frame lost: after n frames received, n - 1 lost. Read while a reader thread
+    # counts, a snapshot keeps that (attribute by attribute, received could already count a frame
+    # whose gap lost did not yet), and its rate is of the same receive times
+    import threading
+
+    stats = LiveStats(window=0.05)
+    done = threading.Event()
+
+    def reader():
+        for k in range(200000):
+            stats.add((2 * k) % 65536, k * 1e-4)
+        done.set()
+
+    thread = threading.Thread(target=reader)
+    thread.start()
+    seen = 0
+    while not done.is_set():
+        snap = stats.snapshot(now=stats.last_time or 0.0)
+        if snap.received:
+            assert snap.lost == snap.received - 1, snap
+            assert 0 <= snap.rate <= 10000.0 + 1e-6  # 10 kHz of receive times
+            seen += 1
+    thread.join()
+    assert seen > 10 and stats.snapshot(now=20.0).received == 200000
+
+
 def test_text_frames_have_no_sequence():
     stats = LiveStats()
     assert stats.add(None, 0.0) is None and stats.add(None, 0.5) is None
