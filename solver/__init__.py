@@ -6,9 +6,9 @@ the one way to a solver, for a skin of any size and any quality setting.
 
 from . import efficiency, loads, metrics
 from .geometry import SensorGrid
-from .inverse import Contact, Reconstruction
 from .quality import Configuration
 from .reconstructor import Reconstructor
+from .results import Contact, Reconstruction
 from .tracking import ContactTracker as ContactTracker  # re-exported (solver.tracking)
 
 __all__ = ["SensorGrid", "Reconstructor", "Configuration", "Reconstruction", "Contact", "loads", "metrics",

@@ -11,7 +11,7 @@ a 128x128 skin's dense ``Cz`` would take 2 GB, its transform 0.5 MB.
 
 :class:`NormalConvolution` solves the normal-only problem ``Cz f = b`` by
 conjugate gradients on these products (``Cz`` is symmetric positive
-definite), damped like :class:`solver.inverse.SymmetricInverse` when the
+definite), damped like :class:`solver.symmetric.SymmetricInverse` when the
 layer is too thick for the grid. It is the large-skin path's answer for a
 load too broad for the contact fit's budget (:class:`solver.RegionSolver`).
 :class:`StressConvolution` does the same for the whole ``C = [Cx | Cy | Cz]``

@@ -8,11 +8,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import sparse
+from scipy.spatial import cKDTree
 
 from .arrays import read_only
 from .checks import real, shown
 
-__all__ = ["SensorGrid", "check_poisson_ratio"]
+__all__ = ["SensorGrid", "check_poisson_ratio", "patch_links", "neighbours_within"]
 
 
 def _positive_finite(name: str, value) -> float:
@@ -223,3 +225,17 @@ class SensorGrid:
         taxel = f", sensor_size={self.sensor_size:g} m" if self.sensor_size > 0 else ""
         return (f"SensorGrid(shape={self.shape}, pitch={self.pitch:g} m, "
                 f"thickness={self.thickness:g} m, nu={self.poisson_ratio:g}{taxel})")
+
+
+def patch_links(grid: SensorGrid, tree: cKDTree | None = None):
+    """``(indptr, indices)`` of the CSR matrix linking the nodes of one patch: those within
+    1.5 pitches (the 8 neighbours on a grid), as :func:`solver.search.contact_cores` takes it."""
+    return neighbours_within(cKDTree(grid.positions) if tree is None else tree, 1.5 * grid.pitch)
+
+
+def neighbours_within(tree: cKDTree, distance: float):
+    """``(indptr, indices)`` (int64, as the compiled code takes them) of the CSR matrix linking
+    the nodes of ``tree`` closer than ``distance`` metres, each node to itself too."""
+    pairs = tree.sparse_distance_matrix(tree, distance, output_type="coo_matrix").tocsr()
+    linked = (pairs + sparse.identity(tree.n, format="csr")).astype(bool).astype(np.int8)
+    return linked.indptr.astype(np.int64), linked.indices.astype(np.int64)

@@ -24,20 +24,19 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
-from scipy import sparse
 from scipy.spatial import cKDTree
 
+from .arguments import check_options, check_parameters, check_stress
 from .arrays import read_only
-from .checks import one_of, optional_flag, real_number, whole_number
 from .efficiency import ContactFit, Frame
-from .geometry import SensorGrid
-from .kernels import KERNELS, PROFILES, stress_matrix
+from .geometry import SensorGrid, neighbours_within, patch_links
+from .kernels import stress_matrix
+from .results import Contact, Reconstruction, shear_direction_of
 from .search import contact_labels, gather, template_misfit
+from .symmetric import SymmetricInverse
 from .threads import one_blas_thread
 
-__all__ = ["DenseSolver", "Reconstruction", "Contact", "SymmetricInverse", "check_options",
-           "check_arguments", "check_parameters", "WHOLE_CELLS"]
+__all__ = ["DenseSolver", "WHOLE_CELLS"]
 
 # The contact fit takes whole cells instead of sub-cells for loads of up to this many times
 # DenseSolver's fit_budget nodes; beyond, the normal-only answer (DenseSolver.fit_budget).
@@ -50,189 +49,6 @@ BROAD_EVIDENCE = 10.0
 # of zero are noise and left out of the fit (same sets: noise contacts on 32x32 skins reached 4.7,
 # a 1 N load under 20% noise 3.3).
 NOISE_EVIDENCE = 1.0
-
-
-@dataclass(frozen=True)
-class SymmetricInverse:
-    """Inverse of a symmetric positive (semi-)definite matrix, damped if needed.
-
-    Attributes
-    ----------
-    inverse : (n, n) ndarray
-        ``(A + lambda I)^-1``, symmetric, read-only (the identity for an
-        all-zero matrix, whose equations say nothing).
-    shift : float
-        ``lambda`` added to the diagonal before inverting (0 when the matrix
-        was well enough conditioned).
-    condition : float
-        1-norm condition estimate of the matrix actually inverted.
-    condition_undamped : float
-        The same for the matrix as given (``inf`` when it was numerically
-        singular).
-    """
-
-    inverse: np.ndarray
-    shift: float
-    condition: float
-    condition_undamped: float
-
-    @classmethod
-    def of(cls, matrix: np.ndarray, *, max_condition: float) -> SymmetricInverse:
-        # Tikhonov damping: (A + lambda I) with lambda = |A|_1 / max_condition
-        # bounds cond(A + lambda I) by about max_condition + 1 and leaves the
-        # well-conditioned cases exact (lambda = 0).
-        norm = float(np.linalg.norm(matrix, 1)) if matrix.size else 0.0
-        if norm == 0.0:
-            return cls(read_only(np.eye(matrix.shape[0])), 0.0, 1.0, 1.0)
-        undamped, shift = math.inf, 0.0
-        try:
-            factor = scipy.linalg.cholesky(matrix, lower=True, check_finite=False)
-            undamped = _condition_from_cholesky(factor, norm)
-        except np.linalg.LinAlgError:
-            pass
-        condition = undamped
-        if undamped > max_condition:
-            shift = norm / max_condition
-            factor = scipy.linalg.cholesky(matrix + shift * np.eye(matrix.shape[0]), lower=True,
-                                           check_finite=False)
-            condition = _condition_from_cholesky(factor, norm + shift)
-        # The inverse itself, not the factor: a product with it costs a fifth of LAPACK's two
-        # triangular solves on one right-hand side (6 against 25 us at m = 256, measured), and
-        # with the condition bounded by max_condition its rounding is that of the solves.
-        inverse, info = scipy.linalg.lapack.dpotri(np.asfortranarray(factor), lower=1, overwrite_c=1)
-        if info != 0:
-            raise ValueError(f"dpotri failed with info={info}")
-        return cls(read_only(_symmetric_from_lower(inverse)), shift, condition, undamped)
-
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
-        """``(A + lambda I)^-1 rhs`` for ``rhs`` of shape ``(n,)`` or ``(n, k)``."""
-        return self.inverse @ rhs
-
-
-def _symmetric_from_lower(lower: np.ndarray) -> np.ndarray:
-    # copy the lower triangle onto the upper one in blocks (np.tril(a) + np.tril(a, -1).T
-    # makes three full temporaries: 1.2 s at n = 4096)
-    n, block = lower.shape[0], 256
-    for start in range(0, n, block):
-        stop = min(start + block, n)
-        diagonal = lower[start:stop, start:stop]
-        diagonal[...] = np.tril(diagonal) + np.tril(diagonal, -1).T
-        lower[start:stop, stop:] = lower[stop:, start:stop].T
-    return lower
-
-
-def _condition_from_cholesky(lower: np.ndarray, norm: float) -> float:
-    rcond, info = scipy.linalg.lapack.dpocon(lower, norm, uplo="L")
-    # rcond is an estimate: clamp the rounding that can put it a hair above 1
-    return math.inf if rcond <= 0 else max(1.0, 1.0 / rcond)
-
-
-@dataclass(frozen=True)
-class Contact:
-    """One contact of a frame and its own parameters.
-
-    Attributes
-    ----------
-    nodes : (m,) ndarray of bool
-        The contact's region on the skin (the nodes allowed to carry its load).
-    shear_ratio : float
-        Tangential over normal force of its template load (dimensionless).
-    shear_direction : float
-        Radians from +x in ``(-pi, pi]``.
-    evidence : float
-        F statistic of its shear against a shear-free load, from the sensors
-        near it (``nan`` when the shear ratio was given).
-    shear_detected : bool
-        Whether the automatic search kept shear on it.
-    at_edge : bool
-        Its region touches the skin's border: part of its stress field is not
-        sensed, so its shear is less certain than an inner contact's.
-    total_force : (3,) ndarray
-        Its resultant (Fx, Fy, Fz), newtons.
-    centre : (2,) ndarray
-        Where its compressive normal load is centred (the ``Fz``-weighted mean
-        of its nodes' positions over ``Fz > 0``), metres.
-    identity : int
-        Its number while it persists from frame to frame
-        (:class:`solver.tracking.ContactTracker`, from 1); 0 when the frame was
-        solved on its own.
-    """
-
-    nodes: np.ndarray
-    shear_ratio: float
-    shear_direction: float
-    evidence: float
-    shear_detected: bool
-    at_edge: bool
-    total_force: np.ndarray
-    centre: np.ndarray
-    identity: int = 0
-
-
-@dataclass(frozen=True)
-class Reconstruction:
-    """Reconstructed surface forces of one frame.
-
-    Attributes
-    ----------
-    forces : (m, 3) ndarray
-        Force per node (Fx, Fy, Fz), newtons; ``Fz > 0`` presses into the skin.
-    shear_ratio : float
-        Tangential over normal force of the template load of the largest
-        contact (dimensionless); every contact's own is in ``contacts``.
-    shear_direction : float
-        Its direction, radians from +x in ``(-pi, pi]``.
-    efficiency : float
-        Value of the efficiency functional at the chosen parameters (``nan``
-        on the normal-only path).
-    residual : float
-        ``|C x - b| / |b|`` (0 for an all-zero frame). The exact member
-        reports ``lambda |w| / |b|`` (``lambda`` the damping, 0 undamped), its
-        value in exact arithmetic: the inverse's rounding, up to about
-        ``max_condition^2`` times 1e-16, is not in it (1e-12 at the default).
-    condition : float
-        Condition estimate of the matrix inverted for this solve
-        (``C C^T`` for three components, ``Cz`` for normal only), damping included.
-    regularized : bool
-        Whether Tikhonov damping entered the answer because the layer is too
-        thick for the grid (the condition exceeded the reconstructor's limit).
-    normal_only : bool
-        True when the tangential components were not reconstructed.
-    shear_detected : bool
-        Whether the automatic search kept shear on any contact (False when
-        the parameters were given).
-    exact : bool
-        True when the forces are the member of the exact family ``C x = b``;
-        False when they are the fitted compressive load (automatic solves).
-    region : (m,) ndarray of bool
-        Nodes allowed to carry load (every contact's region).
-    contacts : tuple of Contact
-        Every contact with its own parameters, largest normal force first.
-    fallback : str
-        Why the answer is a cheaper member than the solver's accurate path,
-        and which; empty when it took the accurate path (a load too broad for
-        the contact fit's budget gets the normal-only answer, or with given
-        parameters the paper's template from it).
-    """
-
-    forces: np.ndarray
-    shear_ratio: float
-    shear_direction: float
-    efficiency: float
-    residual: float
-    condition: float
-    regularized: bool
-    normal_only: bool
-    shear_detected: bool
-    region: np.ndarray
-    exact: bool = True
-    contacts: tuple = ()
-    fallback: str = ""
-
-    @property
-    def total_force(self) -> np.ndarray:
-        """(3,) ndarray: sum of the nodal forces, newtons."""
-        return self.forces.sum(axis=0)
 
 
 def _relative(misfit: np.ndarray, b: np.ndarray) -> float:
@@ -252,13 +68,6 @@ def _noise_level(b: np.ndarray, grid: SensorGrid) -> float:
                      - image[1:-1, 2:])
         return 1.4826 * float(np.median(np.abs(laplacian - np.median(laplacian)))) / math.sqrt(20.0)
     return 1.4826 * float(np.median(np.abs(b - np.median(b))))
-
-
-def _direction(x: float, y: float, fallback: float = 0.0) -> float:
-    if x == 0 and y == 0:
-        return math.remainder(fallback, 2 * math.pi) if fallback != -math.pi else math.pi
-    angle = math.atan2(y, x)
-    return math.pi if angle == -math.pi else angle
 
 
 @dataclass(frozen=True, eq=False)
@@ -393,10 +202,10 @@ class DenseSolver:
         # the neighbourhoods as (indptr, indices) of their CSR matrices (solver.search).
         tree = cKDTree(grid.positions)
         self._adjacent = patch_links(grid, tree)
-        self._neighbours = _csr(_within(tree, 2.5 * grid.pitch))
-        self._margin = _csr(_within(tree, self.region_margin * grid.pitch * 1.0001))
+        self._neighbours = neighbours_within(tree, 2.5 * grid.pitch)
+        self._margin = neighbours_within(tree, self.region_margin * grid.pitch * 1.0001)
         self._rings = math.ceil(self.reach * grid.thickness / grid.pitch) + 1
-        self._near = _csr(_within(tree, self._rings * grid.pitch * 1.0001))
+        self._near = neighbours_within(tree, self._rings * grid.pitch * 1.0001)
 
     # -- linear algebra of the solution family ---------------------------------
 
@@ -530,7 +339,7 @@ class DenseSolver:
             sx, sy = shear[k]
             contacts.append(Contact(
                 nodes=seen.nodes[k], shear_ratio=math.hypot(sx, sy),
-                shear_direction=_direction(sx, sy, direction), evidence=float(evidence[k]),
+                shear_direction=shear_direction_of(sx, sy, direction), evidence=float(evidence[k]),
                 shear_detected=bool(detected[k]), at_edge=bool(seen.at_edge[k]),
                 total_force=read_only(totals[k]), centre=read_only(centres[k])))
         contacts.sort(key=lambda c: -c.total_force[2])
@@ -576,7 +385,7 @@ class DenseSolver:
         main = contacts[0] if contacts else None
         return Reconstruction(
             forces=read_only(forces), shear_ratio=main.shear_ratio if main else 0.0,
-            shear_direction=main.shear_direction if main else _direction(0, 0, direction),
+            shear_direction=main.shear_direction if main else shear_direction_of(0, 0, direction),
             efficiency=math.nan, residual=_relative(misfit, b), condition=condition.condition,
             regularized=exact and condition.shift > 0, normal_only=normal_only, shear_detected=False,
             region=region, exact=bool(exact), contacts=tuple(contacts),
@@ -589,7 +398,7 @@ class DenseSolver:
         if exact:
             forces[:, 2] = self._normal.solve(b)
         return Reconstruction(
-            forces=read_only(forces), shear_ratio=0.0, shear_direction=_direction(0, 0, direction),
+            forces=read_only(forces), shear_ratio=0.0, shear_direction=shear_direction_of(0, 0, direction),
             efficiency=math.nan, residual=self._residual(forces.T.ravel(), b),
             condition=self._gram.condition, regularized=exact and self._gram.shift > 0,
             normal_only=False, shear_detected=False, region=read_only(np.zeros(m, bool), bool),
@@ -700,127 +509,3 @@ class DenseSolver:
 
     def _residual(self, x: np.ndarray, b: np.ndarray) -> float:
         return _relative(self.matrix @ x - b, b)
-
-
-def check_options(grid, **options):
-    """Check the tuning arguments of :class:`DenseSolver` given, before any matrix is built.
-
-    Only the arguments given are checked: the defaults are :class:`DenseSolver`'s own.
-
-    Raises
-    ------
-    ValueError
-        Naming the argument, the rule and what was received.
-    TypeError
-        For an argument :class:`DenseSolver` does not take.
-    """
-    if not isinstance(grid, SensorGrid):
-        raise ValueError(f"grid must be a SensorGrid, got {type(grid).__name__}")
-    check_arguments(**options)
-
-
-def check_arguments(**options):
-    """:func:`check_options` without a grid: the rules of the arguments given, and nothing else."""
-    for name, value in options.items():
-        if name not in _OPTION_CHECKS:
-            raise TypeError(f"Reconstructor got an unexpected keyword argument {name!r}")
-        _OPTION_CHECKS[name](name, value)
-
-
-_OPTION_CHECKS = {
-    "kernel": lambda name, value: one_of(name, value, KERNELS),
-    "max_condition": lambda name, value: real_number(name, value, rule="a finite number > 1",
-                                                     valid=lambda v: math.isfinite(v) and v > 1),
-    "max_shear_ratio": lambda name, value: real_number(name, value, rule="finite and >= 0",
-                                                       valid=lambda v: math.isfinite(v) and v >= 0),
-    "region_threshold": lambda name, value: real_number(name, value, rule="in (0, 1)",
-                                                        valid=lambda v: 0 < v < 1),
-    "region_margin": lambda name, value: whole_number(name, value, low=0, unit="of pitches "),
-    "separation": lambda name, value: real_number(name, value, rule="in [0, 1]", valid=lambda v: 0 <= v <= 1),
-    "subdivision": lambda name, value: whole_number(name, value, low=1, high=4),
-    "profile": lambda name, value: one_of(name, value, PROFILES),
-    "reach": lambda name, value: real_number(name, value, rule="finite and >= 0 thicknesses",
-                                             valid=lambda v: math.isfinite(v) and v >= 0),
-    "fit_budget": lambda name, value: whole_number(name, value, low=1, unit="of nodes "),
-    # any object with ``choose`` (solver.efficiency); what it is, is its own affair
-    "efficiency": lambda name, value: None,
-}
-
-
-def check_parameters(shear_ratio, shear_direction, exact):
-    """Check the arguments of a solve: the shear parameters (each a real number or None) and ``exact``.
-
-    Returns
-    -------
-    exact : bool
-        ``exact``, or its default: True when a parameter is given (the
-        sliders), False when both are automatic.
-
-    Raises
-    ------
-    ValueError
-        Naming the argument, the rule and what was received.
-    """
-    if shear_ratio is not None:
-        real_number("shear_ratio", shear_ratio, rule="finite and >= 0 (or None)",
-                    valid=lambda v: math.isfinite(v) and v >= 0)
-    if shear_direction is not None:
-        real_number("shear_direction", shear_direction, rule="finite radians (or None)", valid=math.isfinite)
-    exact = optional_flag("exact", exact)
-    if exact is None:
-        exact = shear_ratio is not None or shear_direction is not None
-    return exact
-
-
-# The largest sensor stress a solve takes, pascals: far above any reading (1e12 Pa is a thousand
-# times the strength of steel), far enough below the float limit that the solve's sums of squares
-# cannot overflow (a frame holding 1e308 Pa made every one of them inf).
-MAX_STRESS = 1e100
-
-
-def check_stress(stress, grid: SensorGrid) -> np.ndarray:
-    """``stress`` as a flat ``(m,)`` float array for ``grid``; ValueError says what is wrong with it.
-
-    Every value must be finite and at most :data:`MAX_STRESS` in magnitude.
-    """
-    m = grid.size
-    if np.iscomplexobj(stress):
-        raise ValueError("stress must be real pascals, got complex values")
-    try:
-        b = np.asarray(stress, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"stress must be numeric, got {type(stress).__name__}") from None
-    if b.size != m or (b.ndim == 2 and b.shape != tuple(grid.shape)) or b.ndim > 2:
-        raise ValueError(
-            f"stress must have shape ({m},) or {tuple(grid.shape)} for this grid, got {b.shape}"
-        )
-    b = b.ravel()
-    bad = ~np.isfinite(b)
-    if bad.any():
-        kinds = sorted({"NaN" if np.isnan(v) else "inf" for v in b[bad]})
-        raise ValueError(
-            f"stress must be finite, got {' and '.join(kinds)} at taxel(s) "
-            f"{np.flatnonzero(bad)[:10].tolist()}"
-        )
-    huge = np.abs(b) > MAX_STRESS
-    if huge.any():
-        raise ValueError(f"stress must be at most {MAX_STRESS:g} Pa in magnitude, got {b[huge][0]:g} at "
-                         f"taxel(s) {np.flatnonzero(huge)[:10].tolist()}")
-    return b
-
-
-def patch_links(grid: SensorGrid, tree: cKDTree | None = None):
-    """``(indptr, indices)`` of the CSR matrix linking the nodes of one patch: those within
-    1.5 pitches (the 8 neighbours on a grid), as :func:`solver.search.contact_cores` takes it."""
-    return _csr(_within(cKDTree(grid.positions) if tree is None else tree, 1.5 * grid.pitch))
-
-
-def _csr(matrix):
-    # (indptr, indices) of a CSR matrix, as the compiled code takes them
-    return matrix.indptr.astype(np.int64), matrix.indices.astype(np.int64)
-
-
-def _within(tree: cKDTree, distance: float):
-    # Sparse boolean adjacency of nodes closer than ``distance`` (self included).
-    pairs = tree.sparse_distance_matrix(tree, distance, output_type="coo_matrix").tocsr()
-    return (pairs + sparse.identity(tree.n, format="csr")).astype(bool).astype(np.int8)

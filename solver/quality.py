@@ -13,10 +13,11 @@ from __future__ import annotations
 import inspect
 from dataclasses import dataclass
 
+from .arguments import check_arguments
 from .checks import one_of
 from .efficiency import ContactFit
 from .geometry import SensorGrid
-from .inverse import DenseSolver, check_arguments
+from .inverse import DenseSolver
 from .region import RegionSolver
 
 __all__ = ["Configuration", "CONFIGURATIONS", "PATHS"]

@@ -13,11 +13,13 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from .arguments import check_options
 from .checks import shown
 from .geometry import SensorGrid
-from .inverse import DenseSolver, Reconstruction, check_options
+from .inverse import DenseSolver
 from .quality import Configuration
 from .region import DENSE_LIMIT, RegionSolver
+from .results import Reconstruction
 
 __all__ = ["Reconstructor"]
 
@@ -51,7 +53,7 @@ class Reconstructor:
     Raises
     ------
     ValueError, TypeError
-        For a bad argument, naming it (:func:`solver.inverse.check_options`).
+        For a bad argument, naming it (:func:`solver.arguments.check_options`).
     """
 
     def __init__(self, grid: SensorGrid, *, quality: Configuration | None = None, **options):

@@ -24,20 +24,13 @@ from dataclasses import replace
 import numpy as np
 from scipy import ndimage
 
+from .arguments import check_options, check_parameters, check_stress
 from .arrays import read_only
 from .checks import real_number, whole_number
 from .convolution import NormalConvolution, StressConvolution
-from .geometry import SensorGrid
-from .inverse import (
-    Contact,
-    DenseSolver,
-    Reconstruction,
-    _direction,
-    check_options,
-    check_parameters,
-    check_stress,
-    patch_links,
-)
+from .geometry import SensorGrid, patch_links
+from .inverse import DenseSolver
+from .results import Contact, Reconstruction, shear_direction_of
 from .search import contact_cores
 from .threads import one_blas_thread
 
@@ -226,7 +219,8 @@ class RegionSolver:
         unexplained += float(np.sum(image[~explained] ** 2))
         contacts.sort(key=lambda c: -c.total_force[2])
         if not results:
-            direction = _direction(0.0, 0.0, 0.0 if shear_direction is None else float(shear_direction))
+            given = 0.0 if shear_direction is None else float(shear_direction)
+            direction = shear_direction_of(0.0, 0.0, given)
             return Reconstruction(
                 forces=read_only(forces.reshape(-1, 3)), shear_ratio=0.0, shear_direction=direction,
                 efficiency=math.nan, residual=0.0 if norm == 0 else 1.0, condition=1.0, regularized=False,
@@ -259,7 +253,7 @@ class RegionSolver:
         region = np.zeros(grid.shape, dtype=bool)
         for rows, columns in windows:
             region[rows, columns] = True
-        direction = _direction(0.0, 0.0, 0.0 if shear_direction is None else float(shear_direction))
+        direction = shear_direction_of(0.0, 0.0, 0.0 if shear_direction is None else float(shear_direction))
         given = not normal_only and (shear_ratio is not None or shear_direction is not None)
         forces = np.zeros((grid.size, 3))
         if given:

@@ -66,7 +66,7 @@ from scipy.spatial import cKDTree
 from .arrays import read_only
 from .checks import real_number, shown, whole_number
 from .geometry import SensorGrid
-from .inverse import Reconstruction
+from .results import Reconstruction
 
 __all__ = ["ContactTracker", "Track", "DEFAULT_STEP_PITCHES", "DEFAULT_PATIENCE"]
 

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from solver.inverse import MAX_STRESS
+from solver.arguments import MAX_STRESS
 
 from .device import DeviceCheck, DeviceMismatch, identify, unknown_identity_notice
 from .layout import SensorLayout
@@ -77,7 +77,7 @@ class Calibration:
 
         None when the frame is no stress the solver takes: a value not finite
         once in pascals (a text board's 1e308 in kPa), or beyond
-        :data:`solver.inverse.MAX_STRESS`; such a frame is not averaged into a tare.
+        :data:`solver.arguments.MAX_STRESS`; such a frame is not averaged into a tare.
         """
         pascals = self.layout.to_pascals(raw)
         if not np.all(np.abs(pascals) <= MAX_STRESS):  # NaN fails it too

@@ -41,9 +41,9 @@ from typing import ClassVar
 import numpy as np
 
 from solver import ContactTracker, Reconstruction, Reconstructor, SensorGrid
+from solver.arguments import MAX_STRESS
 from solver.arrays import read_only
 from solver.checks import one_of
-from solver.inverse import MAX_STRESS
 from solver.kernels import KERNELS
 
 from .recording import Recording, Tare

@@ -51,9 +51,9 @@ from pathlib import Path
 import numpy as np
 
 from solver import ContactTracker
+from solver.arguments import MAX_STRESS, check_parameters
 from solver.arrays import read_only
 from solver.checks import one_of, real_number, shown
-from solver.inverse import MAX_STRESS, check_parameters
 from solver.metrics import direction_error, normal_total_error, tangential_total_error
 
 from .model import Solved, load_centroid
@@ -197,7 +197,7 @@ class Series:
         one. Empty when no contact was followed.
     refused : tuple of int
         Frames asked for that the solver refuses (a value beyond
-        :data:`solver.inverse.MAX_STRESS`): not in the series, and not counted
+        :data:`solver.arguments.MAX_STRESS`): not in the series, and not counted
         in ``total``.
     """
 

@@ -35,8 +35,8 @@ import numpy as np
 import pyqtgraph as pg  # takes the Qt binding already imported (the window's PyQt6), else PyQt6 first
 from PyQt6 import QtCore, QtGui, QtWidgets
 
+from solver.arguments import MAX_STRESS
 from solver.checks import real_number
-from solver.inverse import MAX_STRESS
 
 from .export import derived_name
 from .model import ViewerModel

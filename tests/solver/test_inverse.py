@@ -8,8 +8,9 @@ import pytest
 
 from solver import Reconstructor, SensorGrid, loads
 from solver.efficiency import ContactFit
-from solver.inverse import DenseSolver, SymmetricInverse
+from solver.inverse import DenseSolver
 from solver.region import RegionSolver
+from solver.symmetric import SymmetricInverse
 
 KERNELS = ["cell", "point"]
 
@@ -262,14 +263,14 @@ def test_constructor_checks_its_arguments():
         "subdivision-nan", "region_margin-huge", "profile", "separation", "separation-nan",
         "fit_budget"])
 def test_options_are_checked_before_any_matrix_is_built(kwargs, message, monkeypatch):
-    import solver.inverse
+    import solver.arguments
 
     def forbidden(*args, **kwargs):
         raise AssertionError("a matrix was built before the options were checked")
     monkeypatch.setattr(solver.inverse, "stress_matrix", forbidden)
     grid = SensorGrid.regular(3, 3, 1e-3, 1e-3)
     with pytest.raises(ValueError, match=message):
-        solver.inverse.check_options(grid, **kwargs)
+        solver.arguments.check_options(grid, **kwargs)
     with pytest.raises(ValueError, match=message):
         DenseSolver(grid, **kwargs)
 
@@ -277,17 +278,17 @@ def test_options_are_checked_before_any_matrix_is_built(kwargs, message, monkeyp
 def test_options_check_only_what_is_given_and_refuse_what_reconstructor_does_not_take():
     import inspect
 
-    import solver.inverse
+    import solver.arguments
 
     # every tuning argument of DenseSolver has its check
-    assert set(solver.inverse._OPTION_CHECKS) == set(inspect.signature(DenseSolver).parameters) - {"grid"}
+    assert set(solver.arguments._OPTION_CHECKS) == set(inspect.signature(DenseSolver).parameters) - {"grid"}
     grid = SensorGrid.regular(3, 3, 1e-3, 1e-3)
-    solver.inverse.check_options(grid)  # the defaults are DenseSolver's own, valid
-    solver.inverse.check_options(grid, profile="uniform", reach=0)
+    solver.arguments.check_options(grid)  # the defaults are DenseSolver's own, valid
+    solver.arguments.check_options(grid, profile="uniform", reach=0)
     with pytest.raises(TypeError, match="unexpected keyword argument 'thickness'"):
-        solver.inverse.check_options(grid, thickness=1e-3)
+        solver.arguments.check_options(grid, thickness=1e-3)
     with pytest.raises(ValueError, match="grid must be a SensorGrid, got dict"):
-        solver.inverse.check_options({}, kernel="layer")
+        solver.arguments.check_options({}, kernel="layer")
 
 
 def test_the_fit_reads_the_chosen_profile_on_every_path():
