@@ -66,11 +66,7 @@ class NormalConvolution:
         # of the table centred on offset 0; Cz is a principal block of that circulant, so its
         # eigenvalues lie between the circulant's (interlacing): an estimate from outside.
         spectrum = scipy.fft.rfft2(_centred(table, grid.shape, self._size)).real
-        largest, smallest = float(spectrum.max()), float(spectrum.min())
-        undamped = largest / smallest if smallest > 0 else math.inf
-        self.shift = 0.0 if undamped <= max_condition else largest / max_condition
-        self.condition = ((largest + self.shift) / (smallest + self.shift) if smallest + self.shift > 0
-                          else math.inf)
+        self.shift, self.condition = _damped(spectrum, max_condition)
 
     def apply(self, forces: np.ndarray) -> np.ndarray:
         """``Cz f``: the sensor stress of normal node forces ``forces`` (m,), newtons -> pascals."""
@@ -132,12 +128,7 @@ class StressConvolution:
         # the circulant embedding C C^T's symbol: sum over components of |K_c|^2
         spectrum = sum(np.abs(scipy.fft.rfft2(_centred(table, grid.shape, self._size))) ** 2
                        for table in tables)
-        largest, smallest = float(spectrum.max()), float(spectrum.min())
-        limit = max_condition ** 2
-        undamped = largest / smallest if smallest > 0 else math.inf
-        self.shift = 0.0 if undamped <= limit else largest / limit
-        self.condition = ((largest + self.shift) / (smallest + self.shift) if smallest + self.shift > 0
-                          else math.inf)
+        self.shift, self.condition = _damped(spectrum, max_condition ** 2)
 
     def apply(self, forces: np.ndarray) -> np.ndarray:
         """``C x``: the sensor stress of node forces ``forces`` (m, 3), newtons -> pascals."""
@@ -203,6 +194,16 @@ def _set_up(grid, kernel, max_condition):
     size = (scipy.fft.next_fast_len(2 * ny - 1, real=True), scipy.fft.next_fast_len(2 * nx - 1, real=True))
     # the kernel on the offsets, sensor minus node: offset (0, 0) at index (ny-1, nx-1)
     return grid, kernel, size, offset_tables(grid, kernel, 1, "uniform")[0]
+
+
+def _damped(spectrum, limit):
+    # Tikhonov damping from an operator's eigenvalue estimates, as SymmetricInverse damps: none
+    # when their ratio is within ``limit``, else lambda = largest / limit. Returns (lambda, the
+    # damped operator's condition estimate).
+    largest, smallest = float(spectrum.max()), float(spectrum.min())
+    undamped = largest / smallest if smallest > 0 else math.inf
+    shift = 0.0 if undamped <= limit else largest / limit
+    return shift, (largest + shift) / (smallest + shift) if smallest + shift > 0 else math.inf
 
 
 def _centred(table, shape, size):

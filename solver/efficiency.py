@@ -325,8 +325,9 @@ class ContactFit:
             if refit.size:
                 explained = contact_stress(frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact,
                                            pairs(p), g, K)
+                total = explained.sum(axis=0)
                 for c in refit:
-                    gain[c] = self._shear_free_misfit(frame, explained, g0, c) - rho[c]
+                    gain[c] = self._shear_free_misfit(frame, total - explained[c], g0, c) - rho[c]
             evidence = self._evidence(frame, gain, variance, k)
         with np.errstate(divide="ignore", invalid="ignore"):
             keep = np.where(evidence > 0, np.maximum(0.0, 1.0 - self.shrinkage / evidence), 0.0)
@@ -338,13 +339,11 @@ class ContactFit:
         return self._choice(frame, pairs(p), g, residual, evidence, keep > 0, shear_free=g0)
 
     @staticmethod
-    def _shear_free_misfit(frame, explained, g0, c):
+    def _shear_free_misfit(frame, held, g0, c):
         # |residual|^2 near contact c with its load refitted without shear (warm from the
-        # shear-free fit's set) and every other contact's load as fitted (``explained`` (K, R),
-        # the stress of each contact's fitted load): a small NNLS on c's columns and the
-        # sensors near it
+        # shear-free fit's set) and every other contact's load as fitted (``held`` (R,), the
+        # stress of their fitted loads): a small NNLS on c's columns and the sensors near it
         mine, rows = frame.column_contact == c, frame.row_contact[:, c]
-        held = explained.sum(axis=0) - explained[c]
         b = frame.stress[rows] - held[rows]
         columns = np.ascontiguousarray(frame.fit_z.T[mine][:, rows])
         profile = np.zeros(columns.shape[0])

@@ -108,6 +108,19 @@ def _remove(factor, k, p):
 
 
 @numba.njit(cache=True, nogil=True)
+def _enter(columns, j, factor, index, free, k, gram, norm2):
+    # column j enters the set as its (k+1)-th: the factor bordered with its Gram row; False (and
+    # nothing changed) when it depends on the set
+    for i in range(k):
+        gram[i] = _dot(columns[index[i]], columns[j])
+    if not _append(factor, k, gram, norm2):
+        return False
+    index[k] = j
+    free[j] = True
+    return True
+
+
+@numba.njit(cache=True, nogil=True)
 def _leave(factor, index, free, k, i):
     # the set's i-th column leaves it: out of the factor, the order and the mask; returns k - 1
     free[index[i]] = False
@@ -202,13 +215,8 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
             pass
     if k == 0:
         for j in guess:
-            if k < size:
-                for i in range(k):
-                    gram[i] = _dot(columns[index[i]], columns[j])
-                if _append(factor, k, gram, norm2[j]):
-                    index[k] = j
-                    free[j] = True
-                    k += 1
+            if k < size and _enter(columns, j, factor, index, free, k, gram, norm2[j]):
+                k += 1
     steps = 0
     # a guessed set: drop the variables its least-squares solution does not keep positive
     while k > 0:
@@ -265,11 +273,7 @@ def lawson_hanson(columns, b, free, max_steps, g, factor, index):
                 if k >= size:
                     break
                 j = chosen[c]
-                for i in range(k):
-                    gram[i] = _dot(columns[index[i]], columns[j])
-                if _append(factor, k, gram, norm2[j]):
-                    index[k] = j
-                    free[j] = True
+                if _enter(columns, j, factor, index, free, k, gram, norm2[j]):
                     k += 1
                 else:
                     barred[j] = True

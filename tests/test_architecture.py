@@ -16,6 +16,15 @@ def lint_imports(*args):
                           text=True, timeout=300)
 
 
+def broken(tmp_path, contracts):
+    # lint-imports on a configuration of its own, which must report a broken contract; its report
+    config = tmp_path / "contracts.toml"
+    config.write_text(contracts)
+    run = lint_imports("--config", str(config))
+    assert run.returncode != 0 and "BROKEN" in run.stdout, run.stdout + run.stderr
+    return run.stdout
+
+
 def test_the_contracts_are_kept():
     run = lint_imports()
     assert run.returncode == 0, run.stdout + run.stderr
@@ -24,25 +33,18 @@ def test_the_contracts_are_kept():
 
 def test_a_broken_contract_is_caught(tmp_path):
     # the checker itself must be able to fail: the window does import Qt
-    config = tmp_path / "contracts.toml"
-    config.write_text(
-        '[tool.importlinter]\nroot_packages = ["tactile_viewer"]\ninclude_external_packages = true\n\n'
-        '[[tool.importlinter.contracts]]\nname = "window without Qt"\ntype = "forbidden"\n'
-        'source_modules = ["tactile_viewer.main_window"]\nforbidden_modules = ["PyQt6"]\n')
-    run = lint_imports("--config", str(config))
-    assert run.returncode != 0 and "BROKEN" in run.stdout, run.stdout + run.stderr
+    broken(tmp_path, '[tool.importlinter]\nroot_packages = ["tactile_viewer"]\ninclude_external_packages = true\n\n'
+           '[[tool.importlinter.contracts]]\nname = "window without Qt"\ntype = "forbidden"\n'
+           'source_modules = ["tactile_viewer.main_window"]\nforbidden_modules = ["PyQt6"]\n')
 
 
 def test_an_import_cycle_in_the_solver_is_caught(tmp_path):
     # the layers contract fails when a module imports one above it: the entry point imports the
     # dense engine, so layers that put the engine above it are broken
-    config = tmp_path / "layers.toml"
-    config.write_text(
-        '[tool.importlinter]\nroot_packages = ["solver"]\n\n'
-        '[[tool.importlinter.contracts]]\nname = "engine above the entry point"\ntype = "layers"\n'
-        'containers = ["solver"]\nlayers = ["inverse", "reconstructor"]\n')
-    run = lint_imports("--config", str(config))
-    assert run.returncode != 0 and "BROKEN" in run.stdout and "solver.reconstructor" in run.stdout, run.stdout
+    report = broken(tmp_path, '[tool.importlinter]\nroot_packages = ["solver"]\n\n'
+                    '[[tool.importlinter.contracts]]\nname = "engine above the entry point"\ntype = "layers"\n'
+                    'containers = ["solver"]\nlayers = ["inverse", "reconstructor"]\n')
+    assert "solver.reconstructor" in report
 
 
 @pytest.mark.parametrize("package", ["solver", "measurement", "tactile_viewer"])
