@@ -38,9 +38,9 @@ def _children_cpu() -> float:
 
 def measure(path, folder, *, suffix=".mp4", size=(1200, 800), smooth=True) -> dict:
     """Write ``path`` whole as ``<folder>/<stem><suffix>``; the costs measured (seconds)."""
-    from tactile_viewer import movie
-    from tactile_viewer.files import load
-    from tactile_viewer.model import ViewerModel
+    from tactile_viewer.io.files import load
+    from tactile_viewer.model.viewer_model import ViewerModel
+    from tactile_viewer.render import movie
 
     wall, cpu, children = time.perf_counter(), time.process_time(), _children_cpu()
     recording = load(path)

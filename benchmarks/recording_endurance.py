@@ -27,13 +27,13 @@ from pathlib import Path
 import numpy as np
 
 from solver.bench import machine
-from tactile_viewer.files import load
+from tactile_viewer.io.files import load
 
 OPEN_AND_SEEK = """
 import resource, sys, time
 import numpy as np
 start_cpu, start = time.process_time(), time.perf_counter()
-from tactile_viewer.files import load
+from tactile_viewer.io.files import load
 imported = time.perf_counter()
 recording = load(sys.argv[1])
 opened = time.perf_counter()
@@ -48,7 +48,7 @@ print(len(recording), opened - imported, (seeked - opened) / 20, time.process_ti
 
 def start_board(folder: Path, rate: float) -> tuple[subprocess.Popen, Path, Path]:
     link, layout = folder / "board", folder / "layout.json"
-    board = subprocess.Popen([sys.executable, "-m", "tactile_viewer.simulator", "--link", str(link),
+    board = subprocess.Popen([sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--link", str(link),
                               "--layout", str(layout), "--rate", str(rate), "--seed", "3"],
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     board.stdout.readline()
@@ -56,7 +56,7 @@ def start_board(folder: Path, rate: float) -> tuple[subprocess.Popen, Path, Path
 
 
 def recorder(link, layout, out, *extra) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "tactile_viewer.record", str(link), "--layout",
+    return subprocess.Popen([sys.executable, "-m", "tactile_viewer.cli.tactile_record", str(link), "--layout",
                              str(layout), "--out", str(out), *extra], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
 

@@ -119,7 +119,7 @@ CONFIGURATIONS = ("without the dock", "dock docked", "dock floating")
 
 def measure(window, app, count, seconds, dock=None):
     """One configuration's figures: the scene's size, slider latencies, playback rates, the dock's work."""
-    from tactile_viewer.panels import SPEEDS
+    from tactile_viewer.qt.panels import SPEEDS
 
     _settle(app)
     walls, cpus = slider_latencies(window, app, count)
@@ -148,7 +148,7 @@ def row(label, figures, out):
 def run(path=SAMPLE, *, count=40, seconds=5.0, rounds=3, size=(1280, 820), out=None):
     out = sys.stdout if out is None else out
     app, window = _open_window(path, size, "benchmarks.time_plots_cost")
-    from tactile_viewer.time_plots import TimePlotsDock
+    from tactile_viewer.qt.time_plots import TimePlotsDock
 
     recording = window.model.recording
     print(f"machine: {machine()}", file=out)

@@ -59,7 +59,7 @@ def _open_window(path, size, program):
     ``program`` names the benchmark in the error when there is no display.
     """
     os.environ.setdefault("QT_API", "pyqt6")
-    from tactile_viewer.main_window import MainWindow
+    from tactile_viewer.qt.main_window import MainWindow
 
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
         raise SystemExit(f"{program} needs a display: run it as `xvfb-run -a python -m {program}` on a "
@@ -120,7 +120,7 @@ def playback_rate(window, app, speed_index, seconds):
 def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     out = sys.stdout if out is None else out
     app, window = _open_window(path, size, "benchmarks.viewer_speed")
-    from tactile_viewer.panels import SPEEDS
+    from tactile_viewer.qt.panels import SPEEDS
 
     for _ in range(20):  # let the layout settle before timing
         app.processEvents()
@@ -159,7 +159,7 @@ def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
 
 def decoder_throughput(count=256, frames=20000, chunk=4096, out=None):
     """Frames per second each decoder turns bytes into frames (``count`` values, ``chunk``-byte reads)."""
-    from tactile_viewer.protocol import encode_binary, encode_text, make_decoder
+    from tactile_viewer.sources.protocol import encode_binary, encode_text, make_decoder
 
     out = sys.stdout if out is None else out
     rng = np.random.default_rng(0)  # fixed seed: the same stream every run
@@ -184,13 +184,13 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
     import subprocess
     import tempfile
 
-    from tactile_viewer.files import load
-    from tactile_viewer.main_window import MainWindow
+    from tactile_viewer.io.files import load
+    from tactile_viewer.qt.main_window import MainWindow
 
     out = sys.stdout if out is None else out
     app = _application()
     folder = Path(tempfile.mkdtemp(prefix="tactile-bench-"))
-    command = [sys.executable, "-m", "tactile_viewer.simulator", "--rate", f"{rate:g}", "--format", fmt,
+    command = [sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--rate", f"{rate:g}", "--format", fmt,
                "--link", str(folder / "board"), "--layout", str(folder / "layout.json")]
     board = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     board.stdout.readline()
@@ -250,7 +250,7 @@ def busy_core():
 def _window_solves(window, app, seconds):
     # the window's own automatic solves during 1x looped playback: each delivered frame's solve_ms
     # (wall, the model's) and stress, and the worker thread's CPU time of every solve it ran
-    from tactile_viewer.panels import SPEEDS
+    from tactile_viewer.qt.panels import SPEEDS
 
     solver, solved, cpu = window.model.reconstructor, [], []
     original = solver.solve
@@ -325,8 +325,8 @@ def solve_comparison(path, *, seconds=5.0, loads=LOADS, size=(1280, 820), wait_p
         ``n``, ``median``, ``p95`` in ms) and ``ratio``, ``ratio_p95``,
         ``ratio_cpu`` (in-window over plain, medians and 95th percentiles).
     """
-    from tactile_viewer.model import ViewerModel
-    from tactile_viewer.presets import PRESET_LIMIT
+    from tactile_viewer.model.viewer_model import ViewerModel
+    from tactile_viewer.qt.presets import PRESET_LIMIT
 
     out = sys.stdout if out is None else out
     for load in loads:

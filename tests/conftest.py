@@ -1,7 +1,8 @@
 """Settings for every test: hypothesis draws the same examples on every run (derandomized), so CI
 sees what a developer saw and a failure reproduces as it is; the compiled contact fit is ready
 before the first test; the viewer's settings files (what the window remembers) go to a folder of
-each test's own, never the user's, in this process and the commands it starts."""
+each test's own, never the user's, in this process and the commands it starts; a test that
+leaves a pyvista plotter open fails (no_plotter_leak)."""
 
 import pytest
 from hypothesis import settings
@@ -22,3 +23,13 @@ def compiled_contact_fit():
 @pytest.fixture(autouse=True)
 def own_settings_folder(monkeypatch, tmp_path_factory):
     monkeypatch.setenv("TACTILE_VIEWER_CONFIG", str(tmp_path_factory.mktemp("settings")))
+
+
+@pytest.fixture
+def no_plotter_leak():
+    from pyvista.plotting import plotter as pv_plotter
+
+    before = set(pv_plotter._ALL_PLOTTERS)
+    yield
+    leaked = set(pv_plotter._ALL_PLOTTERS) - before
+    assert not leaked, f"plotters left open: {leaked}"

@@ -35,7 +35,7 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as settings:
         QtCore.QSettings.setPath(QtCore.QSettings.Format.IniFormat, QtCore.QSettings.Scope.UserScope,
                                  settings)
-        from tactile_viewer.main_window import MainWindow
+        from tactile_viewer.qt.main_window import MainWindow
 
         window = MainWindow()
         window.resize(width, height)

@@ -1,0 +1,1 @@
+"""The commands, a module each named as the command: tactile-viewer, -record, -sim and -tradeoff."""

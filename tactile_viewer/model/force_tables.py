@@ -1,0 +1,97 @@
+"""Force tables of solved frames: a recording's frames solved (or the frames the window solved) as a
+:class:`~tactile_viewer.io.forces.ForceTable`, their contacts followed. No Qt."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from solver import ContactTracker, Reconstructor
+
+from ..io.forces import ForceTable
+from ..io.recording import Recording
+from .worker import Cancelled
+
+__all__ = ["reconstruct_frames", "force_table", "contact_arrays"]
+
+
+def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frames=None, *,
+                       shear_ratio=None, shear_direction=None, progress=None) -> ForceTable:
+    """Solve the given frames (default: all) with automatic or given parameters.
+
+    The contacts are followed over the frames in the order given
+    (:class:`solver.ContactTracker`): give them increasing for identities that
+    mean the same contact over time.
+
+    Parameters
+    ----------
+    progress : callable, optional
+        ``progress(done, total) -> bool``; returning False cancels
+        (:class:`Cancelled` is raised).
+    """
+    frames = np.arange(len(recording)) if frames is None else np.atleast_1d(np.asarray(frames, dtype=int))
+    if frames.size and (frames.min() < 0 or frames.max() >= len(recording)):
+        raise ValueError(f"frames must be in [0, {len(recording) - 1}], got {frames.tolist()}")
+    results = []
+    tracker = ContactTracker(recording.grid)  # the contacts numbered in the order the frames are solved
+    for i, k in enumerate(frames):
+        results.append(tracker.update(reconstructor.solve(recording.frames[k], shear_ratio=shear_ratio,
+                                                          shear_direction=shear_direction)))
+        if progress is not None and progress(i + 1, frames.size) is False:
+            raise Cancelled(f"cancelled after {i + 1} of {frames.size} frames")
+    auto = shear_ratio is None and shear_direction is None
+    return force_table(results, frames, recording.t[frames], recording.grid, solver=reconstructor,
+                       mode="auto" if auto else "manual", source=recording.description)
+
+
+def force_table(results, frames, t, grid, *, solver, mode: str, source: str = "") -> ForceTable:
+    """The table of already solved frames: ``results[i]`` is frame ``frames[i]`` at time ``t[i]``.
+
+    ``solver`` is what solved them: its kernel and its geometry's material are recorded. The
+    contacts keep the identities the results carry (the viewer's, followed as it showed them);
+    results whose contacts carry none (0: solved alone) are followed here, in the order given.
+    """
+    fields = ("shear_ratio", "shear_direction", "efficiency", "residual", "condition")
+    if any(c.identity == 0 for r in results for c in r.contacts):
+        tracker = ContactTracker(grid)
+        results = [tracker.update(r) for r in results]
+    identity, force, centre = contact_arrays(results)
+    return ForceTable(contact_identity=identity, contact_force=force, contact_centre=centre,
+                      forces=np.array([r.forces for r in results]).reshape(len(results), grid.size, 3),
+                      frames=np.asarray(frames), t=np.asarray(t, dtype=float), positions=grid.positions,
+                      shape=tuple(grid.shape), pitch=grid.pitch, thickness=grid.thickness,
+                      kernel=solver.kernel, mode=mode, source=source,
+                      # the material the forces were solved with, which is the solver's
+                      poisson_ratio=solver.grid.poisson_ratio, sensor_size=solver.grid.sensor_size,
+                      **{name: np.array([getattr(r, name) for r in results], dtype=float) for name in fields})
+
+
+def contact_arrays(results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The contacts of solved frames as arrays: one row per frame, one slot per contact.
+
+    Parameters
+    ----------
+    results : sequence of solver.Reconstruction
+        ``T`` solved frames.
+
+    Returns
+    -------
+    identity : (T, K) ndarray of int
+        Each contact's identity (:attr:`solver.Contact.identity`) in the
+        result's order (largest normal force first); 0 in the slots beyond a
+        frame's contacts. ``K`` is the most contacts of any frame.
+    force : (T, K, 3) ndarray
+        Each contact's resultant (Fx, Fy, Fz), newtons; nan in empty slots.
+    centre : (T, K, 2) ndarray
+        Each contact's centre, metres; nan in empty slots.
+    """
+    count = len(results)
+    width = max((len(r.contacts) for r in results), default=0)
+    identity = np.zeros((count, width), np.int64)
+    force = np.full((count, width, 3), np.nan)
+    centre = np.full((count, width, 2), np.nan)
+    for row, result in enumerate(results):
+        for slot, contact in enumerate(result.contacts):
+            identity[row, slot] = contact.identity
+            force[row, slot] = contact.total_force
+            centre[row, slot] = contact.centre
+    return identity, force, centre

@@ -1,0 +1,1 @@
+"""The window: main window, menus, a module per panel, dialogs, background tasks, preferences, errors."""

@@ -1,0 +1,277 @@
+"""The live bar: connect a board, tare, record, disconnect; its state and the NO DATA banner.
+
+The panel builds a :class:`~tactile_viewer.sources.live.SerialReader` and hands
+it to the window's ``install`` (which builds the solver and sets it as the
+model's source); from then on it follows the source: a timer shows its rate,
+counts, rejections and recording, and raises the banner when frames stop.
+Tare and recording act on the source directly; what they report (a saved or
+failed recording) comes back through the model's ``message``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from pathlib import Path
+
+from PyQt6 import QtCore, QtGui, QtWidgets
+
+from ..io.layout import LayoutError, SensorLayout, load_layout
+from ..model.viewer_model import ViewerModel
+from ..sources.live import LiveSource, SerialReader
+from .connect_dialog import ConnectDialog
+
+__all__ = ["LivePanel", "TARE_FRAMES", "SILENCE_S"]
+
+TARE_FRAMES = 50  # frames averaged by a tare
+SILENCE_S = 1.0  # seconds without a frame before the banner says NO DATA
+DISPLAY_WINDOW_S = 2.0  # seconds of drawn frames the on-screen rate is measured over
+
+
+class LivePanel(QtWidgets.QFrame):
+    """A live source's state and its actions: the bar under the scene while a board is shown.
+
+    It takes the timeline's place (a board has no timeline) and is never scrolled away: the
+    counts, the REC indicator and the buttons stay in view.
+
+    Parameters
+    ----------
+    model : ViewerModel
+    install : callable
+        ``install(source) -> bool``: build the solver for ``source`` and show
+        it (the window's; it stops the source if that fails).
+    error : callable
+        ``error(title, text)``: show an error to the user.
+    notify : callable
+        ``notify(text)``: a passing note in the status bar.
+
+    Attributes
+    ----------
+    banner : QLabel
+        The NO DATA banner, placed by the window above the scene.
+    """
+
+    disconnected = QtCore.pyqtSignal()  # the board shown was disconnected by the user
+    recording_to = QtCore.pyqtSignal(str)  # the file frames are recorded to now ("": none)
+
+    def __init__(self, model: ViewerModel, *, install, error, notify, parent=None):
+        super().__init__(parent)
+        self.model = model
+        self._install, self._error, self._notify = install, error, notify
+        self._layout_name = ""  # the layout file of the board shown, to name it
+        self._recording_to = ""
+        self.setFrameShape(QtWidgets.QFrame.Shape.StyledPanel)
+        bar = QtWidgets.QHBoxLayout(self)
+        bar.setContentsMargins(6, 2, 6, 2)
+        box = QtWidgets.QVBoxLayout()
+        self.status = QtWidgets.QLabel("")
+        self.status.setWordWrap(True)
+        policy = QtWidgets.QSizePolicy.Policy
+        self.status.setSizePolicy(policy.Ignored, policy.Preferred)  # wraps, never widens the window
+        box.addWidget(self.status)
+        # seen at a glance while every frame goes to a file
+        self.recording_indicator = QtWidgets.QLabel("")
+        self.recording_indicator.setStyleSheet("color: #b00020; font-weight: bold")
+        self.recording_indicator.hide()
+        box.addWidget(self.recording_indicator)
+        bar.addLayout(box, 1)
+        self._drawn: deque = deque()  # when frames reached the screen (monotonic seconds)
+        buttons = QtWidgets.QHBoxLayout()
+        self.buttons = {}
+        tips = {"tare": f"Take the mean of the next {TARE_FRAMES} frames as the zero of every taxel "
+                        "(nothing may touch the skin meanwhile)",
+                "record": "Write every frame received, raw, with its calibration and tares, to an .mcap file",
+                "stop_recording": "Close the recording file (its frames are safe on disk already)",
+                "disconnect": "Close the port; the last frame stays shown"}
+        for label, name, slot in (("Tare", "tare", self.tare), ("Record...", "record", self.record_dialog),
+                                  ("Stop recording", "stop_recording", self.stop_recording),
+                                  ("Disconnect", "disconnect", self.disconnect_live)):
+            button = QtWidgets.QPushButton(label)
+            button.setToolTip(tips[name])
+            button.clicked.connect(lambda _=False, slot=slot: slot())
+            buttons.addWidget(button)
+            self.buttons[name] = button
+        bar.addLayout(buttons)
+        self.banner = QtWidgets.QLabel("NO DATA")
+        self.banner.setAlignment(QtCore.Qt.AlignmentFlag.AlignCenter)
+        self.banner.setStyleSheet("background: #b00020; color: white; font-weight: bold; padding: 4px")
+        # a long reason ("reconnecting: could not open port ...") wraps instead of widening the window
+        self.banner.setWordWrap(True)
+        policy = QtWidgets.QSizePolicy.Policy
+        self.banner.setSizePolicy(policy.Ignored, policy.Preferred)
+        self.banner.hide()
+        self.actions: dict[str, QtGui.QAction] = {}
+        self._timer = QtCore.QTimer(self, interval=250)
+        self._timer.timeout.connect(self.follow)
+        model.recording_changed.connect(self._on_source)
+        self.hide()
+
+    def add_actions(self, menu: QtWidgets.QMenu):
+        """Fill the Live menu: connect, disconnect, tare, record, stop recording."""
+        menu.addAction("&Connect...", self.connect_dialog)
+        for name, label, slot in (("disconnect", "&Disconnect", self.disconnect_live),
+                                  ("tare", f"&Tare (average {TARE_FRAMES} frames)", self.tare),
+                                  ("record", "&Record...", self.record_dialog),
+                                  ("stop_recording", "&Stop recording", self.stop_recording)):
+            self.actions[name] = menu.addAction(label, slot)
+        self._enable()
+
+    @property
+    def reader(self) -> LiveSource | None:
+        """The live source shown, None when a recording or nothing is."""
+        source = self.model.source
+        return source if isinstance(source, LiveSource) else None
+
+    # -- connecting ----------------------------------------------------------------------
+
+    def connect_dialog(self):
+        dialog = ConnectDialog(self.window())
+        if dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted:
+            chosen = dialog.connection()
+            self.connect_live(chosen.url, chosen.layout, fmt=chosen.fmt, baudrate=chosen.baudrate)
+
+    def connect_live(self, url: str, layout, *, fmt: str = "binary", baudrate: int = 115200) -> bool:
+        """Show frames from a serial URL; ``layout`` is a SensorLayout or its JSON path.
+
+        Errors (bad layout, port that cannot be opened) are shown and change nothing.
+        """
+        try:
+            named = "" if isinstance(layout, SensorLayout) else Path(layout).name
+            if not isinstance(layout, SensorLayout):
+                layout = load_layout(layout)
+            reader = SerialReader(url, layout, fmt=fmt, baudrate=baudrate)
+            self._layout_name = named
+            reader.start()
+        except (LayoutError, ValueError, OSError) as exc:  # pyserial's SerialException is an OSError
+            self._error("Cannot connect", f"{url}: {exc}")
+            return False
+        return self._install(reader)
+
+    def disconnect_live(self):
+        """Stop reading (and recording); the last frame stays on screen."""
+        reader = self.reader
+        if reader is not None:
+            reader.stop()
+            self.disconnected.emit()
+        self.follow()
+
+    # -- acting on the source --------------------------------------------------------------
+
+    def frame_drawn(self):
+        """A frame reached the screen (the window's ``rendered``)."""
+        now = time.monotonic()
+        self._drawn.append(now)
+        while self._drawn and self._drawn[0] < now - DISPLAY_WINDOW_S:
+            self._drawn.popleft()
+
+    def display_rate(self) -> float:
+        """Frames drawn per second over the last :data:`DISPLAY_WINDOW_S` seconds."""
+        now = time.monotonic()
+        while self._drawn and self._drawn[0] < now - DISPLAY_WINDOW_S:
+            self._drawn.popleft()
+        return len(self._drawn) / DISPLAY_WINDOW_S
+
+    def tare(self, frames: int = TARE_FRAMES):
+        """Average the next ``frames`` frames as the zero of every taxel."""
+        if self._connected():
+            self.reader.calibration.tare(frames)
+            self._notify(f"taring: averaging the next {frames} frames")
+
+    def record_dialog(self):
+        path, _ = QtWidgets.QFileDialog.getSaveFileName(self.window(), "Record live frames", "live.mcap",
+                                                        "MCAP recording (*.mcap)")
+        if path:
+            self.start_recording(path)
+
+    def start_recording(self, path) -> bool:
+        """Record every received frame (not only the displayed ones), raw, with its calibration, to MCAP."""
+        if not self._connected():
+            return False
+        self.stop_recording()
+        try:
+            self.reader.start_recording(path)
+        except (ValueError, OSError) as exc:
+            self._error("Cannot record", f"{path}: {exc}")
+            return False
+        self.follow()
+        return True
+
+    def stop_recording(self):
+        """Close the recording; the path written (None when nothing was recorded or it failed)."""
+        written = self.reader.stop_recording() if self.reader is not None else None
+        self.follow()
+        return written
+
+    # -- following the source ---------------------------------------------------------------
+
+    def _connected(self) -> bool:
+        return self.reader is not None and self.reader.state != "stopped"
+
+    def _on_source(self):
+        live = self.model.live
+        self.setVisible(live)
+        if live:
+            self._timer.start()
+        else:
+            self._timer.stop()
+        self.follow()
+
+    def _enable(self):
+        connected = self._connected()
+        recording = connected and self.reader.recorder is not None
+        for name, on in (("tare", connected), ("record", connected), ("stop_recording", recording),
+                         ("disconnect", connected)):
+            self.buttons[name].setEnabled(on)
+            if name in self.actions:
+                self.actions[name].setEnabled(on)
+
+    def follow(self):
+        """Show the source's state: rate, counts, rejections, recording; NO DATA after a silence."""
+        self._enable()
+        reader = self.reader
+        recorder = reader.recorder if reader is not None and reader.state != "stopped" else None
+        path = str(recorder.path) if recorder is not None else ""
+        if path != self._recording_to:
+            self._recording_to = path
+            self.recording_to.emit(path)
+        if recorder is None:
+            self.recording_indicator.hide()
+        if reader is None or reader.state == "stopped":
+            self.banner.hide()
+            self.status.setText(f"{reader.label}: stopped" if reader is not None else "")
+            return
+        stats = reader.stats.snapshot(reader.now())  # one count: the reader thread goes on counting
+        silence = stats.silence
+        self.banner.setVisible(silence > SILENCE_S)
+        if silence > SILENCE_S:
+            since = "no frame received yet" if silence == math.inf else f"no frame for {silence:.1f} s"
+            state = reader.state + (f": {reader.error}" if reader.error else "")
+            self.banner.setText(f"NO DATA: {since} ({state})")
+        rejected = reader.rejected()
+        parts = [f"{reader.label}: {reader.state}",
+                 f"{stats.rate:.0f} fps received, {self.display_rate():.0f} fps on screen",
+                 f"received {stats.received}", f"lost {stats.lost}"]
+        if rejected or reader.decoder.skipped_bytes:
+            parts.append("rejected " + (", ".join(f"{k} {v}" for k, v in sorted(rejected.items())) or "0")
+                         + f"; skipped {reader.decoder.skipped_bytes} B")
+            mismatch = reader.size_mismatch(self._layout_name)
+            if mismatch:
+                parts.append(mismatch)
+        if reader.reconnects:
+            parts.append(f"reconnected {reader.reconnects}x")
+        if reader.backlog_bytes:
+            parts.append(f"dropped {reader.backlog_bytes} B queued before connecting")
+        if reader.identity_notice:
+            parts.append(reader.identity_notice)
+        if reader.failures:
+            parts.append(f"{reader.failures} chunks failed: {reader.error}")
+        if reader.calibration.taring:
+            parts.append("taring")
+        if recorder is not None:
+            self.recording_indicator.show()
+            self.recording_indicator.setText(
+                f"\u25cf REC {recorder.path.name}: {recorder.added} frames ({recorder.written} on disk)"
+                + (f", {recorder.dropped} not recorded (the disk is slower than the board)"
+                   if recorder.dropped else ""))
+        self.status.setText("  \u00b7  ".join(parts))

@@ -1,0 +1,1 @@
+"""Where frames come from (no Qt): the Source interface, playback, live boards, protocol, devices."""

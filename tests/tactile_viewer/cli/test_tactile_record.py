@@ -1,0 +1,200 @@
+"""tactile-record (tactile_viewer/cli/tactile_record.py): killed at any instant, its file opens with every frame but
+the last second; Ctrl+C, SIGTERM and --duration stop it cleanly; its errors are named."""
+
+import re
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from tactile_viewer.io.files import load
+from tactile_viewer.io.recording import RecordingError
+from tests.tactile_viewer.conftest import Board
+
+# tactile-record on a slow disk: every write of the file goes out in 4 KiB pieces 5 ms apart (a
+# second of frames takes about 1.3 s), and a marker file exists while a write is under way, so
+# that a kill can be aimed inside one (the marker stays when the write dies with the process)
+SLOW_DISK = """
+import io, sys, time
+from pathlib import Path
+from tactile_viewer.cli import tactile_record as record
+from tactile_viewer.io import mcap as container
+
+marker = Path(sys.argv[1])
+
+class SlowDisk(io.FileIO):
+    def write(self, data):
+        marker.touch()
+        view, done = memoryview(data), 0
+        while done < len(view):
+            done += super().write(view[done:done + 4096])
+            time.sleep(0.005)
+        marker.unlink()
+        return done
+
+container.open = lambda name, mode, **kw: (io.BufferedWriter(SlowDisk(name, "w", **kw)) if mode == "wb"
+                                          else io.open(name, mode, **kw))
+sys.exit(record.main(sys.argv[2:]))
+"""
+
+
+def spawn(board, out, *extra, marker=None):
+    arguments = [str(board.link), "--layout", str(board.layout), "--out", str(out), *extra]
+    command = ([sys.executable, "-c", SLOW_DISK, str(marker)] if marker else
+               [sys.executable, "-m", "tactile_viewer.cli.tactile_record"]) + arguments
+    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+@pytest.fixture(scope="module")
+def board(tmp_path_factory):
+    """One 1 kHz binary board for the whole module (starting one costs seconds)."""
+    made = Board(tmp_path_factory.mktemp("board"))
+    made.start("--rate", "1000", "--seed", "4")
+    yield made
+    made.stop()
+
+
+def wait_for(condition, timeout=10.0):
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.001)
+
+
+@pytest.mark.slow
+def test_killed_at_any_instant_the_file_opens_with_every_frame_but_the_last_second(board, tmp_path):
+    rng = np.random.default_rng(21)  # fixed seed: the same kill instants every run
+    inside_a_write = 0
+    for k in range(10):
+        path, marker = tmp_path / f"kill{k}.mcap", tmp_path / f"writing{k}"
+        slow = k % 2 == 1  # every other one on the slow disk, killed inside a chunk's write
+        process = spawn(board, path, marker=marker if slow else None)
+        assert process.stdout.readline().startswith("recording")
+        # on the slow disk the first chunk is on disk about 2.3 s in: kill inside a later one
+        time.sleep(float(rng.uniform(2.6, 3.5) if slow else rng.uniform(1.0, 2.5)))
+        if slow:
+            wait_for(marker.exists)
+            time.sleep(float(rng.uniform(0.0, 0.05)))
+        killed = time.time()
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+        inside_a_write += slow and marker.exists()
+        try:
+            recording = load(path)
+        except RecordingError as error:
+            # a loaded machine can make the slow disk's first chunk the one the kill lands in: that
+            # file holds no frame and says so, which is right; nothing else may fail to open
+            assert slow and "no frames (the file was cut short before its first chunk)" in str(error)
+            continue
+        assert recording.truncated  # never finished: it opens all the same
+        steps = np.diff(recording.sequence())
+        # every frame received up to its end; the slow disk stalls the reader beyond what the
+        # pseudo-terminal buffers, so there the board itself drops frames (gaps, never repeats)
+        assert np.all(steps >= 1) and (slow or np.all(steps == 1))
+        behind = killed - (recording.received + float(recording.t[-1]))
+        # a chunk closes each second; on the slow disk, writing one takes up to about 1.3 s more
+        assert 0 <= behind <= (2.6 if slow else 1.3), f"kill {k}: the file ends {behind:.2f} s before it"
+        assert np.all(np.isfinite(recording.frames[-1]))
+    assert inside_a_write >= 3  # the kills did land inside writes (counted from the marker left)
+
+
+@pytest.mark.parametrize("stop", ["SIGTERM", "SIGINT", "--duration"])
+def test_a_stop_leaves_a_complete_file_and_says_what_was_recorded(board, tmp_path, stop):
+    path = tmp_path / "take.mcap"
+    process = spawn(board, path, *(["--duration", "1.5"] if stop == "--duration" else []))
+    assert process.stdout.readline().startswith(f"recording {board.link} (binary) to {path}")
+    if stop != "--duration":
+        assert "frames/s" in process.stdout.readline()  # once a second: rate, recorded, lost, rejected
+        process.send_signal(getattr(signal, stop))
+    out, err = process.communicate(timeout=20)
+    assert process.returncode == 0, err
+    last = out.strip().splitlines()[-1]
+    assert last.startswith("stopped: ") and "lost 0" in last and "rejected 0" in last
+    recorded = int(last.split()[1])
+    recording = load(path)
+    assert not recording.truncated and len(recording) == recorded > 200
+    assert recording.grid.shape == (16, 16) and recording.frames.raw_dtype == np.float32
+
+
+@pytest.mark.parametrize(("arguments", "code", "message"), [
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--out", "{tmp}/a.mcap"], 1, "cannot open socket://"),
+    (["{link}", "--layout", "{tmp}/missing.json", "--out", "{tmp}/a.mcap"], 2, "missing.json"),
+    (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.npz"], 1,
+     r"cannot record: .*a\.npz: a recording is written as \.mcap, got '\.npz'"),
+    (["{link}", "--layout", "{layout}", "--out", "{tmp}/no/such/folder/a.mcap"], 1,
+     "cannot record: .*No such file or directory"),
+    (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.mcap", "--duration", "0"], 2,
+     "--duration must be > 0 seconds, got 0.0"),
+    (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.mcap", "--baudrate", "4294967296"], 2,
+     "baud rate must be a whole number from 1 to 2147483647, got 4294967296"),
+])
+def test_errors_are_named_and_nothing_is_left_running(board, tmp_path, arguments, code, message):
+    filled = [a.format(layout=board.layout, link=board.link, tmp=tmp_path) for a in arguments]
+    done = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_record", *filled], capture_output=True,
+                          text=True, timeout=30)
+    assert done.returncode == code
+    assert re.search(message, done.stderr), done.stderr
+    assert not (tmp_path / "a.mcap").exists()
+
+
+FULL_DISK = """
+import errno, io, sys
+from tactile_viewer.cli import tactile_record as record
+from tactile_viewer.io import mcap as container
+
+class FullDisk(io.FileIO):
+    room = 60000  # bytes: the header and a chunk or two of 16x16 frames
+    def write(self, data):
+        if len(data) > FullDisk.room:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        FullDisk.room -= len(data)
+        return super().write(data)
+
+container.open = lambda name, mode, **kw: (io.BufferedWriter(FullDisk(name, "w", **kw)) if mode == "wb"
+                                          else io.open(name, mode, **kw))
+sys.exit(record.main(sys.argv[1:]))
+"""
+
+
+def test_after_a_write_error_the_last_line_counts_what_the_file_holds(board, tmp_path):
+    # it said 2,303 frames recorded for a file holding none: it counted the frames handed over
+    path = tmp_path / "full.mcap"
+    done = subprocess.run([sys.executable, "-c", FULL_DISK, str(board.link), "--layout", str(board.layout),
+                           "--out", str(path), "--duration", "3"], capture_output=True, text=True, timeout=30)
+    assert done.returncode == 1 and "No space left on device" in done.stderr
+    last = done.stdout.strip().splitlines()[-1]
+    recorded = int(last.split()[1])
+    held = len(load(path)) if recorded else 0
+    assert last.startswith("stopped: ") and recorded == held
+    assert re.search(r"; \d+ received but not written$", last), last
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_the_output_is_never_written_through_a_dangling_link(board, tmp_path, overwrite):
+    # --out followed a dangling symbolic link and created its target
+    link, target = tmp_path / "take.mcap", tmp_path / "target.mcap"
+    link.symlink_to(target)
+    done = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_record", str(board.link), "--layout",
+                           str(board.layout), "--out", str(link), "--duration", "1",
+                           *(["--overwrite"] if overwrite else [])], capture_output=True, text=True, timeout=30)
+    assert done.returncode == (1 if overwrite else 2)
+    assert ("is a symbolic link: a recording is not written through one" if overwrite else
+            "exists: not replacing a recording") in done.stderr
+    assert not target.exists() and link.is_symlink()
+
+
+def test_an_existing_recording_is_not_replaced_without_overwrite(board, tmp_path):
+    path = tmp_path / "take.mcap"
+    path.write_bytes(b"an earlier session")
+    arguments = [str(board.link), "--layout", str(board.layout), "--out", str(path)]
+    done = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_record", *arguments], capture_output=True,
+                          text=True, timeout=30)
+    assert done.returncode == 2 and "exists: not replacing a recording (--overwrite replaces it)" in done.stderr
+    assert path.read_bytes() == b"an earlier session"
+    done = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_record", *arguments, "--overwrite",
+                           "--duration", "1.2"], capture_output=True, text=True, timeout=30)
+    assert done.returncode == 0, done.stderr
+    assert len(load(path)) > 100

@@ -1,0 +1,932 @@
+"""tactile-sim: the Board byte stream, the scenes, the lazy cycle, the command line on a real pseudo-terminal."""
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+import serial
+
+from solver import SensorGrid
+from tactile_viewer.cli import tactile_sim as simulator
+from tactile_viewer.cli.tactile_sim import (
+    SCENES,
+    Board,
+    Cycle,
+    contact_cycle,
+    main,
+    scene_contacts,
+    scene_frame,
+)
+from tactile_viewer.io.layout import SensorLayout, load_layout
+from tactile_viewer.sources.protocol import BinaryDecoder, TextDecoder, crc16, make_decoder
+
+
+@pytest.fixture(scope="module")
+def layout():
+    # 4x4 keeps the cycle fast; kPa as the CLI sends by default
+    return SensorLayout(SensorGrid.regular(4, 4, 2e-3, 2e-3), "kPa")
+
+
+@pytest.fixture
+def make_board():
+    """``make_board(layout, **options)``: a :class:`Board` closed when the test ends, however it ends."""
+    boards = []
+
+    def make(*args, **kwargs):
+        boards.append(Board(*args, **kwargs))
+        return boards[-1]
+    try:
+        yield make
+    finally:
+        for board in boards:
+            board.close()
+
+
+def wait_for(condition, what, timeout=30.0):
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, what
+        time.sleep(0.01)
+
+
+def stream(board, frames):
+    return b"".join(board.next_bytes() for _ in range(frames))
+
+
+def decode(fmt, count, data, seed=0):
+    """Feed ``data`` in random pieces (as a serial port delivers it); the decoder and its frames."""
+    decoder = make_decoder(fmt, count)
+    rng = np.random.default_rng(seed)
+    frames, start = [], 0
+    while start < len(data):
+        end = start + int(rng.integers(1, 200))
+        frames += decoder.feed(data[start:end])
+        start = end
+    return decoder, frames
+
+
+def clean(board, seq):
+    """The noiseless frame ``seq`` in the units on the wire (the cycle advances with time, not frames)."""
+    index = int((seq / board.rate) / board.period * len(board.cycle)) % len(board.cycle)
+    assert index == board.index(seq)
+    return board.cycle[index] * 1e-3
+
+
+# -- Board ----------------------------------------------------------------------------------------
+
+def test_board_cycle_is_the_contact_cycle(layout, make_board):
+    board = make_board(layout)
+    assert board.period == 2.0 and len(board.cycle) == 100  # the circling contact, by default
+    cycle = contact_cycle(layout.grid)
+    for k in (0, 13, 50, 99):
+        # computed here, independently of any cycle: the scene's contacts through the bonded layer ...
+        contacts = scene_contacts("circle", layout.grid, k / 100)
+        coarse = simulator.loads.simulate(layout.grid, contacts, medium="layer",
+                                          subdivisions=simulator._subdivisions(layout.grid, contacts))
+        np.testing.assert_array_equal(board.cycle[k], coarse.clean_stress)
+        np.testing.assert_array_equal(cycle[k], coarse.clean_stress)
+        # ... and on loads' default (finer) sub-cells: within 0.65% of the peak, as the module says
+        fine = simulator.loads.simulate(layout.grid, contacts, medium="layer").clean_stress
+        np.testing.assert_allclose(board.cycle[k], fine, rtol=0, atol=0.0065 * np.abs(fine).max())
+
+
+@pytest.mark.parametrize("fmt", ["binary", "text"])
+def test_noiseless_board_sends_the_clean_cycle(layout, fmt, make_board):
+    board = make_board(layout, fmt=fmt, rate=50.0, noise=0.0)  # 50 Hz: one cycle row per frame
+    decoder, frames = decode(fmt, layout.count, stream(board, 250))
+    assert board.sent == len(frames) == decoder.accepted == 250
+    assert board.dropped == board.garbage_bursts == 0 and decoder.skipped_bytes == 0 and not decoder.rejected
+    expected = np.array([clean(board, k) for k in range(250)])
+    np.testing.assert_array_equal(expected[100], expected[0])  # the contact went once round in 2 s
+    got = np.array([f.values for f in frames])
+    if fmt == "binary":
+        assert [f.seq for f in frames] == list(range(250))
+        np.testing.assert_array_equal(got, expected.astype(np.float32))  # float32 on the wire, exactly
+    else:
+        assert all(f.seq is None for f in frames)
+        np.testing.assert_allclose(got, expected, rtol=5e-6, atol=0)  # six significant digits
+
+
+def test_noise_is_gaussian_relative_to_the_frames_peak(layout, make_board):
+    board = make_board(layout, rate=100.0, noise=0.02, seed=11)  # fixed seed
+    _, frames = decode("binary", layout.count, stream(board, 400))
+    assert [f.seq for f in frames] == list(range(400))
+    # in units of each frame's own sigma: 2% of its peak clean stress (as loads.simulate has it)
+    sigma = np.array([0.02 * np.abs(clean(board, f.seq)).max() for f in frames])
+    assert sigma.max() > 1.5 * sigma.min()  # the circling contact's force varies: so does the noise
+    residual = np.array([(f.values - clean(board, f.seq)) / s for f, s in zip(frames, sigma, strict=True)])
+    assert np.abs(residual).max() < 6  # 6400 samples: 6 sigma is never reached by chance
+    assert residual.std() == pytest.approx(1.0, rel=0.05)
+    assert abs(residual.mean()) < 0.05
+
+
+def test_an_unloaded_start_gives_a_tare_its_moment_then_the_scene(layout, make_board):
+    # before: the simulator's contact never left the skin, so every tare taken on it warned
+    from tactile_viewer.sources.live import loaded_while_taring
+
+    board = make_board(layout, rate=50.0, noise=0.01, seed=12, unloaded=1.0)  # fixed seed; 50 frames unloaded
+    _, frames = decode("binary", layout.count, stream(board, 100))
+    values = np.array([f.values for f in frames])
+    assert loaded_while_taring(values[:50] * 1e3, np.zeros(layout.count)) is None  # kPa on the wire
+    assert np.abs(values[:50]).max() < 0.1 * np.abs(values[50:]).max()  # then the contact comes
+    np.testing.assert_allclose(values[50:], [clean(board, k) for k in range(50, 100)],
+                               atol=6 * 0.01 * max(board.cycle.peak(k) for k in range(100)))
+
+
+def test_boards_with_the_same_seed_send_the_same_bytes(layout, make_board):
+    a = make_board(layout, noise=0.01, garbage=0.2, dropout=0.1, seed=3)  # fixed seed
+    b = make_board(layout, noise=0.01, garbage=0.2, dropout=0.1, seed=3)
+    assert stream(a, 50) == stream(b, 50)
+
+
+def test_dropout_leaves_sequence_gaps_of_exactly_the_dropped_frames(layout, make_board):
+    board = make_board(layout, dropout=0.2, seed=5)  # fixed seed
+    decoder, frames = decode("binary", layout.count, stream(board, 300))
+    seqs = [f.seq for f in frames]
+    assert 30 < board.dropped < 90 and board.sent + board.dropped == 300 == board.seq
+    assert len(frames) == board.sent and decoder.skipped_bytes == 0
+    assert seqs == sorted(seqs)
+    missing = set(range(300)) - set(seqs)
+    assert len(missing) == board.dropped
+    # the gaps inside the stream plus any drops at its two ends
+    assert sum(np.diff(seqs) - 1) + seqs[0] + (299 - seqs[-1]) == board.dropped
+
+
+def test_binary_garbage_is_counted_and_every_frame_recovered(layout, make_board):
+    board = make_board(layout, fmt="binary", garbage=0.3, seed=9)  # fixed seed
+    decoder, frames = decode("binary", layout.count, stream(board, 400), seed=1)
+    assert 60 < board.garbage_bursts < 180 and board.garbage_bytes >= board.garbage_bursts
+    assert [f.seq for f in frames] == list(range(400))  # every frame, in order
+    # each garbage byte is skipped exactly once, by the search or by a rejected false sync
+    assert decoder.skipped_bytes == board.garbage_bytes
+
+
+def test_text_garbage_lines_are_rejected_or_skipped(layout, make_board):
+    board = make_board(layout, fmt="text", rate=50.0, noise=0.0, garbage=0.3, seed=9)  # fixed seed
+    decoder, frames = decode("text", layout.count, stream(board, 300), seed=2)
+    assert board.garbage_bursts > 50
+    assert len(frames) == board.sent == 300
+    # a bad line is rejected (not numbers, wrong count); a blank or '#' one is skipped uncounted
+    assert 0 < sum(decoder.rejected.values()) <= board.garbage_bursts
+    np.testing.assert_allclose([f.values for f in frames], [clean(board, k) for k in range(300)], rtol=5e-6)
+
+
+def test_board_checksum_ends_each_text_line_with_its_crc(layout, make_board):
+    plain = make_board(layout, fmt="text", rate=50.0, noise=0.01, seed=4)  # fixed seed, the same for both
+    checked = make_board(layout, fmt="text", rate=50.0, noise=0.01, seed=4, checksum=True)
+    data, reference = stream(checked, 200), stream(plain, 200)
+    lines = data.splitlines()
+    assert len(lines) == 200
+    for line in lines:
+        body, digits = re.fullmatch(rb"([^*]+)\*([0-9A-F]{4})", line).groups()
+        assert int(digits, 16) == crc16(body)
+    # the same frames as without checksum, each followed by its "*XXXX"
+    assert re.sub(rb"\*[0-9A-F]{4}\n", b"\n", data) == reference
+    decoder, frames = decode("text", layout.count, data, seed=3)
+    assert len(frames) == 200 and not decoder.rejected and decoder.checked
+    _, expected = decode("text", layout.count, reference)
+    np.testing.assert_array_equal([f.values for f in frames], [f.values for f in expected])
+
+
+def test_board_checksum_rejects_text_garbage_lines_as_missing_their_checksum(layout, make_board):
+    board = make_board(layout, fmt="text", rate=50.0, noise=0.0, garbage=0.3, seed=9, checksum=True)  # fixed seed
+    decoder, frames = decode("text", layout.count, stream(board, 300), seed=2)
+    assert board.garbage_bursts > 50 and len(frames) == board.sent == 300
+    np.testing.assert_allclose([f.values for f in frames], [clean(board, k) for k in range(300)], rtol=5e-6)
+    # after the first checked line, a garbage line (blank and "#" ones aside) lacks a checksum
+    assert decoder.rejected["missing checksum"] > 0
+    assert 0 < sum(decoder.rejected.values()) <= board.garbage_bursts
+
+
+def test_board_refuses_a_checksum_for_binary_frames(layout):
+    with pytest.raises(ValueError, match=r"checksum applies to the text format only \(binary frames always "
+                                         r"carry a CRC\), got fmt='binary'"):
+        Board(layout, fmt="binary", checksum=True)
+
+
+def test_board_sends_in_the_layout_units(make_board):
+    grid = SensorGrid.regular(3, 2, 2e-3, 2e-3)
+    pascals = make_board(SensorLayout(grid, "Pa"), noise=0.0)
+    megapascals = make_board(SensorLayout(grid, "MPa"), noise=0.0)
+    _, (pa,) = decode("binary", 6, pascals.next_bytes())
+    _, (mpa,) = decode("binary", 6, megapascals.next_bytes())
+    np.testing.assert_allclose(mpa.values * 1e6, pa.values, rtol=1e-6)
+    np.testing.assert_allclose(pa.values, pascals.cycle[0], rtol=1e-7)
+
+
+@pytest.mark.parametrize("options, message", [
+    (dict(rate=0), r"rate must be a finite number of frames per second > 0, got 0$"),
+    (dict(rate=-5.0), r"rate must be a finite number of frames per second > 0, got -5.0$"),
+    (dict(rate=float("nan")), r"rate must be a finite number of frames per second > 0, got nan$"),
+    (dict(rate=float("inf")), r"rate must be a finite number of frames per second > 0, got inf$"),
+    (dict(noise=-0.1), r"noise must be a finite number >= 0 \(relative to the frame's peak\), got -0.1$"),
+    (dict(noise=float("nan")), r"noise must be a finite number >= 0 \(relative to the frame's peak\), got nan$"),
+    (dict(garbage=1.5), r"garbage must be a probability in \[0, 1\], got 1.5$"),
+    (dict(dropout=-0.1), r"dropout must be a probability in \[0, 1\], got -0.1$"),
+    (dict(fmt="hex"), r"fmt must be one of \('binary', 'text'\), got 'hex'$"),
+    (dict(unloaded=-1.0), r"unloaded must be a finite number of seconds >= 0, got -1.0$"),
+])
+def test_board_refuses_bad_arguments_naming_them(layout, options, message, monkeypatch):
+    monkeypatch.setattr(simulator, "_CYCLES", {})
+    with pytest.raises(ValueError, match=message):
+        Board(layout, **options)
+    assert simulator._CYCLES == {}  # refused up front: no cycle made, no thread started
+
+
+# -- contact_cycle --------------------------------------------------------------------------------
+
+def test_contact_cycle_circles_the_centre():
+    grid = SensorGrid.regular(8, 8, 2e-3, 2e-3)
+    cycle = contact_cycle(grid, 8)
+    assert cycle.shape == (8, 64) and np.all(np.isfinite(cycle))
+    assert np.all(cycle.sum(axis=1) > 0)  # a press, every frame
+    weights = np.clip(cycle, 0, None)
+    centroids = weights @ grid.positions / weights.sum(axis=1, keepdims=True)
+    # frame k is at angle 2 pi k / 8 around the centre: the centroid follows it round
+    angles = np.arctan2(centroids[:, 1], centroids[:, 0])
+    turned = np.angle(np.exp(1j * (angles - 2 * np.pi * np.arange(8) / 8)))
+    assert np.abs(turned).max() < 0.2
+    assert np.linalg.norm(centroids[0] - centroids[4]) > 2 * grid.pitch  # opposite sides: it moved
+    assert np.all(np.linalg.norm(centroids, axis=1) > grid.pitch)  # never parked on the centre
+
+
+# -- the command line -----------------------------------------------------------------------------
+
+def run_sim(tmp_path, *options):
+    link, layout = tmp_path / "board", tmp_path / "layout.json"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--link", str(link), "--layout", str(layout),
+         *options], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return process, link, layout
+
+
+def read_link_until_exit(link, process):
+    """Open the board's link as a reader would and take everything until the board exits."""
+    port = serial.serial_for_url(str(link), timeout=0.05)
+    try:
+        return read_until_exit(port, process)
+    finally:
+        port.close()
+
+
+def read_until_exit(port, process, timeout=15.0):
+    """Everything the board sends until it exits (its pseudo-terminal then reports an error)."""
+    data = bytearray()
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            chunk = port.read(max(1, port.in_waiting))
+        except (serial.SerialException, OSError):
+            break  # the master side closed: the board is gone
+        data += chunk
+        if not chunk and process.poll() is not None:
+            break
+    else:
+        pytest.fail("the simulator did not finish in time")
+    return bytes(data)
+
+
+@pytest.fixture
+def processes():
+    started = []
+    yield started
+    for process in started:
+        if process.poll() is None:
+            process.kill()
+        process.communicate(timeout=10)
+
+
+def test_cli_streams_through_a_linked_pseudo_terminal(tmp_path, processes):
+    process, link, layout_path = run_sim(tmp_path, "--rate", "500", "--duration", "1",
+                                         "--nx", "6", "--ny", "4", "--noise", "0")
+    processes.append(process)
+    line = process.stdout.readline().strip()
+    assert line.startswith("/dev/pts/") and line.endswith(f"(link {link})")
+    device = line.split()[0]
+    assert link.is_symlink() and os.path.realpath(link) == os.path.realpath(device)  # exists while running
+    data = read_link_until_exit(link, process)
+    assert process.wait(timeout=10) == 0
+    assert not link.exists() and not link.is_symlink()  # removed at exit
+    assert "sent 500 frames, dropped 0" in process.stderr.read()
+
+    layout = load_layout(layout_path)
+    assert layout.grid.shape == (4, 6) and layout.units == "kPa" and layout.grid.pitch == 2e-3
+    decoder = BinaryDecoder(layout.count)
+    frames = decoder.feed(data)
+    seqs = np.array([f.seq for f in frames])
+    # opening the port flushes what was queued before, so the first few may be missed; none after that
+    assert len(frames) >= 450 and seqs[-1] == 499
+    np.testing.assert_array_equal(np.diff(seqs), 1)
+    assert not decoder.rejected and decoder.pending == 0
+    # the frames are the cycle of the layout it wrote, in kPa
+    cycle = contact_cycle(layout.grid) * 1e-3
+    index = (seqs / 500 / 2.0 * len(cycle)).astype(int) % len(cycle)
+    np.testing.assert_allclose([f.values for f in frames], cycle[index], rtol=1e-6)
+
+
+def test_cli_text_format(tmp_path, processes):
+    process, link, layout_path = run_sim(tmp_path, "--format", "text", "--rate", "200", "--duration", "0.5",
+                                         "--nx", "3", "--ny", "2", "--noise", "0")
+    processes.append(process)
+    process.stdout.readline()
+    data = read_link_until_exit(link, process)
+    assert process.wait(timeout=10) == 0
+    layout = load_layout(layout_path)
+    decoder = TextDecoder(layout.count)
+    frames = decoder.feed(data)
+    # the port may open in the middle of a line: at most that one is rejected
+    assert len(frames) >= 80 and sum(decoder.rejected.values()) <= 1
+    cycle = contact_cycle(layout.grid) * 1e-3
+    for frame in frames[1:]:  # the first may be the tail of a cut line that still parses
+        assert np.abs(frame.values / cycle - 1).max(axis=1).min() < 1e-5  # one of the cycle's frames
+
+
+def test_cli_text_format_with_checksum(tmp_path, processes):
+    process, link, layout_path = run_sim(tmp_path, "--format", "text", "--checksum", "--rate", "200",
+                                         "--duration", "0.5", "--nx", "3", "--ny", "2", "--noise", "0")
+    processes.append(process)
+    process.stdout.readline()
+    data = read_link_until_exit(link, process)
+    assert process.wait(timeout=10) == 0
+    layout = load_layout(layout_path)
+    decoder = TextDecoder(layout.count)
+    frames = decoder.feed(data)
+    # the port may open in the middle of a line: at most that one fails its checksum
+    assert len(frames) >= 80 and decoder.checked and sum(decoder.rejected.values()) <= 1
+    assert all(re.fullmatch(rb"[^*]+\*[0-9A-F]{4}", line) for line in data.splitlines()[1:])
+    cycle = contact_cycle(layout.grid) * 1e-3
+    for frame in frames:  # a cut first line fails its checksum instead of passing as a tail that parses
+        assert np.abs(frame.values / cycle - 1).max(axis=1).min() < 1e-5
+
+
+@pytest.mark.parametrize("options", [["--checksum"], ["--checksum", "--format", "binary"]])
+def test_cli_refuses_checksum_with_binary_frames(options, capsys, tmp_path):
+    with pytest.raises(SystemExit) as info:
+        main([*options, "--link", str(tmp_path / "board")])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: tactile-sim")
+    assert err.splitlines()[-1].endswith("--checksum needs --format text (binary frames always carry a CRC), "
+                                         "got --format binary")
+    assert not (tmp_path / "board").exists()
+
+
+def test_cli_sigterm_exits_cleanly_and_removes_the_link(tmp_path, processes):
+    process, link, _ = run_sim(tmp_path, "--rate", "200", "--nx", "3", "--ny", "2")  # no duration: runs on
+    processes.append(process)
+    process.stdout.readline()
+    port = serial.serial_for_url(str(link), timeout=0.05)
+    try:
+        deadline = time.monotonic() + 10
+        while not port.read(64):  # bytes flowing: the main loop (and its SIGTERM handler) is running
+            assert time.monotonic() < deadline, "no bytes from the simulator"
+    finally:
+        port.close()
+    process.send_signal(signal.SIGTERM)
+    assert process.wait(timeout=10) == 0
+    assert not link.is_symlink()
+    assert "sent " in process.stderr.read()
+
+
+@pytest.mark.parametrize("option, value", [
+    ("--rate", "0"), ("--rate", "2000"), ("--rate", "nan"), ("--garbage", "1.5"), ("--dropout", "-0.1"),
+    ("--nx", "0"), ("--ny", "-2"), ("--pitch", "0"), ("--format", "hex"), ("--units", "counts"),
+])
+def test_cli_rejects_bad_arguments(option, value, capsys, tmp_path):
+    # argument errors come before the pseudo-terminal is opened, so main() can run in this process
+    with pytest.raises(SystemExit) as info:
+        main([option, value, "--link", str(tmp_path / "board")])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: tactile-sim")
+    assert option.lstrip("-") in err.splitlines()[-1]  # the message names the option
+    assert not (tmp_path / "board").exists()
+
+
+def test_cli_writes_poisson_ratio_and_sensor_size_to_its_layout(tmp_path):
+    layout_path = tmp_path / "layout.json"
+    out = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--nx", "3", "--ny", "2",
+                          "--poisson-ratio", "0.45", "--sensor-size", "1e-3", "--duration", "0",
+                          "--layout", str(layout_path), "--link", str(tmp_path / "board")],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr[-500:]
+    grid = load_layout(layout_path).grid
+    assert grid.poisson_ratio == 0.45 and grid.sensor_size == 1e-3 and grid.shape == (2, 3)
+
+
+def test_cli_layout_defaults_to_an_incompressible_layer_and_point_sensors(tmp_path):
+    layout_path = tmp_path / "layout.json"
+    out = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--nx", "3", "--ny", "2",
+                          "--duration", "0", "--layout", str(layout_path), "--link", str(tmp_path / "board")],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr[-500:]
+    spec = json.loads(layout_path.read_text())
+    assert spec["poisson_ratio"] == 0.5 and spec["sensor_size"] == 0.0
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--poisson-ratio", "0.7", r"poisson_ratio must be a finite number in [0, 0.5], got 0.7"),
+    ("--poisson-ratio", "nan", r"poisson_ratio must be a finite number in [0, 0.5], got nan"),
+    ("--sensor-size", "3e-3", r"sensor_size must be at most the pitch (taxels cannot overlap), got 0.003 m"),
+    ("--sensor-size", "-1e-3", r"sensor_size must be a finite number of metres >= 0"),
+])
+def test_cli_rejects_an_impossible_material_or_taxel(option, value, message, capsys, tmp_path):
+    with pytest.raises(SystemExit) as info:
+        main([f"{option}={value}", "--link", str(tmp_path / "board")])  # "=": argparse takes -1e-3 for an option
+    assert info.value.code == 2 and message in capsys.readouterr().err
+    assert not (tmp_path / "board").exists()
+
+
+def test_cli_rejects_negative_noise(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--noise", "-0.1", "--nx", "3",
+                          "--ny", "2", "--duration", "0.2", "--link", str(tmp_path / "board")],
+                         capture_output=True, text=True, timeout=30)
+    assert out.returncode == 2 and "--noise" in out.stderr, out.stderr[-500:]
+
+
+def test_cli_duration_bounds_the_frame_count():
+    # --duration 0.1 at 100 Hz: exactly 10 sequence numbers are used, even with nobody reading
+    out = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--rate", "100",
+                          "--duration", "0.1", "--nx", "3", "--ny", "2",
+                          "--dropout", "0.5", "--seed", "1"],  # fixed seed: some dropped, some sent
+                         capture_output=True, text=True, timeout=30)
+    assert out.returncode == 0, out.stderr
+    counts = re.search(r"sent (\d+) frames, dropped (\d+)", out.stderr)
+    sent, dropped = int(counts[1]), int(counts[2])
+    assert sent + dropped == 10 and dropped > 0
+
+
+@pytest.mark.parametrize("value", ["nan", "-1", "-inf"])
+def test_cli_refuses_a_duration_that_is_no_number_of_seconds(value, capsys, tmp_path):
+    with pytest.raises(SystemExit) as info:
+        main([f"--duration={value}", "--link", str(tmp_path / "board")])  # "=": argparse takes -1 for an option
+    assert info.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        f"tactile-sim: error: --duration must be a number of seconds >= 0 (inf: no limit), got {value}")
+    assert not (tmp_path / "board").exists()
+
+
+def fake_frames(monkeypatch, gate):
+    """Make the scene frames wait: frame ``k`` of a cycle of ``CYCLE`` is computed once ``gate(k)`` returns.
+
+    The cache of cycles starts empty (and the test's cycles stay out of the real one).
+    """
+    real = simulator.scene_frame
+
+    def gated(scene, grid, phase, **kwargs):
+        gate(round(phase * simulator.CYCLE))
+        return real(scene, grid, phase, **kwargs)
+
+    monkeypatch.setattr(simulator, "scene_frame", gated)
+    monkeypatch.setattr(simulator, "_CYCLES", {})  # no cycle computed or cached outside this test
+
+
+def test_the_port_and_layout_exist_before_the_first_frame_is_computed(tmp_path, monkeypatch, capsys):
+    # a viewer told the port connects at once: the device path is printed, the link made and
+    # the layout written before any frame is computed
+    link, layout = tmp_path / "board", tmp_path / "board.json"
+    seen = {}
+    release = threading.Event()
+
+    def look():
+        deadline = time.monotonic() + 10
+        while not link.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        seen.update(link=link.exists(), layout=layout.exists(), opened=serial.Serial(str(link)).is_open,
+                    computed=[cycle.computed for cycle in simulator._CYCLES.values()])
+        release.set()
+    fake_frames(monkeypatch, lambda k: release.wait(10))
+    checker = threading.Thread(target=look)
+    checker.start()
+    assert main(["--link", str(link), "--layout", str(layout), "--duration", "0.05", "--nx", "3", "--ny", "2"]) == 0
+    checker.join()
+    # all while no frame was computed (the cycle may not even exist yet)
+    assert seen == dict(link=True, layout=True, opened=True, computed=seen["computed"])
+    assert seen["computed"] in ([], [0])
+    assert capsys.readouterr().out.startswith("/dev/pts/")
+
+
+def test_the_first_frame_is_sent_before_the_rest_of_the_cycle_is_computed(tmp_path, monkeypatch, capsys):
+    # the board sends frame 0 while frame 1 cannot be computed yet: it does not compute its whole
+    # cycle before sending (as it once did, for about 3 s)
+    link = tmp_path / "board"
+    opened, release = threading.Event(), threading.Event()
+    got = {}
+
+    def gate(k):
+        opened.wait(10)  # no frame before the reader has the port open (opening flushes what is queued)
+        if k > 0:
+            release.wait(10)
+
+    def read():
+        deadline = time.monotonic() + 10
+        while not link.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        decoder = BinaryDecoder(6)
+        with serial.Serial(str(link), timeout=0.05) as port:
+            opened.set()
+            frames = []
+            while not frames and time.monotonic() < deadline:
+                frames += decoder.feed(port.read(64))
+            got.update(seq=frames[0].seq if frames else None,
+                       computed=[(cycle.computed, len(cycle)) for cycle in simulator._CYCLES.values()])
+            release.set()
+            while port.read(4096):  # drain, so that the board never stalls on a full port
+                pass
+    fake_frames(monkeypatch, gate)
+    reader = threading.Thread(target=read)
+    reader.start()
+    assert main(["--link", str(link), "--duration", "0.1", "--nx", "3", "--ny", "2", "--noise", "0"]) == 0
+    reader.join()
+    assert got == dict(seq=0, computed=[(1, 100)])  # frame 0 on the wire, 1 of the cycle's 100 computed
+    assert "sent 10 frames" in capsys.readouterr().err
+
+
+def test_duration_sends_all_its_frames_even_when_frames_are_slow_to_compute(tmp_path, monkeypatch, capsys):
+    # 0.1 s at 100 Hz is 10 frames, also when computing them takes longer than sending them would
+    fake_frames(monkeypatch, lambda k: time.sleep(0.05))
+    assert main(["--link", str(tmp_path / "board"), "--duration", "0.1", "--nx", "3", "--ny", "2"]) == 0
+    assert "sent 10 frames, dropped 0" in capsys.readouterr().err
+
+
+# -- the lazy cycle -------------------------------------------------------------------------------
+
+def test_a_cycle_computes_a_frame_when_it_is_first_asked_for():
+    grid = SensorGrid.regular(3, 2, 2e-3, 2e-3)
+    cycle = Cycle("circle", grid, 10)  # never started: no background thread
+    assert len(cycle) == 10 and cycle.computed == 0 and not cycle.ready(0)
+    first = cycle[0]
+    assert cycle.computed == 1 and cycle.ready(0) and not cycle.ready(1)  # only the frame asked for
+    np.testing.assert_array_equal(first, scene_frame("circle", grid, 0.0).clean_stress)
+    assert cycle.peak(0) == np.abs(first).max() and cycle.computed == 1
+    assert cycle[0] is first  # computed once
+    # frames depend on their index only, not on the order they were computed in
+    backwards = Cycle("circle", grid, 10)
+    reversed_frames = [backwards[k] for k in reversed(range(10))][::-1]
+    np.testing.assert_array_equal(cycle.array(), reversed_frames)
+    np.testing.assert_array_equal(cycle[3], scene_frame("circle", grid, 0.3).clean_stress)
+    assert cycle.computed == 10
+    with pytest.raises(IndexError, match="frame 10 of a 10-frame cycle"):
+        cycle[10]
+
+
+def test_a_board_sends_its_first_frame_while_its_cycle_is_still_computing(monkeypatch):
+    # the background thread is held at frame 1: the board sends frame 0 (and any frame asked for
+    # computes itself), then the thread finishes the cycle
+    release = threading.Event()
+    fake_frames(monkeypatch, lambda k: k > 0 and release.wait(10))
+    board = Board(SensorLayout(SensorGrid.regular(8, 8, 2e-3, 2e-3), "Pa"), rate=50.0, noise=0.0)
+    try:
+        _, (first,) = decode("binary", 64, board.next_bytes())
+        assert first.seq == 0 and board.cycle.computed == 1 and not board.cycle.ready(1)
+        np.testing.assert_allclose(first.values, board.cycle[0], rtol=1e-7)
+        release.set()
+        deadline = time.monotonic() + 30
+        while board.cycle.computed < len(board.cycle):
+            assert time.monotonic() < deadline, "the background thread did not finish the cycle"
+            time.sleep(0.01)
+    finally:
+        release.set()
+        board.close()
+
+
+def test_a_failing_frame_raises_where_it_is_asked_for_and_is_tried_again(monkeypatch):
+    failing = {3}
+
+    def gate(k):
+        if k in failing:
+            raise RuntimeError(f"frame {k} failed")
+    fake_frames(monkeypatch, gate)
+    cycle = Cycle("circle", SensorGrid.regular(3, 2, 2e-3, 2e-3)).start()
+    with pytest.raises(RuntimeError, match="frame 3 failed"):
+        cycle[3]
+    failing.clear()
+    assert np.all(np.isfinite(cycle[3])) and cycle.ready(3)
+    cycle.close()
+
+
+def test_cycles_are_shared_by_scene_and_everything_of_the_grid():
+    grid = SensorGrid.regular(3, 2, 2e-3, 2e-3)
+    cycle = simulator.shared_cycle("circle", grid)
+    assert simulator.shared_cycle("circle", SensorGrid.regular(3, 2, 2e-3, 2e-3)) is cycle
+    for other in (grid.replace(thickness=3e-3), grid.replace(poisson_ratio=0.45), grid.replace(sensor_size=1e-3),
+                  SensorGrid.regular(2, 3, 2e-3, 2e-3)):
+        assert simulator.shared_cycle("circle", other) is not cycle
+    assert simulator.shared_cycle("twist", grid) is not cycle
+
+
+@pytest.mark.slow
+def test_boards_sharing_a_cycle_keep_it_computing_until_the_last_one_closes(monkeypatch):
+    fake_frames(monkeypatch, lambda k: time.sleep(0.01))  # slower: the thread is seen at work
+    layout = SensorLayout(SensorGrid.regular(3, 2, 2e-3, 2e-3), "Pa")
+    a, b = Board(layout, rate=50.0, noise=0.0), Board(layout, rate=50.0, noise=0.0)
+    try:
+        cycle = a.cycle
+        assert b.cycle is cycle and cycle.users == 2
+        a.close()
+        a.close()  # closing twice lets go once
+        assert cycle.users == 1 and cycle.computing  # b still has its frames computed ahead
+        closed_at = cycle.computed
+        wait_for(lambda: cycle.computed >= min(closed_at + 3, len(cycle)),
+                 "the thread stopped although b still uses the cycle")  # b has asked for no frame yet
+        _, frames = decode("binary", 6, stream(b, 100))  # 2 s at 50 Hz: the cycle's frames
+        assert [f.seq for f in frames] == list(range(100))
+        expected = [simulator.loads.simulate(layout.grid, contacts, medium="layer",
+                                             subdivisions=simulator._subdivisions(layout.grid, contacts)).clean_stress
+                    for contacts in (scene_contacts("circle", layout.grid, k / 100) for k in range(100))]
+        np.testing.assert_allclose([f.values for f in frames], [expected[b.index(f.seq)] for f in frames],
+                                   rtol=1e-6)
+    finally:
+        a.close()
+        b.close()
+    assert cycle.users == 0
+
+
+def test_the_last_board_to_close_stops_the_thread_and_a_new_one_restarts_it(monkeypatch):
+    fake_frames(monkeypatch, lambda k: time.sleep(0.03))  # 3 s a cycle
+    layout = SensorLayout(SensorGrid.regular(3, 2, 2e-3, 2e-3), "Pa")
+    a, b = Board(layout, noise=0.0), Board(layout, noise=0.0)
+    cycle = a.cycle
+    worker = cycle._worker
+    try:
+        a.close()
+        assert worker.is_alive()
+    finally:
+        b.close()
+    assert not worker.is_alive() and not cycle.computing and cycle.users == 0  # ended after its frame
+    stopped_at = cycle.computed
+    assert stopped_at < len(cycle)
+    with Board(layout, noise=0.0) as c:  # a board after the stop: a new thread finishes the cycle
+        assert c.cycle is cycle and cycle.users == 1 and cycle.computing
+        wait_for(lambda: cycle.computed == len(cycle), "the restarted thread did not finish the cycle")
+    assert cycle.users == 0 and not cycle._worker.is_alive()
+
+
+def test_a_cycle_started_while_its_thread_is_stopping_computes_again(monkeypatch):
+    fake_frames(monkeypatch, lambda k: time.sleep(0.03))
+    cycle = Cycle("circle", SensorGrid.regular(3, 2, 2e-3, 2e-3)).start()
+    try:
+        stopping = cycle._worker
+        cycle.close(timeout=0)  # told to stop, still on its frame
+        cycle.start()  # waits for it, then starts anew (once this did nothing, the stop flag left set)
+        assert not stopping.is_alive() and cycle.computing
+        wait_for(lambda: cycle.computed == len(cycle), "the cycle did not compute again after start()")
+    finally:
+        cycle.close()
+
+
+# -- the scenes -----------------------------------------------------------------------------------
+
+GRIDS = [(16, 16), (32, 32), (8, 8), (4, 4), (3, 2), (24, 8), (6, 20), (1, 1)]
+
+
+@pytest.mark.parametrize("shape", GRIDS)
+@pytest.mark.parametrize("scene", list(SCENES))
+def test_every_scene_stays_on_the_skin(scene, shape):
+    grid = SensorGrid.regular(*shape, 2e-3, 2e-3)
+    low = grid.positions.min(axis=0) - grid.pitch / 2  # the node cells' rectangle
+    high = grid.positions.max(axis=0) + grid.pitch / 2
+    for k in range(0, 100, 2):
+        for contact in scene_contacts(scene, grid, k / 100):
+            assert contact.angle == 0  # so its support is the box of its semi-axes about its centre
+            centre, axes = np.array(contact.center), np.array(contact.semi_axes)
+            assert np.all(centre - axes >= low - 1e-12) and np.all(centre + axes <= high + 1e-12), (k, contact)
+
+
+def contact_totals(frame, side):
+    """Nodal truth summed over the nodes where ``side`` (a boolean per node) holds: (Fx, Fy, Fz)."""
+    return frame.forces[side].sum(axis=0)
+
+
+def test_pinch_two_contacts_approach_and_shear_towards_each_other():
+    grid = SensorGrid.regular(16, 16, 2e-3, 2e-3)
+    assert SCENES["pinch"].period == 3.0
+    gaps = []
+    for k in range(0, 51, 5):  # from apart to closest, half the period
+        left, right = scene_contacts("pinch", grid, k / 100)
+        assert left.center[1] == right.center[1] == 0 and left.center[0] < 0 < right.center[0]
+        assert left.force == right.force and left.shear_ratio == right.shear_ratio == 0.3
+        gaps.append(right.center[0] - left.center[0] - left.semi_axes[0] - right.semi_axes[0])
+        frame = scene_frame("pinch", grid, k / 100)
+        x = grid.positions[:, 0]
+        for side, towards in ((x < 0, 1.0), (x > 0, -1.0)):  # each contact's true force
+            fx, fy, fz = contact_totals(frame, side)
+            assert fz == pytest.approx(left.force, rel=1e-6)
+            assert fx * towards == pytest.approx(0.3 * fz, rel=1e-6) and abs(fy) < 1e-9  # at the other
+    assert np.all(np.diff(gaps) < 0) and gaps[0] > 3 * gaps[-1] > 0  # closing in, never touching
+    # and parting again: the cycle repeats
+    assert scene_contacts("pinch", grid, 0.0) == scene_contacts("pinch", grid, 1.0)
+    # the data show the converging shear: compression between the two (beyond the normal loads')
+    stress = scene_frame("pinch", grid, 0.5).clean_stress.reshape(16, 16)
+    plain = simulator.loads.simulate(grid, [simulator.loads.hertz(c.center, c.semi_axes[0], c.force)
+                                           for c in scene_contacts("pinch", grid, 0.5)],
+                                     subdivisions=5).clean_stress.reshape(16, 16)
+    middle = slice(7, 9)
+    assert stress[:, middle].sum() > 1.05 * plain[:, middle].sum()
+
+
+def test_pinch_runs_along_the_long_side_of_a_narrow_skin():
+    grid = SensorGrid.regular(6, 20, 2e-3, 2e-3)
+    first, second = scene_contacts("pinch", grid, 0.25)
+    assert first.center[0] == second.center[0] == 0 and first.center[1] < second.center[1]
+    assert first.shear_direction == pytest.approx(np.pi / 2) and second.shear_direction == pytest.approx(-np.pi / 2)
+
+
+def paths(scene, grid, count=100):
+    """``(count, contacts, 2)`` centres over one period, and the contacts of every step."""
+    steps = [scene_contacts(scene, grid, k / count) for k in range(count)]
+    return np.array([[c.center for c in contacts] for contacts in steps]), steps
+
+
+def test_two_contacts_move_independently_on_distinct_paths_with_different_shears():
+    grid = SensorGrid.regular(16, 16, 2e-3, 2e-3)
+    centres, steps = paths("two", grid)
+    assert centres.shape == (100, 2, 2)
+    radius = max(max(c.semi_axes) for c in steps[0])
+    # distinct paths: every point of one at least two radii plus a pitch from every point of the other
+    apart = np.linalg.norm(centres[:, None, 0] - centres[None, :, 1], axis=-1)
+    assert apart.min() > 2 * radius + grid.pitch
+    # both move, and not together (their displacements are not the same)
+    moves = np.diff(centres, axis=0)
+    assert np.all(np.linalg.norm(moves, axis=-1).sum(axis=0) > 5 * grid.pitch)
+    assert np.abs(moves[:, 0] - moves[:, 1]).max() > 0.5 * grid.pitch / 10
+    ratios = {round(c.shear_ratio, 3) for c in steps[0]}
+    assert ratios == {0.3, 0.15}
+    # the truth agrees: the left contact's tangential force is 0.3 of its normal force, the right one's 0.15
+    frame = scene_frame("two", grid, 0.3)
+    for side, ratio in ((grid.positions[:, 0] < 0, 0.3), (grid.positions[:, 0] > 0, 0.15)):
+        fx, fy, fz = contact_totals(frame, side)
+        assert np.hypot(fx, fy) == pytest.approx(ratio * fz, rel=1e-6)
+
+
+def test_three_contacts_move_apart_from_each_other_with_different_shears():
+    grid = SensorGrid.regular(16, 16, 2e-3, 2e-3)
+    centres, steps = paths("three", grid)
+    assert centres.shape == (100, 3, 2)
+    radius = max(max(c.semi_axes) for c in steps[0])
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        assert np.linalg.norm(centres[:, i] - centres[:, j], axis=-1).min() > 2 * radius  # never touching
+        # distinct paths: no point of one is on the other's
+        assert np.linalg.norm(centres[:, None, i] - centres[None, :, j], axis=-1).min() > 2 * radius
+    travelled = np.linalg.norm(np.diff(centres, axis=0), axis=-1).sum(axis=0)
+    assert np.all(travelled > 3 * grid.pitch)  # all three move
+    assert [c.shear_ratio for c in steps[0]] == [0.3, 0.2, 0.0]
+    directions = np.array([[c.shear_direction for c in contacts] for contacts in steps])
+    assert np.ptp(directions[:, 0]) == 0 and np.ptp(np.unwrap(directions[:, 1])) > 6  # fixed; turning
+    frame = scene_frame("three", grid, 0.0)
+    assert frame.forces[:, 2].sum() == pytest.approx(sum(c.force for c in steps[0]), rel=1e-6)
+
+
+def test_the_press_covers_most_of_the_skin_with_a_slowly_varying_force():
+    for shape in ((16, 16), (32, 32)):
+        grid = SensorGrid.regular(*shape, 2e-3, 2e-3)
+        frame = scene_frame("press", grid, 0.25)  # full force
+        (contact,) = frame.contacts
+        skin = np.prod(np.ptp(grid.positions, axis=0) + grid.pitch)
+        assert np.pi * np.prod(contact.semi_axes) / skin == pytest.approx(0.69, abs=0.01)  # the load's area
+        loaded = frame.forces[:, 2] > 0
+        assert 0.65 < loaded.mean() < 0.85  # the nodes whose cells carry some of it
+        assert np.all(frame.forces[:, :2] == 0)  # no shear
+        assert np.all(frame.clean_stress > 0)  # compression under every sensor
+        assert (frame.clean_stress > 0.1 * frame.clean_stress.max()).mean() > 0.6  # and most sensors feel it
+    forces = np.array([scene_contacts("press", grid, k / 100)[0].force for k in range(100)])
+    assert forces.min() == pytest.approx(0.5 * forces.max(), rel=1e-3)  # from half to full force
+    assert np.abs(np.diff(forces)).max() < 0.02 * forces.max()  # slow: under 2% a frame
+    assert SCENES["press"].period == 6.0
+
+
+def test_the_twist_has_torque_but_no_net_shear_and_the_sensors_cannot_see_it():
+    grid = SensorGrid.regular(16, 16, 2e-3, 2e-3)
+    still = scene_frame("twist", grid, 0.0)  # no torque at the start of the period
+    assert np.abs(still.forces[:, :2]).max() < 1e-12
+    torques = []
+    for phase in (0.25, 0.6, 0.75):
+        frame = scene_frame("twist", grid, phase)
+        (contact,) = frame.contacts
+        assert contact.shear_ratio == 0 and contact.torsion != 0
+        x, y = (grid.positions - contact.center).T
+        fx, fy = frame.forces[:, 0], frame.forces[:, 1]
+        torque = np.sum(x * fy - y * fx)
+        torques.append(torque)
+        assert torque == pytest.approx(contact.torsion, rel=0.01)
+        assert np.hypot(fx, fy).sum() > 0.1 * frame.forces[:, 2].sum()  # plenty of tangential load ...
+        assert np.hypot(fx.sum(), fy.sum()) < 1e-9 * np.hypot(fx, fy).sum()  # ... with no net force
+        # torsion is invisible to normal-stress sensors: the stress is the untwisted press's
+        np.testing.assert_allclose(frame.clean_stress, still.clean_stress, atol=1e-3 * still.clean_stress.max())
+    assert torques[0] > 0 > torques[2]  # twisted back and forth
+
+
+def test_every_scene_makes_a_cycle_of_finite_compressive_frames():
+    grid = SensorGrid.regular(8, 8, 2e-3, 2e-3)
+    for name, scene in SCENES.items():
+        cycle = contact_cycle(grid, 4, scene=name)
+        assert cycle.shape == (4, 64) and np.all(np.isfinite(cycle)) and np.all(cycle.sum(axis=1) > 0), name
+        assert scene.period > 0 and scene.summary
+
+
+@pytest.mark.parametrize("scene", ["pinch", "press"])
+def test_board_streams_the_scene_it_is_given(layout, scene):
+    with Board(layout, scene=scene, rate=50.0, noise=0.0) as board:
+        pass  # the frames sent are computed when sent: no need for the rest of the cycle
+    assert board.period == SCENES[scene].period and board.cycle.scene.name == scene
+    _, frames = decode("binary", layout.count, stream(board, 20))
+    expected = Cycle(scene, layout.grid)  # computes only the frames asked for
+    np.testing.assert_allclose([f.values for f in frames],
+                               [expected[board.index(f.seq)] * 1e-3 for f in frames], rtol=1e-6)
+
+
+@pytest.mark.parametrize("call", [
+    lambda grid: Board(SensorLayout(grid, "kPa"), scene="squeeze"),
+    lambda grid: scene_contacts("squeeze", grid, 0.0),
+    lambda grid: Cycle("squeeze", grid),
+    lambda grid: contact_cycle(grid, scene="Pinch"),
+])
+def test_an_unknown_scene_is_refused_naming_the_scenes(call):
+    with pytest.raises(ValueError, match=r"scene must be one of \('circle', 'pinch', 'two', 'three', 'press', "
+                                         r"'twist'\), got '(squeeze|Pinch)'"):
+        call(SensorGrid.regular(3, 2, 2e-3, 2e-3))
+
+
+@pytest.mark.parametrize("value", ["squeeze", "", "Circle"])
+def test_cli_refuses_an_unknown_scene(value, capsys, tmp_path):
+    with pytest.raises(SystemExit) as info:
+        main(["--scene", value, "--link", str(tmp_path / "board")])
+    assert info.value.code == 2
+    last = capsys.readouterr().err.splitlines()[-1]
+    assert last == (f"tactile-sim: error: argument --scene: invalid choice: '{value}' (choose from 'circle', "
+                    f"'pinch', 'two', 'three', 'press', 'twist')")
+    assert not (tmp_path / "board").exists()
+
+
+def test_cli_streams_a_scene(tmp_path, processes):
+    process, link, layout_path = run_sim(tmp_path, "--scene", "two", "--rate", "100", "--duration", "0.5",
+                                         "--nx", "6", "--ny", "4", "--noise", "0")
+    processes.append(process)
+    process.stdout.readline()
+    data = read_link_until_exit(link, process)
+    assert process.wait(timeout=10) == 0
+    layout = load_layout(layout_path)
+    frames = BinaryDecoder(layout.count).feed(data)
+    assert len(frames) >= 40
+    cycle = Cycle("two", layout.grid)  # computes only the frames asked for
+    index = (np.array([f.seq for f in frames]) / 100 / 4.0 * len(cycle)).astype(int) % len(cycle)
+    np.testing.assert_allclose([f.values for f in frames], [cycle[k] * 1e-3 for k in index], rtol=1e-6)
+
+
+def test_frames_queued_before_a_reader_came_are_dropped_not_stamped_as_a_burst(tmp_path, processes):
+    # before: frames queued while nobody read the pseudo-terminal came all at once when a reader
+    # came, and tactile-record stamped seconds of old frames on arrival (a 2,720 frames/s burst)
+    import serial
+
+    from tactile_viewer.sources.live import drain_backlog
+
+    process, link, _layout = run_sim(tmp_path, "--rate", "1000", "--noise", "0")
+    processes.append(process)
+    process.stdout.readline()
+    started = time.monotonic()  # the board's clock starts about now
+    # nobody reads for 4 s: 16x16 frames at 1 kHz fill the terminal's buffer in well under a
+    # second, and the board's writes then block
+    while time.monotonic() - started < 4.0:
+        assert process.poll() is None
+        time.sleep(0.1)
+    decoder = BinaryDecoder(256)
+    with serial.Serial(str(link), timeout=0.05) as port:
+        port.reset_input_buffer()  # what a reader does on opening: what the terminal had queued,
+        drain_backlog(port)  # and what it still pushes of it
+        opened = time.monotonic() - started
+        frames = []
+        while not frames:
+            frames = decoder.feed(port.read(max(1, port.in_waiting)))
+    process.terminate()
+    _out, err = process.communicate(timeout=10)
+    # the first frame read is of the board's present, not of the seconds nobody read (a write
+    # blocked for less than simulator.BLOCKED_WRITE_S still sends its frames, late)
+    assert frames[0].seq >= (opened - 1.0) * 1000, (frames[0].seq, opened)
+    assert int(re.search(r"frames skipped while nobody read (\d+)", err).group(1)) > 0
+
+
+def test_draining_a_backlog_takes_what_is_there_and_stops_when_nothing_more_comes():
+    class Port:  # a backlog in three pushes, then a board's frame 20 ms later
+        def __init__(self):
+            self.pushes, self.later = [b"x" * 4095, b"y" * 4095, b"z" * 100], time.monotonic() + 0.02
+            self.read_bytes = 0
+
+        @property
+        def in_waiting(self):
+            return len(self.pushes[0]) if self.pushes else (80 if time.monotonic() > self.later else 0)
+
+        def read(self, n):
+            return self.pushes.pop(0) if self.pushes else b"f" * n
+
+    from tactile_viewer.sources.live import drain_backlog
+
+    port = Port()
+    assert drain_backlog(port) == 4095 * 2 + 100  # the board's frame is left for the reader
+    assert port.in_waiting == 0  # (it comes later)
