@@ -50,7 +50,7 @@ lint: $(STAMP)
 	$(PY) -m ruff check solver measurement tactile_viewer tests tools benchmarks
 
 bench: system-deps $(STAMP)
-	$(PY) -m solver.bench
+	$(PY) -m measurement.bench
 	$(XRUN) $(PY) -m benchmarks.viewer_speed
 
 clean:

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.bench import machine
+from measurement.timing import machine
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_data"
 
@@ -39,13 +39,14 @@ def _children_cpu() -> float:
 def measure(path, folder, *, suffix=".mp4", size=(1200, 800), smooth=True) -> dict:
     """Write ``path`` whole as ``<folder>/<stem><suffix>``; the costs measured (seconds)."""
     from tactile_viewer.io.files import load
+    from tactile_viewer.model.movie_settings import default_display
     from tactile_viewer.model.viewer_model import ViewerModel
     from tactile_viewer.render import movie
 
     wall, cpu, children = time.perf_counter(), time.process_time(), _children_cpu()
     recording = load(path)
     solver = ViewerModel.build(recording.grid, "layer")
-    display = movie.default_display(recording, solver)
+    display = default_display(recording, solver)
     export = movie.MovieExport(recording, solver, Path(folder) / (Path(path).stem + suffix), size=size,
                                display=display, smooth=smooth)
     frame_wall, frame_cpu = [], []

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.bench import machine
+from measurement.timing import machine
 from tactile_viewer.io.files import load
 
 OPEN_AND_SEEK = """

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.viewer_speed import _open_window, _wait
-from solver.bench import machine
+from measurement.timing import machine
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "hertz_shear_turning.npz"
 
@@ -119,7 +119,7 @@ CONFIGURATIONS = ("without the dock", "dock docked", "dock floating")
 
 def measure(window, app, count, seconds, dock=None):
     """One configuration's figures: the scene's size, slider latencies, playback rates, the dock's work."""
-    from tactile_viewer.qt.panels import SPEEDS
+    from tactile_viewer.qt.playback_panel import SPEEDS
 
     _settle(app)
     walls, cpus = slider_latencies(window, app, count)

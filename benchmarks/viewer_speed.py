@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.bench import machine
+from measurement.timing import machine
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_data"
 SAMPLE = SAMPLES / "hertz_shear_turning.npz"
@@ -120,7 +120,7 @@ def playback_rate(window, app, speed_index, seconds):
 def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     out = sys.stdout if out is None else out
     app, window = _open_window(path, size, "benchmarks.viewer_speed")
-    from tactile_viewer.qt.panels import SPEEDS
+    from tactile_viewer.qt.playback_panel import SPEEDS
 
     for _ in range(20):  # let the layout settle before timing
         app.processEvents()
@@ -250,7 +250,7 @@ def busy_core():
 def _window_solves(window, app, seconds):
     # the window's own automatic solves during 1x looped playback: each delivered frame's solve_ms
     # (wall, the model's) and stress, and the worker thread's CPU time of every solve it ran
-    from tactile_viewer.qt.panels import SPEEDS
+    from tactile_viewer.qt.playback_panel import SPEEDS
 
     solver, solved, cpu = window.model.reconstructor, [], []
     original = solver.solve

@@ -8,5 +8,7 @@ pyvista, not the viewer.
 - :mod:`measurement.cases`: the one :class:`~measurement.cases.Case` and every set of them;
 - :mod:`measurement.validation`: accuracy (scoring, the mismatch of kernels and media);
 - :mod:`measurement.tradeoff`: speed against accuracy of :data:`solver.quality.CONFIGURATIONS`;
-- :mod:`measurement.tables`: the one plain-text table formatter.
+- :mod:`measurement.tables`: the one plain-text table formatter;
+- :mod:`measurement.bench`: the solver's timings (``python -m measurement.bench``);
+- :mod:`measurement.timing`: how a timing is taken, and the machine line.
 """

@@ -22,7 +22,6 @@ from pathlib import Path
 import numpy as np
 
 from solver import Reconstructor, loads, metrics
-from solver.bench import fastest_in_rounds
 from solver.geometry import SensorGrid
 from solver.inverse import DenseSolver
 from solver.quality import CONFIGURATIONS, Configuration
@@ -30,6 +29,7 @@ from solver.region import RegionSolver
 
 from .cases import default_cases
 from .tables import DIRECTION, NORMAL, TANGENTIAL, Column, format_table, value
+from .timing import fastest_in_rounds
 
 __all__ = ["Measurement", "measure", "measure_all", "error_of", "pareto", "BALANCED_SLACK",
            "presets", "preset_front", "format_measurements", "write_csv", "large_skin", "format_large"]
@@ -56,7 +56,7 @@ def measure(
     configuration: Configuration, grid: SensorGrid, cases, *, repeat: int = 3, memory: bool = True
 ) -> Measurement:
     """Set-up time, median per-frame time (fastest of ``repeat`` runs per frame, in rounds over
-    all the cases: :func:`solver.bench.fastest_in_rounds`), peak memory of set-up plus a few
+    all the cases: :func:`measurement.timing.fastest_in_rounds`), peak memory of set-up plus a few
     solves (traced separately: tracing slows numpy), and median errors."""
     setup = math.inf
     for _ in range(repeat):

@@ -21,68 +21,33 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from .arguments import check_options, check_parameters, check_stress
 from .arrays import read_only
-from .efficiency import ContactFit, Frame
+from .efficiency import ContactFit
 from .geometry import SensorGrid, neighbours_within, patch_links
 from .kernels import stress_matrix
 from .results import Contact, Reconstruction, shear_direction_of
-from .search import contact_labels, gather, template_misfit
+from .search import contact_labels, template_misfit
+from .seen_frame import WHOLE_CELLS, SeenFrame, noise_level
 from .symmetric import SymmetricInverse
 from .threads import one_blas_thread
 
-__all__ = ["DenseSolver", "WHOLE_CELLS"]
+__all__ = ["DenseSolver"]
 
-# The contact fit takes whole cells instead of sub-cells for loads of up to this many times
-# DenseSolver's fit_budget nodes; beyond, the normal-only answer (DenseSolver.fit_budget).
-WHOLE_CELLS = 2
 # Beyond the fit's budget there is no load decision: a contact is reported when its normal-only
 # total stands this many noise deviations out (chosen on the load-decision frames of seeds 1 to
 # 3, judged on 11 to 13: measurement.validation --load-decision).
 BROAD_EVIDENCE = 10.0
-# Over the fit's budget, contacts whose normal-only total is within this many noise deviations
-# of zero are noise and left out of the fit (same sets: noise contacts on 32x32 skins reached 4.7,
-# a 1 N load under 20% noise 3.3).
-NOISE_EVIDENCE = 1.0
 
 
 def _relative(misfit: np.ndarray, b: np.ndarray) -> float:
     # |C x - b| / |b|, 0 for an all-zero frame
     norm = b @ b
     return 0.0 if norm == 0 else math.sqrt((misfit @ misfit) / norm)
-
-
-def _noise_level(b: np.ndarray, grid: SensorGrid) -> float:
-    # The sensors' noise deviation, from one frame: the layer smooths every load over about its
-    # thickness, so on a regular grid the 5-point Laplacian of the stress is noise (variance 20
-    # sigma^2) but for a few edges, which the median's robust deviation ignores; elsewhere the
-    # robust deviation of the stress itself (an overestimate where a load covers the skin).
-    if grid.is_regular and min(grid.shape) >= 3:
-        image = b.reshape(grid.shape)
-        laplacian = (4 * image[1:-1, 1:-1] - image[:-2, 1:-1] - image[2:, 1:-1] - image[1:-1, :-2]
-                     - image[1:-1, 2:])
-        return 1.4826 * float(np.median(np.abs(laplacian - np.median(laplacian)))) / math.sqrt(20.0)
-    return 1.4826 * float(np.median(np.abs(b - np.median(b))))
-
-
-@dataclass(frozen=True, eq=False)
-class _Seen:
-    # A frame as the last solve saw it, kept for slider moves on it: what the contact fit
-    # looks at, and what every result of the frame repeats.
-    key: bytes             # the stress's bytes
-    frame: Frame | None    # the contact fit's view; None without a compressive contact
-    labels: np.ndarray     # (m,) contact 1..K of each node, 0 outside every contact
-    nodes: np.ndarray      # (K, m) bool, read-only: each contact's region (Contact.nodes)
-    weights: np.ndarray    # (K, m) float: the same, to sum each contact's forces in one product
-    at_edge: np.ndarray    # (K,) bool: the region touches the skin's border
-    region: np.ndarray     # (m,) bool, read-only: every contact's nodes
-    over: int = 0          # the contacts' nodes when more than the fit's budget (then no frame)
-    fallback: str = ""     # why the fit takes whole cells instead of sub-cells, if it does
 
 
 class DenseSolver:
@@ -143,7 +108,7 @@ class DenseSolver:
         Most nodes the sub-cell contact fit takes on (all contacts of a
         frame together). A broader load (a palm, an untared board) gets a
         cheaper answer, said in :attr:`Reconstruction.fallback`: up to
-        ``WHOLE_CELLS`` times as many nodes, the same fit on whole cells;
+        :data:`~solver.seen_frame.WHOLE_CELLS` times as many nodes, the same fit on whole cells;
         beyond, with automatic parameters the normal-only answer, with given
         ones the paper's template from its positive part. Not on layers
         thick enough to damp the normal-only solve: there only the fit tells
@@ -174,7 +139,7 @@ class DenseSolver:
         self.reach = float(reach)
         self.fit_budget = int(fit_budget)
         self.efficiency = ContactFit() if efficiency is None else efficiency
-        # (_Seen, choice, its parameters) of the last frame fitted
+        # (SeenFrame, choice, its parameters) of the last frame fitted
         self._recent = None
         # Sub-cells need translation invariance and a kernel that spreads the force over a
         # cell, and a layer thick enough to tell them apart: under a layer thinner than half
@@ -374,8 +339,8 @@ class DenseSolver:
             kind, normal_only, condition = "the template of the normal-only solution", False, self._gram
         # No fit, so no load decision: a contact must stand out of the noise on its own. Its
         # normal-only total F_k = w_k^T Cz^-1 b has the noise deviation sigma |Cz^-1 w_k|, sigma
-        # the sensors' own (_noise_level).
-        sigma = _noise_level(b, self.grid)
+        # the sensors' own (solver.seen_frame.noise_level).
+        sigma = noise_level(b, self.grid)
         spread = np.linalg.norm(self._normal.solve(seen.weights.T), axis=0)  # (K,)
         with np.errstate(divide="ignore", invalid="ignore"):
             loaded = seen.weights @ fz >= BROAD_EVIDENCE * sigma * spread
@@ -448,64 +413,14 @@ class DenseSolver:
         return contact_labels(np.ascontiguousarray(normal, dtype=float), self.region_threshold,
                               separation, self.grid.positions, self._adjacent, self._margin, self._near)
 
-    def _frame(self, b: np.ndarray) -> _Seen:
-        # The frame's contacts, and the contact fit's view of it: sub-cell columns of every
-        # contact's region and the sensors near the contacts.
-        m = self.grid.size
+    def _frame(self, b: np.ndarray) -> SeenFrame:
+        # The frame's contacts, and the contact fit's view of it (SeenFrame.of)
         normal = self._normal.solve(b)
         labels, near = self.contact_labels(normal)
-        # A damped normal-only solve (a thick layer) turns noise into contacts whose totals say
-        # nothing (a real 1 N load at 1% noise read 3.6 deviations): there only the fit's load
-        # decision tells load from noise, whatever it costs, and the budget does not apply.
-        budget = self.fit_budget if self._normal.shift == 0 else m
-        left_out = 0
-        if np.count_nonzero(labels) > budget and near.shape[1] > 0:
-            # Over the budget: contacts whose normal-only total does not stand NOISE_EVIDENCE noise
-            # deviations out are noise (a noisy frame on a large skin covers it with small ones),
-            # and of the rest the fit takes the strongest that its budget holds (the load
-            # decision then tells load from noise among them); the others are left out.
-            weights = (labels == np.arange(1, near.shape[1] + 1)[:, None]).astype(float)
-            evidence = (weights @ normal) / (_noise_level(b, self.grid)
-                                             * np.linalg.norm(self._normal.solve(weights.T), axis=0))
-            kept = evidence >= NOISE_EVIDENCE
-            order = np.argsort(-evidence)
-            held = np.cumsum(weights.sum(axis=1)[order]) <= WHOLE_CELLS * budget
-            if held[0]:  # else one load is broader than the budget: the normal-only answer
-                kept[order[~held]] = False
-                left_out = int(np.count_nonzero(evidence >= NOISE_EVIDENCE) - np.count_nonzero(kept))
-            labels = np.concatenate([[0], np.cumsum(kept) * kept])[labels]
-            near = np.ascontiguousarray(near[:, kept])
-        nodes = labels == np.arange(1, near.shape[1] + 1)[:, None]  # (K, m)
-        seen = dict(key=b.tobytes(), labels=labels, nodes=read_only(nodes, bool),
-                    weights=nodes.astype(float), at_edge=(nodes & self.grid.border).any(axis=1),
-                    region=read_only(labels > 0, bool))
-        if near.shape[1] == 0:
-            return _Seen(frame=None, **seen)
-        covered = int(np.count_nonzero(labels))
-        if covered > WHOLE_CELLS * budget:
-            return _Seen(frame=None, over=covered, **seen)
-        rows = np.flatnonzero(near.any(axis=1))
-        index = np.flatnonzero(labels)
-        source, cells = self._fit_columns, self.subdivision ** 2
-        if covered > budget and cells > 1:
-            # whole cells: a quarter of the columns, the same compressive, friction-shaped fit
-            source, cells = self.matrix.T, 1
-            seen["fallback"] = (f"whole-cell fit: the contacts cover {covered} nodes, more than the sub-cell "
-                                f"fit's budget of {self.fit_budget} (fit_budget)")
-        if left_out:
-            seen["fallback"] = "; ".join(filter(None, [seen.get("fallback", ""), (
-                f"{left_out} contact(s) of weaker evidence left out: the fit's budget of "
-                f"{WHOLE_CELLS * budget} nodes ({WHOLE_CELLS} x fit_budget) held the strongest")]))
-        columns = (np.arange(cells)[:, None] * m + index).ravel()  # sub-cell q of node j: q m + j
-        width = cells * m
-        every = np.concatenate([columns, columns + width, columns + 2 * width])
-        fit = gather(source, rows, every).T  # (R, 3n), each column contiguous
-        n = columns.size
-        frame = Frame(stress=b[rows], fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],
-                      column_contact=np.tile(labels[index] - 1, cells).astype(np.intp),
-                      row_contact=near[rows], max_shear_ratio=self.max_shear_ratio,
-                      column_node=np.tile(index, cells), neighbours=self._neighbours, column_id=columns)
-        return _Seen(frame=frame, **seen)
+        return SeenFrame.of(b, normal, labels, near, grid=self.grid, normal_inverse=self._normal,
+                            fit_budget=self.fit_budget, fit_columns=self._fit_columns,
+                            subdivision=self.subdivision, whole_columns=self.matrix.T,
+                            max_shear_ratio=self.max_shear_ratio, neighbours=self._neighbours)
 
     def _residual(self, x: np.ndarray, b: np.ndarray) -> float:
         return _relative(self.matrix @ x - b, b)

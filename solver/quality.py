@@ -18,7 +18,7 @@ from .checks import one_of
 from .efficiency import ContactFit
 from .geometry import SensorGrid
 from .inverse import DenseSolver
-from .region import RegionSolver
+from .region import DENSE_LIMIT, RegionSolver
 
 __all__ = ["Configuration", "CONFIGURATIONS", "PATHS"]
 
@@ -97,12 +97,15 @@ class Configuration:
                        subdivision=self.subdivision, profile=self.profile, efficiency=efficiency)
         if self.path == "region":
             return RegionSolver(grid, **options)
-        return _Configured(DenseSolver(grid, **options), self.path)
+        # On a large regular skin the whole skin's dense matrices would not fit (64x64: 1.6 GB,
+        # 128x128: 24 GB): the setting's path runs on each contact's window instead.
+        large = grid.size > DENSE_LIMIT and grid.is_regular
+        return _Configured((RegionSolver if large else DenseSolver)(grid, **options), self.path)
 
 
 class _Configured:
-    # a DenseSolver whose solve takes the configuration's path
-    def __init__(self, reconstructor: DenseSolver, path: str):
+    # an engine (a DenseSolver, or a RegionSolver on a large skin) whose solve takes the path
+    def __init__(self, reconstructor, path: str):
         self.reconstructor, self.path = reconstructor, path
         self.grid, self.kernel = reconstructor.grid, reconstructor.kernel
 

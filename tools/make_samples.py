@@ -4,7 +4,7 @@
 carries its true nodal forces and the whole geometry (the elastomer's Poisson
 ratio and the taxel size too). Seeds are fixed, so the files are reproducible.
 The pinch, three-contact, twist and broad-press samples are ``tactile-sim``'s
-scenes (:data:`tactile_viewer.cli.tactile_sim.SCENES`), integrated on ``loads``'
+scenes (:data:`tactile_viewer.sources.simulated.SCENES`), integrated on ``loads``'
 default (finer) sub-cell lattice.
 """
 
@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from solver import SensorGrid, loads
-from tactile_viewer.cli.tactile_sim import scene_contacts
-from tactile_viewer.io.recording import Recording, save
+from tactile_viewer.io.files import save
+from tactile_viewer.io.recording import Recording
+from tactile_viewer.sources.simulated import scene_contacts
 
 PITCH = 2e-3
 THICKNESS = 2e-3

@@ -20,8 +20,8 @@ import time
 from pathlib import Path
 
 from ..io.layout import LayoutError, load_layout
-from ..sources.live import SerialReader
 from ..sources.protocol import FORMATS
+from ..sources.serial_reader import SerialReader
 
 __all__ = ["main"]
 

@@ -16,12 +16,12 @@ import numpy as np
 
 from measurement import tradeoff as measured
 from measurement.cases import default_cases
+from measurement.timing import machine
 from solver import SensorGrid
-from solver.bench import machine
 from solver.kernels import KERNELS
 from solver.quality import CONFIGURATIONS, Configuration
 
-from ..model.viewer_model import KERNEL_HELP, geometry_text
+from ..model.captions import KERNEL_HELP, geometry_text
 
 __all__ = ["plot", "on_kernel", "main"]
 

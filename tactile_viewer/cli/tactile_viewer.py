@@ -25,9 +25,12 @@ import numpy as np
 from solver import ContactTracker, Reconstructor, metrics
 from solver.kernels import KERNELS
 
+from ..io.facts import facts
 from ..io.files import load
-from ..io.recording import RecordingError, facts
-from ..model.viewer_model import KERNEL_HELP, Display, ViewerModel, geometry_text
+from ..io.recording import RecordingError
+from ..model.captions import KERNEL_HELP, geometry_text
+from ..model.display import Display
+from ..model.viewer_model import ViewerModel
 
 
 def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None, out=None):
@@ -82,7 +85,7 @@ def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direc
 
 def _frame_index(frame, recording):
     # the movie's frame check (one rule and one message for every frame the command line takes)
-    from ..render.movie import check_frame
+    from ..model.movie_settings import check_frame
 
     return check_frame(len(recording), frame, name="--frame", what="the frame to report or render")
 
@@ -177,23 +180,24 @@ def movie(path, out, *, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg
     OSError
         The movie could not be written; nothing is left under ``out``.
     """
+    from ..model import movie_settings
     from ..render import movie as movies
 
     stream = sys.stdout if stream is None else stream
-    kind = movies.movie_kind(out, name="--movie")
+    kind = movie_settings.movie_kind(out, name="--movie")
     # the options are checked, with the command line's names, before the recording is solved
-    fps = movies.check_fps(fps, kind, name="--fps")
-    size = movies.check_size(size, kind, name="--size")
+    fps = movie_settings.check_fps(fps, kind, name="--fps")
+    size = movie_settings.check_size(size, kind, name="--size")
     if shear_ratio is not None or shear_direction_deg is not None:  # one given: the other is 0
         shear_ratio = 0.0 if shear_ratio is None else shear_ratio
         shear_direction_deg = 0.0 if shear_direction_deg is None else shear_direction_deg
-    ratio, direction = movies.check_parameters(shear_ratio, shear_direction_deg, degrees=True,
-                                               names=("--shear-ratio", "--shear-direction"))
+    ratio, direction = movie_settings.check_parameters(shear_ratio, shear_direction_deg, degrees=True,
+                                                       names=("--shear-ratio", "--shear-direction"))
     Display().seen_from(camera)  # a preset, checked before the recording is loaded
     recording = load(path)
-    frames = movies.check_frames(len(recording), start, stop, names=("--start", "--stop"))
+    frames = movie_settings.check_frames(len(recording), start, stop, names=("--start", "--stop"))
     solver = ViewerModel.build(recording.grid, kernel)
-    display = movies.default_display(recording, solver, display_map=display_map, camera=camera)
+    display = movie_settings.default_display(recording, solver, display_map=display_map, camera=camera)
     last = [time.monotonic()]
 
     def progress(done, total):
@@ -211,7 +215,7 @@ def movie(path, out, *, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg
 def _size(text):
     # argparse type of --size: "WxH", each side from 16 to 8192 pixels (a video's evenness is
     # checked with the movie's type)
-    from ..render.movie import check_size
+    from ..model.movie_settings import check_size
 
     match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
     if not match:

@@ -1,10 +1,11 @@
-"""Recording files: one read for every format, above the formats it dispatches to.
+"""Recording files: one read for every format and one write, above the formats they dispatch to.
 
-:func:`load` opens a ``.mcap`` (lazily, :mod:`tactile_viewer.io.mcap`),
-``.npz`` or ``.csv`` recording (:mod:`tactile_viewer.io.recording`) as a
+:func:`load` opens a ``.mcap`` (lazily, :mod:`tactile_viewer.io.mcap_reader`),
+``.npz`` (:mod:`tactile_viewer.io.npz`) or ``.csv`` recording
+(:mod:`tactile_viewer.io.csv_table`) as a
 :class:`~tactile_viewer.io.recording.Recording`; every failure is a
 :class:`~tactile_viewer.io.recording.RecordingError` that names the file and
-what is wrong. No Qt here.
+what is wrong. :func:`save` writes one as ``.npz`` or ``.csv``. No Qt here.
 """
 
 from __future__ import annotations
@@ -14,16 +15,18 @@ import zipfile
 import zlib
 from pathlib import Path
 
-from .mcap import open_recording
-from .recording import SUFFIXES, Recording, RecordingError, load_csv, load_npz
+from .csv_table import load_csv, save_csv
+from .mcap_reader import open_recording
+from .npz import load_npz, save_npz
+from .recording import SUFFIXES, Recording, RecordingError
 
-__all__ = ["load"]
+__all__ = ["load", "save"]
 
 
 def load(path) -> Recording:
     """Read a recording (``.mcap``, ``.npz`` or ``.csv``); :class:`RecordingError` names what is wrong.
 
-    An MCAP recording opens lazily (:func:`tactile_viewer.io.mcap.open_recording`).
+    An MCAP recording opens lazily (:func:`tactile_viewer.io.mcap_reader.open_recording`).
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -52,3 +55,13 @@ def load(path) -> Recording:
     except (zipfile.BadZipFile, zlib.error, EOFError, NotImplementedError) as exc:
         # members are decompressed lazily, so a damaged archive can fail long after np.load
         raise RecordingError(f"{path}: damaged NPZ archive ({exc})") from exc
+
+
+def save(recording: Recording, path) -> Path:
+    """Write a recording as ``.npz`` (everything) or ``.csv`` (frames and geometry, nu included)."""
+    path = Path(path)
+    if path.suffix.lower() == ".npz":
+        return save_npz(recording, path)
+    if path.suffix.lower() == ".csv":
+        return save_csv(recording, path)
+    raise RecordingError(f"{path}: unknown recording type {path.suffix!r}, expected .npz or .csv")

@@ -6,29 +6,18 @@ compressive load is centred, of the reconstruction and, when the recording
 carries its true forces, of the truth (computed from the truth forces by the
 same functions) with the error figures of :mod:`solver.metrics`.
 
-:func:`compute_series` solves a recording frame by frame as the window's
-model would (automatic or given parameters), reports progress, can be
-cancelled and hands out partial series while it runs; :class:`SeriesBuilder`
-collects rows as frames are solved (a live source's rolling window);
-:meth:`Series.to_csv` and :meth:`Series.from_csv` write and read it.
-
-Threading: a solver (``solver.Reconstructor``) may be shared between threads.
-What it builds in its constructor is only read by a solve; the one thing a solve
-leaves behind is the last frame's contacts and fit (a slider move on that frame
-reuses them, the next frame starts its fit from them), kept as one tuple that a
-solve replaces whole, so a solve on another thread reads either the old or the
-new one, and its answer depends on which only by rounding (the docstring of
-``solver.inverse.DenseSolver.solve``); the large-skin engine's cache of window
-set-ups is behind a lock. So the model's solver may serve a background series
-while the model's worker thread solves the frame on screen, as the
-whole-recording force export already does.
+The data types (:class:`Quantities`, :class:`TruthErrors`, :class:`Series`)
+and the series' CSV format: :meth:`Series.to_csv` and :meth:`Series.from_csv`
+write and read it. Solving a recording into a series, or collecting one as
+frames are solved, is :mod:`tactile_viewer.model.series_solving`.
 
 Contacts followed over time: beside the totals, a series holds the same six
 quantities of each contact (its resultant and its load centre) by its identity
 (:class:`solver.ContactTracker`; nan on the frames it is absent from).
-:func:`compute_series` follows the contacts over the frames it solves, in
-order (a sampled long take is followed over its samples); a live source's rows
-carry the identities the window's model gave them.
+:func:`~tactile_viewer.model.series_solving.compute_series` follows the
+contacts over the frames it solves, in order (a sampled long take is followed
+over its samples); a live source's rows carry the identities the window's
+model gave them.
 
 CSV: ``#`` header lines (``key=value``: what it is, source, kernel, mode, the
 given parameters, the units), one line of column names whose suffixes name the
@@ -43,27 +32,20 @@ quantities of each contact, prefixed ``contact<identity>_`` (``contact1_fz_N``
 from __future__ import annotations
 
 import math
-import time
-from collections import deque
 from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
-from solver import ContactTracker
-from solver.arguments import MAX_STRESS, check_parameters
 from solver.arrays import read_only
-from solver.checks import one_of, real_number, shown
-from solver.metrics import direction_error, normal_total_error, tangential_total_error
+from solver.checks import one_of, shown
 
-from ..io.recording import Recording, written_whole
-from .viewer_model import Solved, load_centroid
-from .worker import Cancelled
+from ..io.recording import written_whole
+from .solved import load_centroid
 
-__all__ = ["Quantities", "TruthErrors", "Series", "SeriesBuilder", "compute_series", "spread_frames",
-           "nearest_frame", "MAX_FRAMES", "MODES", "CSV_MARKER"]
+__all__ = ["Quantities", "TruthErrors", "Series", "frame_quantities", "resultant_quantities", "MODES",
+           "CSV_MARKER"]
 
-MAX_FRAMES = 2000  # frames a series solves at most: a long take is sampled evenly over its whole span
 MODES = ("auto", "manual", "as shown")
 CSV_MARKER = "tactile-viewer time series"
 # A tangential total below this fraction of the whole resultant has no direction worth drawing:
@@ -75,7 +57,6 @@ _QUANTITIES = ("fz", "tangential", "direction", "shear_ratio", "centroid_x", "ce
 _COLUMNS = (("fz_N", 1.0), ("tangential_N", 1.0), ("direction_deg", 180 / math.pi), ("shear_ratio", 1.0),
             ("centroid_x_m", 1.0), ("centroid_y_m", 1.0))
 _ERROR_COLUMNS = (("fz_error_pct", 100.0), ("tangential_error_pct", 100.0), ("direction_error_deg", 1.0))
-_NOTHING = (math.nan,) * 6  # a contact's quantities on a frame it is absent from
 
 
 @dataclass(frozen=True)
@@ -95,8 +76,8 @@ class Quantities:
         ``tangential / fz``; nan where the total does not press (``fz <= 0``).
     centroid_x, centroid_y : (n,) ndarray
         Where the compressive normal load is centred, metres (the rule of
-        :func:`~tactile_viewer.model.viewer_model.load_centroid`, which
-        :meth:`~tactile_viewer.model.viewer_model.Solved.of`
+        :func:`~tactile_viewer.model.solved.load_centroid`, which
+        :meth:`~tactile_viewer.model.solved.Solved.of`
         uses); nan where nothing presses.
     """
 
@@ -131,7 +112,7 @@ class Quantities:
         forces = np.asarray(forces, dtype=float)
         if forces.ndim != 3 or forces.shape[1:] != (grid.size, 3):
             raise ValueError(f"forces must have shape (n, {grid.size}, 3), got {forces.shape}")
-        rows = [_row(frame, load_centroid(grid.positions, frame[:, 2])) for frame in forces]
+        rows = [frame_quantities(frame, load_centroid(grid.positions, frame[:, 2])) for frame in forces]
         return cls(*np.array(rows, dtype=float).reshape(-1, 6).T)
 
 
@@ -403,13 +384,13 @@ def _contact_columns(names) -> list[int] | None:
     return identities if identities == sorted(set(identities)) else None
 
 
-def _row(forces, centroid) -> tuple:
-    # the six quantities of one frame's nodal forces (m, 3): one rule for estimate and truth
-    return _totals(np.asarray(forces, dtype=float).sum(axis=0), centroid)
+def frame_quantities(forces, centroid) -> tuple:
+    """The six quantities of one frame's nodal forces ``(m, 3)``: one rule for estimate and truth."""
+    return resultant_quantities(np.asarray(forces, dtype=float).sum(axis=0), centroid)
 
 
-def _totals(total, centroid) -> tuple:
-    # the six quantities of a resultant (Fx, Fy, Fz) and its load centroid (None: nothing presses)
+def resultant_quantities(total, centroid) -> tuple:
+    """The six quantities of a resultant ``(Fx, Fy, Fz)`` and its load centroid (None: nothing presses)."""
     fx, fy, fz = (float(v) for v in total)
     tangential = math.hypot(fx, fy)
     if tangential > NO_TANGENTIAL * math.hypot(tangential, fz):
@@ -422,235 +403,3 @@ def _totals(total, centroid) -> tuple:
     return float(fz), tangential, direction, ratio, cx, cy
 
 
-class SeriesBuilder:
-    """Rows of a :class:`Series` collected as frames are solved; a series of them at any time.
-
-    Parameters
-    ----------
-    grid : SensorGrid
-        The geometry the frames were solved on (the truth's centroid needs it).
-    kernel, mode, source, shear_ratio, shear_direction
-        As in :class:`Series`.
-    truth : bool
-        Rows carry true forces (:meth:`add` then needs them).
-    total : int, optional
-        Frames the complete series will hold (default: those added).
-    span : float, optional
-        Keep only the rows of the last ``span`` seconds (a live source's
-        rolling window); default: keep every row.
-    """
-
-    def __init__(self, grid, *, kernel: str = "", mode: str = "auto", source: str = "", truth: bool = False,
-                 shear_ratio: float = math.nan, shear_direction: float = math.nan, total: int | None = None,
-                 span: float | None = None):
-        one_of("mode", mode, MODES)
-        if span is not None:
-            real_number("span", span, rule="finite seconds > 0 (or None)", valid=lambda v: math.isfinite(v)
-                        and v > 0)
-        self.grid = grid
-        self.truth = bool(truth)
-        self.span = None if span is None else float(span)
-        self._meta = dict(kernel=kernel, mode=mode, source=source, shear_ratio=shear_ratio,
-                          shear_direction=shear_direction)
-        self._total = total
-        self._rows: deque = deque()
-        self._contacts: deque = deque()  # per row: {identity: the contact's six quantities}
-        self._refused: list[int] = []
-
-    def __len__(self) -> int:
-        return len(self._rows)
-
-    def add(self, solved: Solved, truth=None) -> None:
-        """Add a solved frame (``solved.frame``, ``solved.time``, its forces and load centroid);
-        the same frame (number and time) as the last one added replaces it.
-
-        Its contacts that carry an identity (followed over frames: the model's
-        results, :func:`compute_series`) add to their own series; contacts of
-        identity 0 only to the totals.
-
-        Parameters
-        ----------
-        solved : Solved
-        truth : (m, 3) ndarray, optional
-            The frame's true nodal forces, newtons (required when the builder
-            was made with ``truth=True``, refused otherwise).
-        """
-        if self.truth != (truth is not None):
-            raise ValueError("truth must be given for every frame of a series with truth and for no other, "
-                             f"got {'none' if truth is None else 'forces'}")
-        forces = solved.result.forces
-        row = (solved.frame, solved.time, *_row(forces, solved.centroid))
-        if truth is not None:
-            truth = np.asarray(truth, dtype=float)
-            if truth.shape != forces.shape:
-                raise ValueError(f"truth must have shape {forces.shape}, got {truth.shape}")
-            # the truth's centroid by the very rule of the one the scene draws (Solved.of)
-            row += _row(truth, load_centroid(self.grid.positions, truth[:, 2]))
-            row += (normal_total_error(forces, truth), tangential_total_error(forces, truth),
-                    direction_error(forces, truth))
-        contacts = {c.identity: _totals(c.total_force, centroid)
-                    for c, centroid in zip(solved.result.contacts, solved.contact_centroids, strict=True)
-                    if c.identity > 0}
-        if self._rows and self._rows[-1][:2] == row[:2]:
-            # the same frame solved again (new parameters on a quiet board): its row is replaced,
-            # so the series never holds one time twice
-            self._rows[-1], self._contacts[-1] = row, contacts
-        else:
-            self._rows.append(row)
-            self._contacts.append(contacts)
-        if self.span is not None:
-            # a live source's rolling window: its clock only moves on, so the oldest rows go first
-            while self._rows and self._rows[0][1] < solved.time - self.span:
-                self._rows.popleft()
-                self._contacts.popleft()
-
-    def refuse(self, frame: int) -> None:
-        """Count ``frame`` as refused by the solver: the complete series holds one frame fewer."""
-        self._refused.append(int(frame))
-        if self._total is not None:
-            self._total -= 1
-
-    def series(self) -> Series:
-        """The rows so far as a :class:`Series`."""
-        width = 2 + 6 + (6 + 3 if self.truth else 0)
-        table = np.array(self._rows, dtype=float).reshape(len(self._rows), width)
-        truth = Quantities(*table[:, 8:14].T) if self.truth else None
-        errors = TruthErrors(*table[:, 14:17].T) if self.truth else None
-        total = len(table) if self._total is None else max(self._total, len(table))
-        identities = sorted({i for frame in self._contacts for i in frame})
-        contacts = tuple((i, Quantities(*np.array([frame.get(i, _NOTHING) for frame in self._contacts],
-                                                  dtype=float).reshape(-1, 6).T)) for i in identities)
-        return Series(table[:, 0].astype(np.int64), table[:, 1], Quantities(*table[:, 2:8].T), truth, errors,
-                      total=total, contacts=contacts, refused=tuple(self._refused), **self._meta)
-
-
-def spread_frames(count: int, limit: int = MAX_FRAMES) -> np.ndarray:
-    """Indices of at most ``limit`` frames of ``count``, evenly over the whole span (first and last in).
-
-    Examples
-    --------
-    >>> spread_frames(5, 3).tolist()
-    [0, 2, 4]
-    """
-    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 0:
-        raise ValueError(f"count must be a whole number >= 0, got {shown(count)}")
-    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 2:
-        raise ValueError(f"limit must be a whole number >= 2, got {shown(limit)}")
-    if count <= limit:
-        return np.arange(count)
-    return np.unique(np.round(np.linspace(0, count - 1, limit)).astype(np.int64))
-
-
-def nearest_frame(t, x: float) -> int:
-    """Index of the time in ``t`` (non-decreasing seconds) nearest to ``x`` (the earlier on a tie).
-
-    Examples
-    --------
-    >>> nearest_frame([0.0, 0.1, 0.2], 0.14)
-    1
-    """
-    t = np.asarray(t, dtype=float)
-    if t.ndim != 1 or t.size == 0:
-        raise ValueError(f"t must be a non-empty 1-D array of seconds, got shape {t.shape}")
-    x = real_number("x", x, rule="finite seconds", valid=math.isfinite)
-    right = int(np.searchsorted(t, x))
-    if right == 0:
-        return 0
-    if right == t.size:
-        return t.size - 1
-    return right if t[right] - x < x - t[right - 1] else right - 1
-
-
-def compute_series(recording: Recording, solver, *, shear_ratio=None, shear_direction=None, frames=None,
-                   progress=None, partial=None, every: float = 0.3, source: str = "") -> Series:
-    """Solve a recording frame by frame (as the window's model does) and collect its time series.
-
-    The contacts are followed over the frames solved, in order
-    (:class:`solver.ContactTracker`), each with its own quantities in the
-    series (:attr:`Series.contacts`).
-
-    Parameters
-    ----------
-    recording : Recording
-    solver : object
-        What :meth:`tactile_viewer.model.viewer_model.ViewerModel.build` returns for the
-        recording's geometry (``solve``, ``grid``, ``kernel``).
-    shear_ratio, shear_direction : float or None, optional
-        Given parameters (``shear_direction`` radians), as the sliders give
-        them; both None (default): automatic, each frame's own.
-    frames : (k,) array_like of int, optional
-        The frames to solve, increasing; default every frame.
-    progress : callable, optional
-        ``progress(done, total) -> bool`` after each frame; returning False
-        cancels (:class:`~tactile_viewer.model.worker.Cancelled` is raised).
-    partial : callable, optional
-        ``partial(series)``: the frames solved so far, at most every
-        ``every`` seconds while solving (a partial :class:`Series`, ``total``
-        the frames asked for). Called on the solving thread.
-    every : float, optional
-        Seconds between partial series. Default 0.3.
-    source : str, optional
-        The recording's file or label, for the series' header.
-
-    Returns
-    -------
-    Series
-
-    Raises
-    ------
-    ValueError
-        Naming the argument that is wrong.
-    Cancelled
-        When ``progress`` returned False.
-    """
-    if not isinstance(recording, Recording):
-        raise ValueError(f"recording must be a Recording, got {type(recording).__name__}")
-    grid = getattr(solver, "grid", None)
-    if not callable(getattr(solver, "solve", None)) or grid is None:
-        raise ValueError(f"solver must have solve() and grid (as ViewerModel.build makes), got "
-                         f"{type(solver).__name__}")
-    if grid.key != recording.grid.key:
-        raise ValueError("solver was built for another geometry than the recording's (its positions, pitch, "
-                         "thickness, Poisson ratio or taxel size differ)")
-    check_parameters(shear_ratio, shear_direction, None)
-    count = len(recording)
-    if frames is None:
-        frames = np.arange(count)
-    else:
-        frames = np.asarray(frames)
-        if frames.ndim != 1 or (frames.size and not np.issubdtype(frames.dtype, np.integer)):
-            raise ValueError(f"frames must be a 1-D sequence of whole numbers, got dtype {frames.dtype} and "
-                             f"shape {frames.shape}")
-        if frames.size and (frames.min() < 0 or frames.max() >= count or np.any(np.diff(frames) <= 0)):
-            raise ValueError(f"frames must be increasing indices in [0, {count - 1}], got "
-                             f"{frames[:10].tolist()}{' ...' if frames.size > 10 else ''}")
-    for name, value in (("progress", progress), ("partial", partial)):
-        if value is not None and not callable(value):
-            raise ValueError(f"{name} must be callable or None, got {shown(value)}")
-    every = real_number("every", every, rule="finite seconds > 0", valid=lambda v: math.isfinite(v) and v > 0)
-    auto = shear_ratio is None and shear_direction is None
-    given = {} if auto else dict(shear_ratio=shear_ratio, shear_direction=shear_direction)
-    truth = recording.truth_forces
-    builder = SeriesBuilder(grid, kernel=getattr(solver, "kernel", ""), mode="auto" if auto else "manual",
-                            source=source, truth=truth is not None, total=int(frames.size),
-                            shear_ratio=math.nan if shear_ratio is None else shear_ratio,
-                            shear_direction=math.nan if shear_direction is None else shear_direction)
-    handed = time.perf_counter()
-    tracker = ContactTracker(grid)
-    for done, k in enumerate(frames.tolist(), start=1):
-        stress = recording.frames[k]
-        if not np.all(np.abs(stress) <= MAX_STRESS):
-            # the solver would refuse it (the window says so when the frame is shown): one frame
-            # must not cost the whole series
-            builder.refuse(k)
-        else:
-            result = tracker.update(solver.solve(stress, **given))
-            # Solved.of: the load centroid by the very rule of the frame the window draws
-            builder.add(Solved.of(grid, stress, result, frame=k, time=float(recording.t[k]), auto=auto),
-                        None if truth is None else truth[k])
-        if progress is not None and progress(done, frames.size) is False:
-            raise Cancelled(f"cancelled after {done} of {frames.size} frames")
-        if partial is not None and done < frames.size and time.perf_counter() - handed >= every:
-            partial(builder.series())
-            handed = time.perf_counter()
-    return builder.series()

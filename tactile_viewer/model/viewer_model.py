@@ -11,21 +11,8 @@ layer posts it to the GUI thread) as the ``solved`` signal.
 
 Contacts followed over time: the model owns a :class:`solver.ContactTracker`
 per source and numbers the contacts of each result as it is delivered, in the
-order the frames are shown (``Contact.identity``, from 1, in ``Solved.result``).
-A live source's frames only move on: every frame continues the tracks. A
-recording's continue while playback (or a step or a seek) moves forward; the
-frames it skipped (playback drops frames when drawing is slower than the
-recording, and at 2x) count as frames in which the contacts not seen were
-missing (``ContactTracker.update``'s ``frames``), so a jump further than the
-tracker's ``patience`` ends the lost tracks but keeps the numbers of the
-contacts still there. A seek backwards starts the numbers again at that frame
-(the tracker is reset). The same frame solved again (new parameters, a re-tare)
-is matched again from the tracks as they stood before it, so the numbers do not
-drift. A new source or solver (another kernel or quality) starts from 1.
-Played from its start, a recording is numbered as the whole-recording force
-export and ``--report`` number it (the same tracker over the same frames; the
-frames playback skipped can only matter where contacts merge or split). After
-a seek the window numbers from that frame and the exports keep theirs.
+order the frames are shown (``Contact.identity``, from 1, in ``Solved.result``;
+the rules: :mod:`tactile_viewer.model.contact_numbering`).
 """
 
 from __future__ import annotations
@@ -34,277 +21,25 @@ import logging
 import math
 import threading
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import ClassVar
 
-import numpy as np
-
-from solver import ContactTracker, Reconstruction, Reconstructor, SensorGrid
-from solver.arguments import MAX_STRESS
-from solver.arrays import read_only
-from solver.checks import one_of
+from solver import ContactTracker, Reconstructor, SensorGrid
 from solver.kernels import KERNELS
 
-from ..io.recording import Recording, Tare
+from ..io.recording import Recording
 from ..sources.source import RecordingSource, Signal, Source, SourceFrame
+from .contact_numbering import number_contacts
+from .display import Display, display_scales
+from .shear_parameters import MAX_SHEAR_RATIO, auto_found, leave_auto
+from .solve_job import SolveJob
+from .solved import ForceSmoothing, Solved
+from .taring import keeps_raw_values, retare_source
 from .worker import LatestWorker
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Display", "Solved", "ViewerModel", "MAX_SHEAR_RATIO", "KERNEL_HELP", "geometry_text",
-           "load_centroid"]
-
-# the map's fixed colour range over the most loaded frame's normal-only peak pressure (_display_scales)
-RANGE_MARGIN = 1.75
-MAX_SHEAR_RATIO = 1.5  # the slider's end; the automatic search uses the same bound
-MAX_SMOOTHING = 10.0  # seconds: past any contact a lab follows
-MAPS = ("pressure", "stress", "none")
-HIDE_BELOW = 0.02  # default "hide below": this fraction of the largest node force of a new source
-
-KERNEL_HELP = "layer: elastomer layer bonded to a rigid hull (default); cell/point: half-space"
-
-
-def geometry_text(grid: SensorGrid) -> str:
-    """One line naming a geometry for people: taxels, pitch, thickness, nu, taxel size.
-
-    Examples
-    --------
-    >>> geometry_text(SensorGrid.regular(16, 12, 2e-3, 1.5e-3, poisson_ratio=0.45, sensor_size=1e-3))
-    '16x12 taxels, pitch 2 mm, thickness 1.5 mm, nu 0.45, taxel 1 mm'
-    """
-    taxels = f"{grid.shape[1]}x{grid.shape[0]} taxels" if len(grid.shape) == 2 else f"{grid.size} taxels"
-    size = f"taxel {grid.sensor_size * 1e3:g} mm" if grid.sensor_size > 0 else "point sensors"
-    return (f"{taxels}, pitch {grid.pitch * 1e3:g} mm, thickness {grid.thickness * 1e3:g} mm, "
-            f"nu {grid.poisson_ratio:g}, {size}")
-
-
-@dataclass(frozen=True)
-class Display:
-    """What the scene shows.
-
-    Attributes
-    ----------
-    map : {"pressure", "stress", "none"}
-        Reconstructed normal pressure (``Fz / pitch^2``) or measured sensor stress.
-    arrows, resultant : bool
-        Per-node force arrows; the resultants (one per contact, at its own
-        load centroid; one for the whole frame when the solve found no contacts).
-    arrow_scale : float
-        Arrow length per newton, metres per newton.
-    resultant_scale : float
-        Length of the resultant's arrow per newton, metres per newton.
-    threshold : float
-        Arrows of nodes with ``|F|`` below this many newtons are hidden
-        (``|(Fx, Fy)|`` for in-plane arrows).
-    auto_range : bool
-        Colour range follows each frame; otherwise ``0 .. range_max``.
-    range_max : float
-        Upper end of the fixed colour range, pascals.
-    colormap : str
-        Colour map of the pressure or stress map, one of :attr:`COLORMAPS`
-        (perceptually uniform, and ``gray`` for print).
-    arrow_auto_range : bool
-        The arrows' colour range follows each frame (``0 ..`` its largest shown
-        force); otherwise ``0 .. arrow_range_max``, the same for every frame.
-    arrow_range_max : float
-        Upper end of the arrows' fixed colour range, newtons.
-    in_plane : bool
-        Arrows (and resultants) show only ``(Fx, Fy)``, flat on the surface:
-        the Top view's shear picture. The Top camera button switches it on,
-        the Iso button off.
-    in_plane_gain : float
-        In-plane arrows and resultants are drawn this many times longer than
-        3-D ones (shear is a fraction of the normal force); the scales the
-        scene states include it. Positive.
-    axes : bool
-        x and y ticks in millimetres beside the skin and the direction
-        convention (0 deg = +x, 90 deg = +y) at its corner.
-    taxel_ids : bool
-        Each taxel's node index (from 0, as everywhere) on its square.
-    smoothing : float
-        Time constant, seconds, of the exponential smoothing of the node
-        forces drawn (arrows and pressure map) over frame time; 0 is off
-        (the default). Smoothed forces lag the data by about this much and a
-        step reaches 63% of its height after it. Never applied to exports,
-        the read-out, the contacts or the status line.
-    """
-
-    COLORMAPS: ClassVar[tuple] = ("viridis", "cividis", "plasma", "inferno", "magma", "gray")
-
-    map: str = "pressure"
-    arrows: bool = True
-    resultant: bool = True
-    arrow_scale: float = 0.01
-    resultant_scale: float = 0.01
-    threshold: float = 0.0
-    auto_range: bool = True
-    range_max: float = 50e3
-    colormap: str = "viridis"
-    arrow_auto_range: bool = True
-    arrow_range_max: float = 0.05
-    in_plane: bool = False
-    in_plane_gain: float = 2.0
-    axes: bool = True
-    taxel_ids: bool = False
-    smoothing: float = 0.0
-
-    CAMERAS: ClassVar[tuple] = ("top", "iso")
-
-    def seen_from(self, camera: str) -> Display:
-        """This display as a camera preset shows it: from ``"top"`` the arrows lie flat
-        (``in_plane``: the shear alone), from ``"iso"`` they stand in 3-D.
-
-        The one place of this rule: the window's camera buttons and menu, the
-        headless screenshot and the movie all follow it.
-        """
-        one_of("camera", camera, self.CAMERAS)
-        return replace(self, in_plane=camera == "top")
-
-    def __post_init__(self):
-        one_of("map", self.map, MAPS)
-        one_of("colormap", self.colormap, self.COLORMAPS)
-        for name in ("arrow_scale", "resultant_scale", "threshold", "range_max", "arrow_range_max",
-                     "smoothing"):
-            value = getattr(self, name)
-            # bool is a number to Python, but never a scale a caller meant
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                    or not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
-        if self.smoothing > MAX_SMOOTHING:
-            raise ValueError(f"smoothing must be at most {MAX_SMOOTHING:g} s, got {self.smoothing!r}")
-        if not (isinstance(self.in_plane_gain, (int, float, np.integer, np.floating))
-                and not isinstance(self.in_plane_gain, bool)
-                and math.isfinite(self.in_plane_gain) and self.in_plane_gain > 0):
-            raise ValueError(f"in_plane_gain must be finite and > 0, got {self.in_plane_gain!r}")
-        for name in ("arrows", "resultant", "auto_range", "arrow_auto_range", "in_plane", "axes",
-                     "taxel_ids"):
-            value = getattr(self, name)
-            if not isinstance(value, (bool, np.bool_)):
-                raise ValueError(f"{name} must be True or False, got {value!r}")
-
-
-@dataclass(frozen=True)
-class Solved:
-    """One reconstructed frame, how it was made, and what the scene shows of it.
-
-    ``frame`` is the index in the recording, or for a live source the frame's
-    sequence number (-1 for text frames, which carry none); ``time`` seconds.
-    The scene draws these fields and computes no physics itself.
-
-    Attributes
-    ----------
-    pressure : (m,) ndarray
-        Reconstructed normal pressure ``Fz / pitch^2``, pascals.
-    centroid : (2,) ndarray or None
-        Where the compressive normal load is centred, metres (None when
-        nothing presses).
-    contact_centroids : tuple of (2,) ndarray
-        Each contact's :attr:`solver.Contact.centre` (the solver's formula:
-        its load's centre, its nodes' middle when nothing of it presses),
-        metres, in the order of ``result.contacts``.
-    drawn_forces : (m, 3) ndarray or None
-        The node forces the scene draws, newtons, when they differ from
-        ``result.forces`` (smoothed over time: :class:`ForceSmoothing`);
-        ``pressure`` is then theirs too.
-
-    The contacts of a result the model delivers carry their identities
-    (``result.contacts[k].identity``, from 1: module notes); ``Solved.of``
-    alone leaves them as the solver gave them.
-    """
-
-    frame: int
-    time: float
-    stress: np.ndarray
-    result: Reconstruction
-    solve_ms: float
-    auto: bool
-    pressure: np.ndarray
-    centroid: np.ndarray | None
-    contact_centroids: tuple = ()
-    drawn_forces: np.ndarray | None = None
-
-    @property
-    def forces_drawn(self) -> np.ndarray:
-        """``(m, 3)`` node forces as drawn: :attr:`drawn_forces`, else the result's."""
-        return self.result.forces if self.drawn_forces is None else self.drawn_forces
-
-    @classmethod
-    def of(cls, grid: SensorGrid, stress, result: Reconstruction, *, frame: int = 0, time: float = 0.0,
-           solve_ms: float = 0.0, auto: bool = True) -> Solved:
-        """A solved frame of ``grid`` with its pressure map and load centroids."""
-        forces = result.forces
-        return cls(frame, time, np.asarray(stress, dtype=float), result, solve_ms, auto,
-                   read_only(forces[:, 2] / grid.pitch**2), load_centroid(grid.positions, forces[:, 2]),
-                   tuple(read_only(c.centre) for c in result.contacts))
-
-
-class ForceSmoothing:
-    """Exponential smoothing of the node forces drawn, over the frames' time. Qt-free.
-
-    Each frame moves the drawn forces ``d`` towards the solved ones ``f`` by
-    ``d += (1 - exp(-dt / tau)) * (f - d)``, ``dt`` the time since the frame
-    before, so frames skipped by playback count by their time. A frame
-    solved again (other parameters) is smoothed from where its first solve
-    started; a frame before the last (a seek back) starts afresh.
-    """
-
-    def __init__(self):
-        self.reset()
-
-    def reset(self) -> None:
-        self._key = self._time = self._base = self._value = None
-        self._alpha = 1.0
-
-    def __call__(self, solved: Solved, time_constant: float, pitch: float) -> Solved:
-        """``solved`` with its drawn forces and pressure smoothed over ``time_constant`` s (0: itself)."""
-        if time_constant <= 0:
-            self.reset()
-            return solved
-        forces = solved.result.forces
-        key = (solved.frame, solved.time)
-        if key == self._key and self._base.shape == forces.shape:
-            base, alpha = self._base, self._alpha  # the same frame solved again
-        elif self._value is None or self._value.shape != forces.shape or solved.time < self._time:
-            base, alpha = forces, 1.0  # nothing before it to smooth with
-        else:
-            base, alpha = self._value, -math.expm1(-(solved.time - self._time) / time_constant)
-        value = read_only(base + alpha * (forces - base))
-        self._key, self._time, self._base, self._alpha, self._value = key, solved.time, base, alpha, value
-        return replace(solved, drawn_forces=value, pressure=read_only(value[:, 2] / pitch**2))
-
-
-def load_centroid(positions, fz) -> np.ndarray | None:
-    """Where a normal load presses, centred: the ``Fz``-weighted mean of ``positions`` over ``Fz > 0``.
-
-    Parameters
-    ----------
-    positions : (m, 2) ndarray
-        Node positions, metres.
-    fz : (m,) ndarray
-        Normal force per node, newtons (tension, ``Fz < 0``, is left out).
-
-    Returns
-    -------
-    (2,) ndarray or None
-        Read-only, metres; None when nothing presses.
-    """
-    push = np.clip(np.asarray(fz, dtype=float), 0.0, None)
-    total = push.sum()
-    return read_only(np.asarray(positions, dtype=float).T @ push / total) if total > 0 else None
-
-
-@dataclass(frozen=True)
-class _Job:
-    # one solve as the model stood when it was asked for
-    generation: int
-    solver: object
-    frame: int
-    time: float
-    stress: np.ndarray
-    auto: bool
-    shear_ratio: float
-    shear_direction: float
+__all__ = ["ViewerModel"]
 
 
 class ViewerModel:
@@ -443,7 +178,7 @@ class ViewerModel:
         old, same = self.source, source is self.source
         # all or nothing: what can fail comes before the source shown is stopped (a failure after
         # it left the window without a source and every later open failing)
-        scales = None if same else _display_scales(source, reconstructor)
+        scales = None if same else display_scales(source, reconstructor)
         if old is not None and not same:
             old.frame_arrived.disconnect(self._frame_arrived)
             self._stop(old)  # its last news (a recording saved) still reaches the user
@@ -469,14 +204,17 @@ class ViewerModel:
             self._schedule()  # a quiet board: its last frame again, with the new solver
 
     def retare(self, how: str, *, frames: int = 50) -> str:
-        """Change the tare of the recording shown (its file keeps the raw values and is not changed).
+        """Change the tare of the source shown (a recording's file keeps the raw values, unchanged).
+
+        The one way every caller changes a tare (:mod:`tactile_viewer.model.taring`).
 
         Parameters
         ----------
         how : {"here", "clear", "recorded"}
             ``"here"``: the baseline is the mean of ``frames`` frames from the
-            current one on, applied to every frame; ``"clear"``: no tare;
-            ``"recorded"``: the tares taken while recording.
+            current one on, applied to every frame (a live board: its next
+            ``frames`` frames); ``"clear"``: no tare; ``"recorded"``: the tares
+            taken while recording.
         frames : int
             Frames averaged by ``"here"``.
 
@@ -488,34 +226,19 @@ class ViewerModel:
         Raises
         ------
         ValueError
-            When no recording with raw values (MCAP) is shown, or for an unknown ``how``.
+            When no recording with raw values (MCAP) or live board is shown, or for an unknown ``how``.
         """
-        source = self.source
-        if not isinstance(source, RecordingSource) or source.recording.calibration is None:
-            raise ValueError("only a recording that keeps raw values (a live recording, .mcap) can be "
-                             "re-tared")
-        if how not in ("here", "clear", "recorded"):
-            raise ValueError(f"how must be 'here', 'clear' or 'recorded', got {how!r}")
-        if isinstance(frames, bool) or not isinstance(frames, int) or frames < 1:
-            raise ValueError(f"frames must be a positive integer, got {frames!r}")
-        calibration = source.recording.calibration
-        if how == "recorded":
-            calibration = source.loaded_calibration
-            text = f"the tares taken while recording ({len(calibration.tares)})"
-        elif how == "clear":
-            calibration = calibration.retared(None)
-            text = "no tare"
-        else:
-            rows = np.arange(source.position, min(source.position + frames, len(source)))
-            untared = calibration.retared(None).apply(source.recording.frames.raw(rows), rows)
-            taken = float(source.recording.t[rows[0]])
-            calibration = calibration.retared(Tare(0, untared.mean(axis=0), taken, len(rows)))
-            text = f"tare from frames {rows[0]} to {rows[-1]}"
-        source.recalibrate(calibration)
-        # the scales follow the stresses now shown (cleared, a tare's offsets are load: the resultant
-        # kept the scale of the tared frames and was drawn 50 mm long)
-        self.set_display(**_display_scales(source, self.reconstructor))
+        text = retare_source(self.source, how, frames=frames)
+        if self.recording is not None:
+            # the scales follow the stresses now shown (cleared, a tare's offsets are load: the resultant
+            # kept the scale of the tared frames and was drawn 50 mm long)
+            self.set_display(**display_scales(self.source, self.reconstructor))
         return text
+
+    @property
+    def retarable(self) -> bool:
+        """The recording shown keeps raw values: its tare can be retaken, cleared or restored."""
+        return keeps_raw_values(self.source)
 
     def _stop(self, source: Source):
         try:
@@ -590,32 +313,26 @@ class ViewerModel:
 
     def _found(self) -> tuple[float, float]:
         # the parameters Auto shows (those of the frame's largest contact), or the manual ones
-        last = self.last
-        if not (self.auto and last is not None and last.auto):
-            return self.shear_ratio, self.shear_direction
-        return (min(float(last.result.shear_ratio), MAX_SHEAR_RATIO),
-                math.remainder(float(last.result.shear_direction), 2 * math.pi))
+        return auto_found(self.last if self.auto else None, (self.shear_ratio, self.shear_direction))
 
     def set_parameters(self, *, shear_ratio: float | None = None, shear_direction: float | None = None):
         """Manual parameters (a slider was touched): switches Auto off.
 
         A parameter not given keeps its manual value, or, when this leaves
-        Auto, what Auto found. Both values are checked before either is
-        stored; ``parameters_changed`` fires only when something changed.
+        Auto, what Auto found (:func:`~tactile_viewer.model.shear_parameters.leave_auto`).
+        Both values are checked before either is stored; ``parameters_changed``
+        fires only when something changed.
         """
-        ratio, direction = self._found()
-        if shear_ratio is not None:
-            if not (math.isfinite(shear_ratio) and 0 <= shear_ratio <= MAX_SHEAR_RATIO):
-                raise ValueError(f"shear_ratio must be in [0, {MAX_SHEAR_RATIO}], got {shear_ratio!r}")
-            ratio = float(shear_ratio)
-        if shear_direction is not None:
-            if not math.isfinite(shear_direction):
-                raise ValueError(f"shear_direction must be finite radians, got {shear_direction!r}")
-            direction = math.remainder(float(shear_direction), 2 * math.pi)
+        ratio, direction = leave_auto(self._found(), shear_ratio=shear_ratio, shear_direction=shear_direction)
         if (ratio, direction, False) != (self.shear_ratio, self.shear_direction, self.auto):
             self.shear_ratio, self.shear_direction, self.auto = ratio, direction, False
             self.parameters_changed.emit()
             self._schedule()
+
+    def move_parameters(self, **changes):
+        """A parameter control moved: :meth:`set_parameters` (leaving Auto); nothing with nothing open."""
+        if self.is_open:
+            self.set_parameters(**changes)
 
     def set_display(self, **changes):
         display = replace(self.display, **changes)
@@ -646,48 +363,18 @@ class ViewerModel:
 
     # -- the work ------------------------------------------------------------------------
 
-    def _job(self) -> _Job | None:
+    def _job(self) -> SolveJob | None:
         frame = self.current
         if frame is None or self.reconstructor is None:
             return None
-        return _Job(self._generation, self.reconstructor, frame.index if frame.index is not None else -1,
+        return SolveJob(self._generation, self.reconstructor, frame.index if frame.index is not None else -1,
                     frame.t, frame.stress, self.auto, self.shear_ratio, self.shear_direction)
-
-    @staticmethod
-    def _compute(job: _Job) -> Solved:
-        start = time.perf_counter()
-        if job.auto:
-            result = job.solver.solve(job.stress)
-        else:
-            result = job.solver.solve(job.stress, shear_ratio=job.shear_ratio,
-                                      shear_direction=job.shear_direction)
-        elapsed = 1e3 * (time.perf_counter() - start)
-        return Solved.of(job.solver.grid, job.stress, result, frame=job.frame, time=job.time,
-                         solve_ms=elapsed, auto=job.auto)
 
     def _track(self, solved: Solved) -> Solved:
         # on the model's thread, in the order results are shown: number the contacts (module notes)
-        tracker = self._tracker
-        if tracker is None:
-            return solved
-        key = (solved.frame, solved.time)
-        last = self._tracked
-        frames = 1  # live: every frame continues the tracks
-        if last is not None and last[0] == key:
-            tracker = self._tracker = last[1].copy()  # the same frame again: matched from before it
-            frames = last[2]
-        elif last is not None and not self.live:
-            frames = solved.frame - last[0][0]
-            if frames <= 0:
-                tracker.reset()  # a seek backwards: the numbers start again at this frame
-                frames = 1
-        self._tracked = (key, tracker.copy(), frames)
-        try:
-            # frames playback skipped (slow drawing, 2x) count as frames the lost contacts were unseen
-            return replace(solved, result=tracker.update(solved.result, frames))
-        except ValueError:  # a solver whose results the tracker cannot read: shown unnumbered
-            log.exception("the contacts of frame %s could not be followed", solved.frame)
-            return solved
+        solved, self._tracker, self._tracked = number_contacts(solved, self._tracker, self._tracked,
+                                                               live=self.live)
+        return solved
 
     def solve(self) -> Solved | None:
         """Reconstruct the current frame with the current parameters, here and now, and announce it.
@@ -699,7 +386,7 @@ class ViewerModel:
         job = self._job()
         if job is None:
             return None
-        self._show(self._track(self._compute(job)))
+        self._show(self._track(job.run()))
         self.solved.emit(self.last)
         return self.last
 
@@ -718,10 +405,10 @@ class ViewerModel:
             if self.settle > 0:
                 self._worker.wait_idle(self.settle)
 
-    def _work(self, job: _Job):
+    def _work(self, job: SolveJob):
         # on the worker thread: solve, then hand the outcome to the model's own thread
         try:
-            solved = self._compute(job)
+            solved = job.run()
         except Exception as exc:
             log.exception("solve of frame %s failed", job.frame)
             message = f"solve of frame {job.frame} failed: {exc}"
@@ -731,7 +418,7 @@ class ViewerModel:
         if not self._closed:  # after close the dispatcher (a Qt object) may be gone
             self._dispatch(lambda: self._deliver(job, solved))
 
-    def _deliver(self, job: _Job, solved: Solved):
+    def _deliver(self, job: SolveJob, solved: Solved):
         if job.generation != self._generation:
             return  # solved with a solver that has been replaced since
         solved = self._track(solved)
@@ -739,7 +426,7 @@ class ViewerModel:
         self._unshown = self.pace and self.live
         self.solved.emit(solved)
 
-    def _failed(self, job: _Job, message: str):
+    def _failed(self, job: SolveJob, message: str):
         if job.generation == self._generation:
             self.solve_failed.emit(message)
 
@@ -769,43 +456,3 @@ class ViewerModel:
         if self._worker is not None:
             self._worker.close()
 
-
-def _display_scales(source: Source, reconstructor) -> dict:
-    # readable default arrow lengths and colour range for a new source
-    grid = source.grid
-    width = float(np.ptp(grid.positions[:, 0])) + grid.pitch
-    if not isinstance(source, RecordingSource):
-        # nothing seen yet: 50 mN per node spans three pitches, a 1 N total half the skin,
-        # and 50 mN tops the arrows' fixed colour range
-        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 2, threshold=HIDE_BELOW * 0.05,
-                    arrow_range_max=0.05)
-    # on the recording's most loaded frame the largest node force spans about three pitches,
-    # the total half the skin (each contact has its own resultant: with two, each must still
-    # stand out of its contact's arrows); the fixed colour ranges hold every frame
-    recording = source.recording
-    if hasattr(recording.frames, "sample"):
-        # an MCAP recording is read lazily: a frame from each of a few chunks, damaged ones skipped
-        frames = recording.frames.sample()
-    else:
-        spread = np.linspace(0, len(recording) - 1, min(len(recording), 2048)).astype(int)
-        frames = recording.frames[np.unique(spread)]
-    # a frame the solver refuses (a value beyond MAX_STRESS) is reported when it is shown, not here
-    frames = frames[np.all(np.abs(frames) <= MAX_STRESS, axis=1)]
-    if not len(frames):
-        return dict(arrow_scale=3 * grid.pitch / 0.05, resultant_scale=width / 2, threshold=HIDE_BELOW * 0.05,
-                    arrow_range_max=0.05)
-    loaded = int(np.argmax(np.abs(frames).sum(axis=1)))
-    first = reconstructor.solve_normal(frames[loaded]).forces[:, 2]
-    peak = float(np.abs(first).max()) or 1.0
-    total = abs(float(first.sum())) or peak
-    # arrows under 2% of the largest node force are noise more often than load: hidden by default.
-    # The arrows' fixed colour range: the full solve concentrates a contact's load on fewer nodes
-    # than this normal-only one (the four samples' largest node force over every frame is 1.24 to
-    # 1.73 times `peak`), so 1.5 times it; a stronger node shows in the top colour
-    # The map's fixed colour range: the pressure the map shows is the full solve's, which concentrates
-    # the load more than this normal-only one (set at 1 times it, the core saturated on 16 to 60 of
-    # 30 to 60 frames of every sample); their frames' peak pressure is up to 1.66 times the most
-    # loaded frame's normal-only peak, so RANGE_MARGIN times it. The stress map shares the range.
-    return dict(arrow_scale=3 * grid.pitch / peak, resultant_scale=width / 2 / total,
-                range_max=max(float(np.abs(frames).max()), RANGE_MARGIN * peak / grid.pitch**2, 1.0),
-                threshold=HIDE_BELOW * peak, arrow_range_max=1.5 * peak)

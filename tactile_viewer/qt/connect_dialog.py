@@ -8,8 +8,8 @@ from pathlib import Path
 from PyQt6 import QtCore, QtWidgets
 
 from ..sources.device import announced_boards
-from ..sources.live import MAX_BAUDRATE, check_baudrate
 from ..sources.protocol import FORMATS
+from ..sources.serial_reader import MAX_BAUDRATE, check_baudrate
 from .preferences import Settings
 
 __all__ = ["Connection", "ConnectDialog", "settings"]

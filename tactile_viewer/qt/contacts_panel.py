@@ -13,7 +13,8 @@ import math
 
 from PyQt6 import QtCore, QtWidgets
 
-from ..model.viewer_model import Solved, ViewerModel
+from ..model.solved import Solved
+from ..model.viewer_model import ViewerModel
 
 __all__ = ["ContactsPanel", "contact_rows", "COLUMNS"]
 

@@ -4,7 +4,7 @@ a movie of the recording.
 The file formats are :mod:`tactile_viewer.io.forces`'s and :mod:`tactile_viewer.render.movie`'s; here are
 the dialogs and the checks that keep a bad folder from ending the app. Whole-recording
 exports run as a task behind a progress dialog. A movie solves with the model's own solver
-(a solver may be shared between threads: see :mod:`tactile_viewer.model.series`,
+(a solver may be shared between threads: see :mod:`tactile_viewer.model.series_solving`,
 whose rule the whole-recording force export and the time plots follow too) and renders its
 frames on the GUI thread (VTK draws on the thread that owns its windows), one per timer
 tick, so the window stays responsive behind the progress dialog.
@@ -28,6 +28,7 @@ from PyQt6 import QtCore, QtWidgets
 from ..io import sidecar
 from ..io.forces import save_forces
 from ..io.recording import written_whole
+from ..model import movie_settings
 from ..model.force_tables import force_table, reconstruct_frames
 from ..model.viewer_model import ViewerModel
 from ..model.worker import Cancelled
@@ -232,8 +233,9 @@ class ExportActions:
         fps = QtWidgets.QDoubleSpinBox()
         fps.setRange(0.1, 240.0)
         fps.setDecimals(2)
-        fps.setValue(movie.DEFAULT_FPS)
-        fps.setToolTip(f"one movie frame per recording frame; a GIF plays at most {movie.GIF_MAX_FPS:g} fps")
+        fps.setValue(movie_settings.DEFAULT_FPS)
+        fps.setToolTip(f"one movie frame per recording frame; a GIF plays at most "
+                       f"{movie_settings.GIF_MAX_FPS:g} fps")
         width, height = QtWidgets.QSpinBox(), QtWidgets.QSpinBox()
         for spin, value in zip((width, height), self.default_movie_size(), strict=True):
             spin.setRange(16, 8192)
@@ -278,13 +280,13 @@ class ExportActions:
         try:
             width, height = (int(v) for v in self.scene.plotter.window_size)
         except Exception:  # a plotter without a window yet: the command line's size
-            return movie.DEFAULT_SIZE
+            return movie_settings.DEFAULT_SIZE
         if width < 16 or height < 16:
-            return movie.DEFAULT_SIZE
+            return movie_settings.DEFAULT_SIZE
         return min(width, 8192) // 2 * 2, min(height, 8192) // 2 * 2
 
-    def export_movie(self, path, *, start: int = 0, stop: int | None = None, fps: float = movie.DEFAULT_FPS,
-                     size=None) -> bool:
+    def export_movie(self, path, *, start: int = 0, stop: int | None = None,
+                     fps: float = movie_settings.DEFAULT_FPS, size=None) -> bool:
         """Make a movie of the recording shown, as the window shows it (see :class:`MovieRunner`).
 
         Returns
@@ -304,9 +306,9 @@ class MovieRunner(QtCore.QObject):
     quality, the display settings, Auto or the manual parameters, and the camera (copied
     whole: a zoomed, parallel Top view stays one), as they were when it started. It solves
     with the model's own solver, ``model.reconstructor``: a solver may be shared between
-    threads (:mod:`tactile_viewer.model.series`), so the movie on the GUI thread and the model's
+    threads (:mod:`tactile_viewer.model.series_solving`), so the movie on the GUI thread and the model's
     worker thread may both solve with it, as the time plots and the whole-recording force
-    export do (see :mod:`tactile_viewer.model.series`); nothing is built again. A single-shot timer
+    export do (see :mod:`tactile_viewer.model.series_solving`); nothing is built again. A single-shot timer
     renders one frame per tick on the GUI thread behind a window-modal progress dialog with
     Cancel. A failure is shown with ``error(title, text)`` and never raised; a cancelled or
     failed movie leaves no file. A window closing cancels it.
@@ -342,8 +344,8 @@ class MovieRunner(QtCore.QObject):
         """A movie is being written."""
         return self.export is not None
 
-    def start(self, path, *, start: int = 0, stop: int | None = None, fps: float = movie.DEFAULT_FPS,
-              size=movie.DEFAULT_SIZE) -> bool:
+    def start(self, path, *, start: int = 0, stop: int | None = None, fps: float = movie_settings.DEFAULT_FPS,
+              size=movie_settings.DEFAULT_SIZE) -> bool:
         """Check everything and start writing; the frames follow, one per timer tick.
 
         Returns
@@ -361,7 +363,7 @@ class MovieRunner(QtCore.QObject):
             self._error("Movie export running", "one movie at a time: wait for it or cancel it")
             return False
         try:
-            # checks every argument (movie.check_frames and the others: one place for the window and
+            # checks every argument (movie_settings.check_frames and the others: one place for the window and
             # the command line) before the temporary file is made; the camera is copied now
             export = movie.MovieExport(
                 recording, model.reconstructor, path, start=start, stop=stop, fps=fps, size=size,
@@ -470,7 +472,7 @@ def _filter_suffix(chosen_filter: str) -> str:
 def _movie_name(picked: Path, chosen_filter: str) -> Path:
     """The name a movie is saved as: the name picked when it ends in a movie type; a name with no
     ending gets the chosen filter's (it must then be free: the save dialog asked about the name
-    picked, not about this one); any other ending is refused by :func:`movie.movie_kind`."""
+    picked, not about this one); any other ending is refused by :func:`movie_settings.movie_kind`."""
     if picked.suffix:
         return picked
     return sidecar.derived_name(picked, _filter_suffix(chosen_filter) or ".mp4", what="movie")

@@ -4,7 +4,7 @@ An event filter on the scene's widget follows the mouse without taking any
 event from it (rotating, panning and zooming work as before): on a move it
 looks up, at most once per ``interval`` milliseconds, the taxel under the
 cursor (:meth:`~tactile_viewer.render.scene.Scene.node_at`, camera arithmetic,
-nothing rendered) and emits its line (:func:`~tactile_viewer.render.scene.taxel_text`),
+nothing rendered) and emits its line (:func:`~tactile_viewer.render.taxel_readout.taxel_text`),
 or ``""`` off the skin. A click (press and release without dragging) pins
 the taxel under it: the line then stays on that taxel, and follows its
 values frame by frame, until a click pins another or one off the skin (or
@@ -18,7 +18,8 @@ import logging
 from PyQt6 import QtCore
 
 from ..model.viewer_model import ViewerModel
-from ..render.scene import Scene, taxel_text
+from ..render.scene import Scene
+from ..render.taxel_readout import taxel_text
 
 log = logging.getLogger(__name__)
 

@@ -1,11 +1,12 @@
 """The live bar: connect a board, tare, record, disconnect; its state and the NO DATA banner.
 
-The panel builds a :class:`~tactile_viewer.sources.live.SerialReader` and hands
+The panel builds a :class:`~tactile_viewer.sources.serial_reader.SerialReader` and hands
 it to the window's ``install`` (which builds the solver and sets it as the
 model's source); from then on it follows the source: a timer shows its rate,
 counts, rejections and recording, and raises the banner when frames stop.
-Tare and recording act on the source directly; what they report (a saved or
-failed recording) comes back through the model's ``message``.
+Tare goes through the model (:meth:`~tactile_viewer.model.viewer_model.ViewerModel.retare`,
+as the Recording menu's); recording acts on the source directly; what it reports
+(a saved or failed recording) comes back through the model's ``message``.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from PyQt6 import QtCore, QtGui, QtWidgets
 
 from ..io.layout import LayoutError, SensorLayout, load_layout
 from ..model.viewer_model import ViewerModel
-from ..sources.live import LiveSource, SerialReader
+from ..sources.live import LiveSource
+from ..sources.serial_reader import SerialReader
 from .connect_dialog import ConnectDialog
 
 __all__ = ["LivePanel", "TARE_FRAMES", "SILENCE_S"]
@@ -175,8 +177,7 @@ class LivePanel(QtWidgets.QFrame):
     def tare(self, frames: int = TARE_FRAMES):
         """Average the next ``frames`` frames as the zero of every taxel."""
         if self._connected():
-            self.reader.calibration.tare(frames)
-            self._notify(f"taring: averaging the next {frames} frames")
+            self._notify(self.model.retare("here", frames=frames))  # the model's one way to tare
 
     def record_dialog(self):
         path, _ = QtWidgets.QFileDialog.getSaveFileName(self.window(), "Record live frames", "live.mcap",

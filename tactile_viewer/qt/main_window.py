@@ -21,14 +21,18 @@ from pyvistaqt import QtInteractor  # noqa: E402
 
 from ..io.files import load
 from ..io.recording import SUFFIXES, Recording, RecordingError
+from ..model.captions import recording_warnings, window_title
+from ..model.solver_build import SolverBuild
 from ..model.viewer_model import ViewerModel
 from ..render.scene import Scene
 from ..sources.source import RecordingSource, Source
 from .contacts_panel import ContactsPanel
+from .display_panel import DisplayPanel
 from .export_dialogs import ExportActions
 from .hover import TaxelReadout
 from .live_panel import LivePanel
-from .panels import DisplayPanel, ParametersPanel, PlaybackPanel, status_details, status_text
+from .parameters_panel import ParametersPanel
+from .playback_panel import PlaybackPanel
 from .preferences import (
     RecentFiles,
     last_folder,
@@ -39,6 +43,8 @@ from .preferences import (
     saved_view,
 )
 from .presets import PresetMeasurer
+from .quick_help import HELP_HTML, about_text
+from .status_line import status_details, status_text
 from .tasks import Dispatcher, TaskRunner
 from .time_plots import TimePlotsDock
 
@@ -51,59 +57,6 @@ SETTLE_S = 0.03  # the longest a control waits for its solve (docs/architecture.
 
 TITLE_BAR_PX = 40  # room left for the window manager's title bar when the window is first sized
 TIME_PLOTS_PX = 240  # the time plots' first height: the scene keeps most of a 760 px window
-
-
-HELP_HTML = """
-<h3>Reading the picture</h3>
-<p>Each arrow is the force on one node of the skin's surface, its tip on the surface, pointing where
-the force pushes; its colour is its size (left colour bar, mN). The red arrow is a contact's resultant
-at its centre. The map is the reconstructed normal pressure (or the measured sensor stress).
-Directions are angles from +x (0 deg = +x, 90 deg = +y).</p>
-<h3>The two parameters</h3>
-<p><b>Auto</b> picks, per contact, the shear ratio and direction whose compressive load explains the
-sensors best (the efficiency maximum). Moving a slider switches Auto off and solves with your values.</p>
-<p>Torsion is invisible to a normal-stress skin: a twist (shear circling a centre) changes no
-sensor reading, so no torque is ever shown; a twisting contact appears as if it did not twist
-(its normal load, and any one-way shear). See docs/torsion.md.</p>
-<h3>Mouse</h3>
-<p>Left drag: rotate. Shift + left drag or middle drag: pan. Wheel or right drag: zoom.
-Point at a taxel to read its values.</p>
-<h3>Keys</h3>
-<table>
-<tr><td>Space</td><td>play / pause</td></tr>
-<tr><td>Left, Right</td><td>one frame back, on</td></tr>
-<tr><td>Home, End</td><td>first, last frame</td></tr>
-<tr><td>A</td><td>Auto on / off</td></tr>
-<tr><td>Ctrl+O</td><td>open a recording (or drop one on the window)</td></tr>
-</table>
-<h3>Files</h3>
-<p>Recordings: .mcap (live recordings, raw values and calibration), .npz and .csv.
-Frames are numbered from 0 everywhere: window, exports, sidecars, --frame and --report.</p>
-"""
-
-
-def about_text() -> str:
-    """The About box: version, the libraries and where the log is written."""
-    import platform
-    from importlib import metadata
-
-    import numpy
-    import pyvista
-    import scipy
-
-    def version(name):
-        try:
-            return metadata.version(name)
-        except metadata.PackageNotFoundError:
-            return "?"
-
-    reporter = getattr(QtWidgets.QApplication.instance(), "reporter", None)
-    log_path = getattr(reporter, "log_path", None)
-    return (f"<b>tactile-viewer {version('tactile-viewer')}</b><br>"
-            "Contact forces on a robot skin from its normal-stress sensors.<br><br>"
-            f"Python {platform.python_version()}, numpy {numpy.__version__}, scipy {scipy.__version__}, "
-            f"pyvista {pyvista.__version__}, Qt {QtCore.qVersion()}, PyQt {QtCore.PYQT_VERSION_STR}<br>"
-            f"Log: {log_path if log_path else 'standard error only'}")
 
 
 def first_size(width: int, height: int) -> tuple[int, int]:
@@ -254,44 +207,15 @@ class MainWindow(QtWidgets.QMainWindow):
         self._build_help_menu()
 
     def _build_playback_menu(self):
-        # window-wide keys: a text field keeps the keys it edits with (Qt gives it the shortcut
-        # override), a slider or button with the focus does not
         menu = self.menuBar().addMenu("&Playback")
-        keys = QtCore.Qt.Key
-
-        def add(label, key, slot, tip):
-            action = menu.addAction(label, slot)
-            action.setShortcut(QtGui.QKeySequence(key))
-            action.setToolTip(tip)
-            return action
-
-        self.playback_actions = {
-            "play": add("&Play / pause", keys.Key_Space, self.playback.play_button.toggle,
-                        "Play the recording at the chosen speed, or pause it"),
-            "back": add("Step &back", keys.Key_Left, lambda: self.playback.step(-1), "One frame back"),
-            "forward": add("Step &forward", keys.Key_Right, lambda: self.playback.step(1), "One frame on"),
-            "first": add("&First frame", keys.Key_Home, lambda: self._go_to(0), "Frame 0"),
-            "last": add("&Last frame", keys.Key_End, lambda: self._go_to(-1), "The recording's last frame"),
-        }
+        self.playback_actions = self.playback.add_actions(menu)
         menu.addSeparator()
-        self.auto_action = add("&Auto parameters", keys.Key_A, self._toggle_auto,
-                               "Toggle Auto: the shear ratio and direction found by the efficiency "
-                               "maximum, or the sliders' values")
+        self.auto_action = self.parameters.add_auto_action(menu)
 
     def _build_help_menu(self):
         menu = self.menuBar().addMenu("&Help")
         menu.addAction("Quick &help", self.show_help).setShortcut(QtGui.QKeySequence.StandardKey.HelpContents)
         menu.addAction("&About tactile-viewer", self.show_about)
-
-    def _go_to(self, index: int):
-        recording = self.model.recording
-        if recording is not None and not self.model.live:
-            self.model.set_frame(index % len(recording))
-
-    def _toggle_auto(self):
-        # the same switch as the checkbox (which a normal-only preset disables)
-        if self.parameters.auto_box.isEnabled() and self.model.is_open:
-            self.parameters.auto_box.toggle()
 
     def _fill_recent(self):
         self.recent_menu.clear()
@@ -318,8 +242,7 @@ class MainWindow(QtWidgets.QMainWindow):
             action.setEnabled(on)
         for action in self._exports[2:4]:  # whole recording, movie: a live source has no "whole recording"
             action.setEnabled(on and not live)
-        recording = self.model.recording  # None for a live source
-        raw = on and recording is not None and recording.calibration is not None
+        raw = on and self.model.retarable  # a recording that keeps raw values (never a live source)
         for action in self.tare_actions.values():
             action.setEnabled(raw)
 
@@ -387,54 +310,35 @@ class MainWindow(QtWidgets.QMainWindow):
         The source shown so far stays until then; ``source`` is stopped if the
         build fails or the window closes first.
         """
-        configuration, grid = self.model.configuration, source.grid
-        if self.model.is_open and grid.key != self.model.grid.key:
-            configuration = None  # a quality preset was measured on the geometry it came with
+        grid = source.grid
         shape = "x".join(map(str, grid.shape[::-1])) if len(grid.shape) == 2 else f"{grid.size}-taxel"
-        task = self._install(source, self.model.kernel, configuration, f"Factoring the {shape} geometry...")
+        task = self._install(SolverBuild.for_source(self.model, source), f"Factoring the {shape} geometry...")
         task.failed.connect(lambda _: source.stop())
         task.succeeded.connect(lambda _: source.stop() if self.tasks.closed else None)
         return True
 
     def _rebuild(self, kernel, configuration):
         # the same source with another kernel or quality: its frame stays
-        if not self.model.is_open:
-            self.model.configuration = configuration
-            return
-        if (kernel, configuration) == (self.model.kernel, self.model.configuration):
-            return
-        label = (f"Factoring for the {kernel} kernel..." if kernel != self.model.kernel else
+        other_kernel = kernel != self.model.kernel
+        build = SolverBuild.for_choice(self.model, kernel, configuration)
+        if build is None:
+            return  # nothing open (the preset waits for the next source), or already in use
+        label = (f"Factoring for the {kernel} kernel..." if other_kernel else
                  f"Setting up '{self.parameters.quality_box.currentText().split(':')[0]}'...")
-        self.model.configuration = configuration
-        self._install(self.model.source, kernel, configuration, label)
+        self._install(build, label)
 
-    def _install(self, source: Source, kernel: str, configuration, label: str):
+    def _install(self, build: SolverBuild, label: str):
         # the one path from a source to the screen: build its solver in a task, then show it
-        grid = source.grid
-        shown = self.model.source
-
-        def done(solver):
-            if shown is source and self.model.source is not source:
-                return  # a rebuild for a source replaced while it was built
-            self.model.configuration = configuration
-            self.model.set_source(source, solver)
-
-        return self.tasks.run(lambda progress: ViewerModel.build(grid, kernel, configuration), done, label,
-                              determinate=False)
+        # (dropped by the model when it was a rebuild for a source replaced meanwhile)
+        return self.tasks.run(lambda progress: build.build(),
+                              lambda solver: build.install(self.model, solver), label, determinate=False)
 
     def _on_source(self):
-        source = self.model.source
         self.scene.set_grid(self.model.grid)
-        name = source.path.name if getattr(source, "path", None) else "recording"
         self._title()
         self._set_enabled(True)
-        recording = self.model.recording
-        if recording is not None and recording.truncated:
-            self._on_message("warning", "Recording cut short:",
-                             f"{name} ends at its last complete chunk or row (a crash or a full disk while "
-                             "it was written); every frame before is kept")
-        if recording is not None and recording.damage:
-            self._on_message("warning", "Recording damaged:", f"{name}: " + "; ".join(recording.damage))
+        for title, text in recording_warnings(self.model.source, self.model.recording):
+            self._on_message("warning", title, text)
         if self.model.current is None and self.model.live:
             self.ready.emit()  # no frame yet: the first to arrive is solved and drawn as it comes
         else:
@@ -446,21 +350,9 @@ class MainWindow(QtWidgets.QMainWindow):
             self._title(recording_to=path)
 
     def _title(self, *, recording_to: str = "", disconnected: bool = False):
-        # the one place the title is made: what is shown and its state, which the title keeps
-        # saying after the status line has moved on (a live board recorded, a damaged file)
-        source = self.model.source
-        if source is None:
-            title = "tactile-viewer"
-        elif disconnected:
-            title = f"tactile-viewer - {source.label} (disconnected)"
-        elif source.live:
-            title = f"tactile-viewer - live: {source.label}" + (
-                f" - \u25cf REC {Path(recording_to).name}" if recording_to else "")
-        else:
-            recording = self.model.recording
-            title = (f"tactile-viewer - {source.path.name if getattr(source, 'path', None) else 'recording'}"
-                     + (" (damaged)" if recording is not None and recording.damage else ""))
-        self.setWindowTitle(title)
+        # the one place the title is set (the words: model.captions.window_title)
+        self.setWindowTitle(window_title(self.model.source, self.model.recording, recording_to=recording_to,
+                                         disconnected=disconnected))
 
     def retare(self, how: str) -> bool:
         """Retake ("here"), clear or restore ("recorded") the tare of the recording shown (not its file)."""

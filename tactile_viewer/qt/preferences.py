@@ -10,7 +10,7 @@ ignored as a whole, and a value that cannot be read back (an edited or older
 file) one by one, each with a log line: the default is used instead and the
 window opens as usual. Writes go to a temporary file renamed over the old one.
 
-The view kept is the part of :class:`~tactile_viewer.model.viewer_model.Display` that is
+The view kept is the part of :class:`~tactile_viewer.model.display.Display` that is
 a choice of the user's (the map, the colour map, what is drawn, the
 colour-range mode ...), not the scales each new source gets from its own
 loads (:data:`PER_SOURCE`), and the playback speed and loop.
@@ -30,7 +30,7 @@ from pathlib import Path
 
 from PyQt6 import QtCore
 
-from ..model.viewer_model import Display
+from ..model.display import Display
 
 log = logging.getLogger(__name__)
 
@@ -39,7 +39,7 @@ __all__ = ["Settings", "window_settings", "saved_layout", "save_layout", "Recent
            "RECENT_MAX", "MAX_SETTINGS_BYTES"]
 
 RECENT_MAX = 8  # entries of File > Open recent
-# Display fields every new source sets from its own loads (model._display_scales), and the in-plane
+# Display fields every new source sets from its own loads (model.display.display_scales), and the in-plane
 # arrows, which follow the camera (not kept either): not preferences
 PER_SOURCE = frozenset({"arrow_scale", "resultant_scale", "threshold", "range_max", "arrow_range_max",
                         "in_plane"})

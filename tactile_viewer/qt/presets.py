@@ -17,7 +17,7 @@ from measurement import tradeoff
 
 from ..model.viewer_model import ViewerModel
 from ..model.worker import Cancelled
-from .panels import ParametersPanel
+from .parameters_panel import ParametersPanel
 from .tasks import TaskRunner
 
 __all__ = ["PresetMeasurer", "PRESET_LIMIT"]

@@ -10,16 +10,20 @@ that owns its windows.
   stop=len(recording)`` is the whole recording.
 - ``.mp4``, ``.mkv`` and ``.avi`` are H.264 videos (imageio's ffmpeg plugin,
   libx264, yuv420p: width and height must be even); ``.gif`` is an animated GIF
-  (imageio's pillow plugin; at most :data:`GIF_MAX_FPS` frames per second).
-- Burnt into every frame: the frame number and time, the shear ratio and
-  direction solved with (and whether they were found automatically or given),
-  and the total normal and tangential force.
+  (imageio's pillow plugin; at most
+  :data:`~tactile_viewer.model.movie_settings.GIF_MAX_FPS` frames per second).
+- Burnt into every frame (:func:`~tactile_viewer.render.frame_renderer.caption`):
+  the frame number and time, the shear ratio and direction solved with (and
+  whether they were found automatically or given), and the total normal and
+  tangential force.
 - The camera is a preset (``"iso"``, ``"top"``) or a whole VTK camera copied
   (projection, parallel scale, view angle, clipping: the window's view as it is);
-  from a preset, the default display follows :meth:`Display.seen_from` (Top lays
+  from a preset, the default display
+  (:func:`~tactile_viewer.model.movie_settings.default_display`) follows
+  :meth:`Display.seen_from` (Top lays
   the arrows flat, Iso stands them up), as the window's camera buttons do.
 - The solver may be shared, the window's own included: the solvers keep no
-  per-call state (see :mod:`tactile_viewer.model.series`), so the movie solves with
+  per-call state (see :mod:`tactile_viewer.model.series_solving`), so the movie solves with
   the model's while the model's worker thread solves the frame on screen.
 - Every frame costs the same: the scene's actors and the caption are made once
   and updated in place, the solver is built once, and the writer streams (a
@@ -36,7 +40,6 @@ from __future__ import annotations
 
 import errno
 import logging
-import math
 import os
 import secrets
 import shutil
@@ -47,30 +50,32 @@ from pathlib import Path
 
 import numpy as np
 
-from solver.checks import real_number, shown, whole_number
+from solver.checks import shown
 
 from ..io.recording import Recording
-from ..model.viewer_model import MAX_SHEAR_RATIO, Display, Solved, ViewerModel
+from ..model.display import Display
+from ..model.movie_settings import (
+    DEFAULT_FPS,
+    DEFAULT_SIZE,
+    GIF_MAX_BYTES,
+    GIF_SUFFIX,
+    check_camera,
+    check_fps,
+    check_frames,
+    check_parameters,
+    check_size,
+    default_display,
+    movie_kind,
+)
+from ..model.solved import Solved
+from ..model.viewer_model import ViewerModel
 from ..model.worker import Cancelled
-from ..sources.source import RecordingSource
+from .frame_renderer import FrameRenderer
 
 log = logging.getLogger(__name__)
 
-__all__ = ["MovieExport", "MovieResult", "FrameRenderer", "write_movie", "default_display", "caption",
-           "movie_kind", "check_frame", "check_frames", "check_fps", "check_size", "check_parameters",
-           "check_camera", "VIDEO_SUFFIXES", "GIF_SUFFIX",
-           "DEFAULT_FPS", "DEFAULT_SIZE", "GIF_MAX_FPS", "GIF_MAX_BYTES"]
+__all__ = ["MovieExport", "MovieResult", "write_movie"]
 
-VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi")
-GIF_SUFFIX = ".gif"
-DEFAULT_FPS = 30.0
-DEFAULT_SIZE = (1200, 800)  # as --screenshot
-# a GIF's frame delay is a whole number of hundredths of a second, and browsers slow
-# down delays under 2 hundredths: faster GIFs would not play at the rate asked for
-GIF_MAX_FPS = 50.0
-# a GIF holds every frame (one byte a pixel) until it is closed: 1 GiB is about
-# 1100 frames of 1200 x 800, 37 s at 30 fps; longer movies belong in a video
-GIF_MAX_BYTES = 1 << 30
 # imageio-ffmpeg's quality 0..10 becomes libx264's crf as int((1 - q / 10) * 51): 6.5 is
 # crf 17, where the burnt-in text and the colour bars' labels stay sharp
 VIDEO_QUALITY = 6.5
@@ -112,318 +117,6 @@ class MovieResult:
         """One line for people: ``wrote OUT: N frames, W x H, fps F, median X ms per frame``."""
         return (f"wrote {self.path}: {self.frames} frames, {self.size[0]} x {self.size[1]}, "
                 f"fps {self.fps:g}, median {self.median_ms:.0f} ms per frame")
-
-
-# -- argument checks ------------------------------------------------------------------------------
-
-
-def movie_kind(path, *, name: str = "path") -> str:
-    """``"video"`` or ``"gif"``, from the file name's ending (either case).
-
-    Raises
-    ------
-    ValueError
-        For any other ending, naming ``name``, the endings accepted and the one received.
-    """
-    suffix = Path(path).suffix.lower()
-    if suffix in VIDEO_SUFFIXES:
-        return "video"
-    if suffix == GIF_SUFFIX:
-        return "gif"
-    accepted = ", ".join((*VIDEO_SUFFIXES, GIF_SUFFIX))
-    raise ValueError(f"{name} must end in {accepted} (the movie's type), got {str(path)!r}")
-
-
-def check_frame(count: int, frame, *, name: str = "frame", what: str = "the frame") -> int:
-    """One frame of a ``count``-frame recording, numbered from 0, checked.
-
-    Parameters
-    ----------
-    count : int
-        Frames in the recording.
-    frame : int
-        The frame, from 0 to ``count - 1``.
-    name : str
-        What it is called in the message (the command line's ``--frame``).
-    what : str
-        What the frame is for, in the message ("the first frame").
-
-    Returns
-    -------
-    int
-
-    Raises
-    ------
-    ValueError
-        Naming ``name``, its bounds for this recording and the value received.
-    """
-    if count < 1:
-        raise ValueError(f"the recording has no frames: {name} cannot be chosen")
-    try:
-        return whole_number(name, frame, low=0, high=count - 1)
-    except ValueError:
-        raise ValueError(f"{name} must be a whole number from 0 to {count - 1} ({what}, numbered from 0; the "
-                         f"recording has {count} frames), got {shown(frame)}") from None
-
-
-def check_frames(count: int, start=0, stop=None, *, names=("start", "stop")) -> range:
-    """The frames a movie of a ``count``-frame recording shows: ``range(start, stop)``.
-
-    Parameters
-    ----------
-    count : int
-        Frames in the recording.
-    start : int
-        First frame, from 0.
-    stop : int or None
-        The frame after the last one (exclusive); None: ``count``, the end.
-    names : (2,) tuple of str
-        What the two are called in messages (the command line's ``--start``, ``--stop``).
-
-    Raises
-    ------
-    ValueError
-        Naming the argument, its bounds for this recording and the value received.
-    """
-    if count < 1:
-        raise ValueError("the recording has no frames: there is nothing to make a movie of")
-    first, after = names
-    start = check_frame(count, start, name=first, what="the first frame")
-    if stop is None:
-        return range(start, count)
-    try:
-        stop = whole_number(after, stop, low=start + 1, high=count)
-    except ValueError:
-        raise ValueError(f"{after} must be a whole number from {start + 1} to {count} (exclusive: the movie "
-                         f"ends before frame {after}; the recording has {count} frames and {first} is "
-                         f"{start}), got {shown(stop)}") from None
-    return range(start, stop)
-
-
-def check_fps(fps, kind: str = "video", *, name: str = "fps") -> float:
-    """Frames per second of a movie, checked.
-
-    Parameters
-    ----------
-    fps : float
-        Finite and > 0; at most :data:`GIF_MAX_FPS` for a GIF.
-    kind : {"video", "gif"}
-    name : str
-        What it is called in the message.
-
-    Raises
-    ------
-    ValueError
-        Naming ``name``, the rule and the value received.
-    """
-    if kind == "gif":
-        return real_number(name, fps, rule=f"> 0 and at most {GIF_MAX_FPS:g} for a GIF (its frame delays "
-                           "are hundredths of a second; players slow faster GIFs down)",
-                           valid=lambda v: 0 < v <= GIF_MAX_FPS)
-    return real_number(name, fps, rule="finite and > 0", valid=lambda v: 0 < v < math.inf)
-
-
-def check_size(size, kind: str = "video", *, name: str = "size") -> tuple:
-    """The size of a movie's frames, checked.
-
-    Parameters
-    ----------
-    size : (2,) tuple of int
-        Width and height in pixels, whole numbers from 16 to 8192; even for a video
-        (yuv420p halves the colour resolution, so H.264 needs even sides, and imageio
-        would otherwise scale the frames).
-    kind : {"video", "gif", "image"}
-    name : str
-        What it is called in the message.
-
-    Returns
-    -------
-    (2,) tuple of int
-
-    Raises
-    ------
-    ValueError
-        Naming ``name``, the rule and the value received.
-    """
-    try:
-        width, height = size
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be (width, height) in pixels, got {shown(size)}") from None
-    width = whole_number(f"{name} width", width, low=16, high=8192, unit="of pixels ")
-    height = whole_number(f"{name} height", height, low=16, high=8192, unit="of pixels ")
-    if kind == "video" and (width % 2 or height % 2):
-        raise ValueError(f"{name} must have an even width and height for a video (H.264, yuv420p), "
-                         f"got {width} x {height}")
-    return width, height
-
-
-def check_parameters(shear_ratio, shear_direction, *, names=("shear_ratio", "shear_direction"),
-                     degrees: bool = False) -> tuple:
-    """The parameters a movie is solved with: both None (found for each frame) or both given (fixed).
-
-    Parameters
-    ----------
-    shear_ratio : float or None
-        In ``[0, MAX_SHEAR_RATIO]``.
-    shear_direction : float or None
-        Finite; radians, or degrees with ``degrees``.
-    names : (2,) tuple of str
-        What the two are called in messages (the command line's ``--shear-ratio``, ``--shear-direction``).
-    degrees : bool
-        ``shear_direction`` is in degrees (the command line's).
-
-    Returns
-    -------
-    (ratio, direction) : tuple of float or None
-        The direction in radians, in ``[-pi, pi]``; ``(None, None)`` for automatic.
-
-    Raises
-    ------
-    ValueError
-        Naming the argument, the rule and the value received.
-    """
-    ratio_name, direction_name = names
-    if shear_ratio is None and shear_direction is None:
-        return None, None
-    if shear_ratio is None or shear_direction is None:
-        raise ValueError(f"{ratio_name} and {direction_name} must be given together (fixed parameters) or "
-                         f"both be None (automatic), got {shown(shear_ratio)} and {shown(shear_direction)}")
-    ratio = real_number(ratio_name, shear_ratio, rule=f"in [0, {MAX_SHEAR_RATIO}]",
-                        valid=lambda v: 0 <= v <= MAX_SHEAR_RATIO)
-    direction = real_number(direction_name, shear_direction,
-                            rule=f"finite {'degrees' if degrees else 'radians'}", valid=math.isfinite)
-    if degrees:
-        direction = math.radians(direction)
-    return ratio, math.remainder(direction, 2 * math.pi)
-
-
-def check_camera(camera, *, name: str = "camera"):
-    """A movie's camera, checked: a preset of :attr:`Display.CAMERAS` or a VTK camera (copied whole).
-
-    Raises
-    ------
-    ValueError
-        Naming ``name``, what is accepted and the value received.
-    """
-    if isinstance(camera, str):
-        if camera in Display.CAMERAS:
-            return camera
-    elif callable(getattr(camera, "DeepCopy", None)) and callable(getattr(camera, "GetParallelScale", None)):
-        return camera
-    raise ValueError(f"{name} must be one of {Display.CAMERAS} or a vtkCamera (the window's, copied whole), "
-                     f"got {shown(camera)}")
-
-
-# -- what a frame shows ----------------------------------------------------------------------------
-
-
-def caption(solved: Solved) -> str:
-    """The text burnt into a frame: frame, time, forces, and the parameters solved with.
-
-    Examples
-    --------
-    >>> from types import SimpleNamespace as S
-    >>> r = S(shear_ratio=0.31, shear_direction=math.radians(45), total_force=np.array([0.3, 0.1, 1.0]))
-    >>> print(caption(S(frame=12, time=0.4, result=r, auto=True)))
-    frame 12   t 0.400 s   Fz 1.000 N   Ft 0.316 N
-    shear ratio 0.31   direction +45 deg   (found automatically)
-    """
-    result = solved.result
-    fx, fy, fz = result.total_force
-    how = "found automatically" if solved.auto else "fixed"
-    direction = math.degrees(result.shear_direction)
-    return (f"frame {solved.frame}   t {solved.time:.3f} s   Fz {fz:.3f} N   Ft {math.hypot(fx, fy):.3f} N\n"
-            f"shear ratio {result.shear_ratio:.2f}   direction {direction:+.0f} deg   ({how})")
-
-
-def default_display(recording: Recording, solver, *, display_map: str = "pressure",
-                    camera: str = "iso") -> Display:
-    """The window's display settings for a recording seen from a camera preset.
-
-    The arrow lengths, hidden arrows and colour ranges a window would pick for the recording,
-    with both colour ranges (the map's and the arrows') fixed for the whole movie so colours
-    compare across frames, as seen from ``camera`` (:meth:`Display.seen_from`: in-plane arrows
-    from the top, 3-D ones from ``"iso"``).
-
-    Raises
-    ------
-    ValueError
-        ``camera`` is not a preset, or ``display_map`` not a map (named, with the value received).
-    """
-    seen = Display().seen_from(camera)  # checked before anything is solved
-    model = ViewerModel()  # no dispatch: nothing is solved or scheduled
-    model.set_source(RecordingSource(recording), solver)
-    model.set_display(map=display_map, auto_range=False, arrow_auto_range=False, in_plane=seen.in_plane)
-    return model.display
-
-
-class FrameRenderer:
-    """The app's :class:`~tactile_viewer.render.scene.Scene` on its own off-screen plotter, with a caption.
-
-    Must be used (and closed) on one thread: the one that made it.
-
-    Parameters
-    ----------
-    grid : SensorGrid
-    size : (2,) tuple of int
-        Width and height of the images, pixels.
-    camera : {"iso", "top"} or vtkCamera
-        A preset, or a camera copied whole (``DeepCopy``: position, focal point, up, projection,
-        parallel scale, view angle, clipping range), as :meth:`Scene.screenshot` copies it: the
-        window's view, a zoomed parallel Top view included. Copied now; later changes to it
-        do not reach the movie.
-    smooth : bool
-        Multisample anti-aliasing, as the command line's screenshots.
-    """
-
-    def __init__(self, grid, *, size=DEFAULT_SIZE, camera="iso", smooth: bool = True):
-        import pyvista as pv
-
-        from .scene import Scene
-
-        width, height = check_size(size, "image")
-        camera = check_camera(camera)
-        self.size = (width, height)
-        self.plotter = pv.Plotter(off_screen=True, window_size=[width, height])
-        try:
-            self.scene = Scene(self.plotter, smooth=smooth)
-            self.scene.set_grid(grid)
-            if isinstance(camera, str):
-                self.scene.camera(camera)
-            else:
-                own = self.plotter.renderer.camera  # pyvista's, already marked set by set_grid's preset
-                own.DeepCopy(camera)
-                # pyvista keeps its own note of the projection: through it, both agree
-                own.parallel_projection = bool(camera.GetParallelProjection())
-            # one text actor, its text replaced each frame (adding one per frame would grow the cost),
-            # centred at the top between the colour bars: its size follows the image so that the
-            # longest caption line (about 60 characters) stays inside the middle 70% (the bars are outside)
-            font = max(8, min(round(width / 52), round(height / 32)))  # pixels
-            self._text = self.plotter.add_text("", position=(width / 2, height - font // 2), color="black",
-                                               name="caption")
-            self._text.prop.font_size = font  # add_text would double the size it is given
-            self._text.prop.justification_horizontal = "center"
-            self._text.prop.justification_vertical = "top"
-        except BaseException:
-            self.plotter.close()
-            raise
-
-    def render(self, solved: Solved, display: Display) -> np.ndarray:
-        """Draw one frame and return its image, ``(height, width, 3)`` uint8."""
-        self.scene.update(solved, display, render=False)
-        self._text.input = caption(solved)
-        self.plotter.render()
-        image = np.asarray(self.plotter.screenshot(None, return_img=True))
-        if image.shape[:2] != (self.size[1], self.size[0]):
-            # never expected: a render window smaller than asked (a screen limit) would make a movie
-            # whose frames do not match the size the writer was opened with
-            raise RuntimeError(f"the renderer made {image.shape[1]} x {image.shape[0]} images, "
-                               f"not {self.size[0]} x {self.size[1]}")
-        return image[..., :3]
-
-    def close(self):
-        """Release the plotter (idempotent)."""
-        self.plotter.close()
 
 
 # -- the file ----------------------------------------------------------------------------------------
@@ -566,7 +259,7 @@ class MovieExport:
     solver : solver.Reconstructor
         Built for ``recording.grid`` (:meth:`ViewerModel.build`); it may be shared, the window's
         model's own included (solving on the model's worker thread meanwhile): a solver may be
-        shared between threads (see :mod:`tactile_viewer.model.series`).
+        shared between threads (see :mod:`tactile_viewer.model.series_solving`).
     path : str or Path
         The movie: ``.mp4``, ``.mkv``, ``.avi`` or ``.gif``. An existing file of that name is replaced
         once the movie is complete.
@@ -577,12 +270,13 @@ class MovieExport:
     size : (2,) tuple of int
         Width and height, pixels (even for a video).
     display : Display, optional
-        What the scene shows, as given; default :func:`default_display` (fixed colour ranges) seen
+        What the scene shows, as given; default
+        :func:`~tactile_viewer.model.movie_settings.default_display` (fixed colour ranges) seen
         from ``camera`` when it is a preset, from ``"iso"`` otherwise.
     shear_ratio, shear_direction : float or None
         Fixed parameters (ratio, radians), both given; both None (default): found for each frame.
     camera : {"iso", "top"} or vtkCamera
-        A preset, or a camera copied whole (see :class:`FrameRenderer`).
+        A preset, or a camera copied whole (see :class:`~tactile_viewer.render.frame_renderer.FrameRenderer`).
     smooth : bool
         Anti-aliasing (about three times the render time under software rendering).
 

@@ -20,24 +20,30 @@ import numpy as np
 import pyvista as pv
 from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkRenderingCore import vtkRenderer, vtkTextActor
-from vtkmodules.vtkRenderingFreeType import vtkVectorText
 
 from solver import SensorGrid
 
 from ..io.recording import written_whole
-from ..model.viewer_model import Display, Solved
+from ..model.display import Display
+from ..model.solved import Solved
+from .meshes import (
+    LIFT_FLAT,
+    LIFT_MAP,
+    MM,
+    axes_mesh,
+    box_faces,
+    flat_arrow,
+    glyphs,
+    solid_arrow,
+    squares,
+    taxel_numbers,
+)
 
-__all__ = ["Scene", "taxel_text", "MAX_TAXEL_IDS"]
+__all__ = ["Scene"]
 
-MM = 1e3  # metres -> millimetres
 # with only two lights (see Scene), ambient light keeps faces turned from them readable
 SHADED = dict(ambient=0.35, diffuse=0.75, specular=0.1)
 MAP_TITLES = {"pressure": "pressure kPa", "stress": "stress kPa", "none": ""}
-# heights above the surface, in pitches: the map covers the layer's top, the taxel numbers the
-# map, flat arrows the numbers (far below anything a viewer could see as a gap)
-LIFT_MAP, LIFT_TEXT, LIFT_FLAT = 0.002, 0.004, 0.006
-MAX_TAXEL_IDS = 4096  # more numbers than a 64x64 skin's are unreadable and cost seconds to build
-DIGIT_ADVANCE = 0.8  # vtkVectorText's digits are about 0.72 wide and 1 tall
 RESULTANT_COLOUR = "#d62728"
 
 
@@ -94,13 +100,13 @@ class Scene:
         plotter.set_background("white")
         # one arrow along +x from 0 to 1, as triangles: every node's arrow is a
         # scaled, turned copy (done in numpy; VTK's glyph filter is slower here)
-        self._arrow_points, self._arrow_normals, self._arrow_triangles = _solid_arrow(0.3, 0.12, 0.05)
+        self._arrow_points, self._arrow_normals, self._arrow_triangles = solid_arrow(0.3, 0.12, 0.05)
         # thicker than a node's arrow for its length, and drawn over them (a layer of its own)
-        self._resultant_template = _solid_arrow(0.2, 0.1, 0.045)
+        self._resultant_template = solid_arrow(0.2, 0.1, 0.045)
         # the same shapes flat in the x-y plane, for in-plane arrows (zero height: the Top view's
         # shear picture, never hidden inside the map)
-        self._flat_arrow = _flat_arrow(0.3, 0.12, 0.05)
-        self._flat_resultant = _flat_arrow(0.2, 0.1, 0.045)
+        self._flat_arrow = flat_arrow(0.3, 0.12, 0.05)
+        self._flat_resultant = flat_arrow(0.2, 0.1, 0.045)
         # the resultants' own renderer, a layer over the scene's with the same camera and lights: a
         # contact's total force is never hidden among its node arrows
         self._over = vtkRenderer()
@@ -133,13 +139,13 @@ class Scene:
         # bound): the layer's top shows only when no map covers it, and then
         # translucent, so the sensors inside show through.
         self._actors["layer"] = self.plotter.add_mesh(
-            _box_faces((x0, x1, y0, y1, -h, 0.0), "sides"), color="#9ecae1", name="layer", pickable=False,
+            box_faces((x0, x1, y0, y1, -h, 0.0), "sides"), color="#9ecae1", name="layer", pickable=False,
             **SHADED)
         self._actors["layer_top"] = self.plotter.add_mesh(
-            _box_faces((x0, x1, y0, y1, -h, 0.0), "top"), color="#9ecae1", opacity=0.3, name="layer_top",
+            box_faces((x0, x1, y0, y1, -h, 0.0), "top"), color="#9ecae1", opacity=0.3, name="layer_top",
             pickable=False)
         self._actors["hull"] = self.plotter.add_mesh(
-            _box_faces((x0, x1, y0, y1, -h - 0.6 * p, -h), "sides and bottom"), color="#8c8c8c", name="hull",
+            box_faces((x0, x1, y0, y1, -h - 0.6 * p, -h), "sides and bottom"), color="#8c8c8c", name="hull",
             pickable=False, **SHADED)
         sensors = np.column_stack([grid.positions * MM, np.full(grid.size, -h)])
         self._actors["sensors"] = self.plotter.add_mesh(
@@ -147,7 +153,7 @@ class Scene:
             name="sensors", pickable=False)
         # the map: one pitch-sized square per node, just above the surface
         # (a regular grid tiles the skin; an irregular layout shows its taxels)
-        self._map = _squares(grid.positions * MM, p, LIFT_MAP * p)
+        self._map = squares(grid.positions * MM, p, LIFT_MAP * p)
         self._map.cell_data["kPa"] = np.zeros(grid.size)
         self._actors["map"] = self.plotter.add_mesh(
             self._map, scalars="kPa", cmap="viridis", clim=(0.0, 1.0), show_scalar_bar=False,
@@ -192,7 +198,7 @@ class Scene:
             self.plotter.add_actor(legend, name=name, pickable=False, render=False)
             self._actors[name] = legend
         # x and y ticks in millimetres and the direction convention, flat on the surface's plane
-        axes, self._axes_bounds = self._axes_mesh()
+        axes, self._axes_bounds, self.ticks = axes_mesh(self._skin[:4], grid.pitch, self._flat_arrow)
         self._actors["axes"] = self.plotter.add_mesh(axes, color="black", name="axes", pickable=False,
                                                      lighting=False)
         # taxel numbers: built when first asked for (a large skin's take a moment)
@@ -203,71 +209,6 @@ class Scene:
         self._bars["arrows"].SetVisibility(False)
         self.camera("iso")
 
-    def _axes_mesh(self) -> tuple[pv.PolyData, tuple]:
-        # ticks below the skin's lower edge (x) and left of its left edge (y), their values
-        # and titles; an arrow along +x and one along +y above its upper left corner, named
-        # "0 deg = +x" and "90 deg = +y". One mesh of black triangles; returns it and the
-        # bounds it spans.
-        x0, x1, y0, y1 = self._skin[:4]
-        size = max(x1 - x0, y1 - y0)
-        text = 0.035 * size  # text height, mm
-        gap, tick, stroke = 0.4 * text, 0.5 * text, 0.1 * text
-        parts = []
-        self.ticks = {}
-        for axis, (low, high) in enumerate(((x0, x1), (y0, y1))):
-            step = _nice_step((high - low) / 8)  # 5 to 10 ticks
-            values = np.arange(math.ceil(low / step - 1e-9), math.floor(high / step + 1e-9) + 1) * step
-            self.ticks["xy"[axis]] = values
-            for value in values:
-                label = f"{round(value / step) * step + 0.0:g}"  # + 0.0: no "-0"
-                across = (value - stroke / 2, value + stroke / 2)
-                if axis == 0:
-                    parts.append(_rectangle(*across, y0 - gap - tick, y0 - gap))
-                    parts.append(_text(label, (value, y0 - 2 * gap - tick), text, "center", "top"))
-                else:
-                    parts.append(_rectangle(x0 - gap - tick, x0 - gap, *across))
-                    parts.append(_text(label, (x0 - 2 * gap - tick, value), text, "right", "center"))
-        # axis titles: "x mm" under the x values, "y mm" turned along the y axis left of its values
-        below = min(points[:, 1].min() for points, _ in parts)
-        left = min(points[:, 0].min() for points, _ in parts)
-        parts.append(_text("x mm", ((x0 + x1) / 2, below - gap), text, "center", "top"))
-        parts.append(_text("y mm", (left - gap, (y0 + y1) / 2), text, "right", "center", turned=True))
-        # the direction convention: shear and resultant directions are angles from +x
-        length = 4 * text
-        origin = np.array([x0, y1 + 2 * gap])
-        for direction, label, anchor, align in (
-                ((1.0, 0.0), "0 deg = +x", origin + (length + gap, 0.0), ("left", "center")),
-                ((0.0, 1.0), "90 deg = +y", origin + (0.0, length + gap), ("center", "bottom"))):
-            vector = np.array([*direction, 0.0]) * length
-            rotation = _orientations(vector[None, :])[0]
-            points = np.append(origin, 0.0) + self._flat_arrow[0] @ rotation.T
-            parts.append((points[:, :2], self._flat_arrow[2]))
-            parts.append(_text(label, anchor, text, *align))
-        points, triangles = _merge(parts)
-        lift = LIFT_TEXT * self.grid.pitch * MM
-        mesh = pv.PolyData(np.column_stack([points, np.full(len(points), lift)]),
-                           faces=np.column_stack([np.full(len(triangles), 3), triangles]).ravel())
-        low, high = points.min(axis=0), points.max(axis=0)
-        return mesh, (low[0], high[0], low[1], high[1])
-
-    def _taxel_labels(self):
-        # every taxel's node index on its square, in flat digits; built once per grid
-        grid = self.grid
-        nodes = np.arange(min(grid.size, MAX_TAXEL_IDS)) if grid.size <= MAX_TAXEL_IDS else np.zeros(0, int)
-        self.label_nodes = nodes
-        if not nodes.size:
-            return None
-        p = grid.pitch * MM
-        digits = len(str(nodes[-1]))
-        # as tall as the square's width allows them (they were 0.3 p, 4 px in a 1280x800 window)
-        height = min(0.5 * p, 0.95 * p / (DIGIT_ADVANCE * digits))
-        centres = grid.positions[nodes] * MM
-        points, triangles, owner = _numbers(nodes, centres, height)
-        mesh = pv.PolyData(np.column_stack([points, np.full(len(points), LIFT_TEXT * p)]),
-                           faces=np.column_stack([np.full(len(triangles), 3), triangles]).ravel())
-        mesh.point_data["rgb"] = np.zeros((len(points), 3), dtype=np.uint8)
-        self._label_owner = owner  # the node of each point
-        return mesh
 
     # -- per frame -------------------------------------------------------------------
 
@@ -320,7 +261,7 @@ class Scene:
         if shown.size:
             template = self._flat_arrow if display.in_plane else \
                 (self._arrow_points, self._arrow_normals, self._arrow_triangles)
-            self.arrows.copy_from(_glyphs(template, tips - vectors, vectors, magnitude[shown] * 1e3))
+            self.arrows.copy_from(glyphs(template, tips - vectors, vectors, magnitude[shown] * 1e3))
             top = float(magnitude[shown].max()) if display.arrow_auto_range else display.arrow_range_max
             top *= 1e3
             self._actors["arrows"].mapper.scalar_range = (0.0, max(top, 1e-9))
@@ -369,8 +310,8 @@ class Scene:
         shown = display.resultant and bool(tips)
         if shown:
             template = self._flat_resultant if display.in_plane else self._resultant_template
-            self.resultants.copy_from(_glyphs(template, self.resultant_tips - self.resultant_vectors,
-                                              self.resultant_vectors, None))
+            self.resultants.copy_from(glyphs(template, self.resultant_tips - self.resultant_vectors,
+                                             self.resultant_vectors, None))
         else:
             self.resultants.copy_from(pv.PolyData())
         self._actors["resultant"].SetVisibility(shown)
@@ -384,8 +325,9 @@ class Scene:
         # axes and taxel numbers, the numbers in black or white, whichever reads on their square
         self._actors["axes"].SetVisibility(display.axes)
         if display.taxel_ids and self._labels is None:
-            self._labels = self._taxel_labels()
+            self._labels, self.label_nodes, owner = taxel_numbers(self.grid)  # built once per grid
             if self._labels is not None:
+                self._label_owner = owner  # the node of each point
                 self._actors["labels"] = self.plotter.add_mesh(
                     self._labels, scalars="rgb", rgb=True, name="labels", pickable=False, lighting=False,
                     show_scalar_bar=False)
@@ -511,183 +453,3 @@ class Scene:
             return larger.screenshot(str(path), transparent_background=transparent, return_img=True)
         finally:
             larger.close()
-
-
-def taxel_text(solved: Solved | None, grid: SensorGrid, node: int) -> str:
-    """One taxel's read-out: its number, position, measured stress and force.
-
-    Parameters
-    ----------
-    solved : Solved or None
-        The frame shown (None: only where the taxel is).
-    grid : SensorGrid
-    node : int
-        The node index, from 0.
-
-    Returns
-    -------
-    str
-        E.g. ``"taxel 37 (x 5.0 mm, y 3.0 mm): stress 1.23 kPa, Fx +0.12 Fy -0.03 Fz 4.56 mN"``.
-
-    Raises
-    ------
-    ValueError
-        For a node that is not one of the grid's.
-    """
-    if isinstance(node, bool) or not isinstance(node, (int, np.integer)) or not 0 <= node < grid.size:
-        raise ValueError(f"node must be an index from 0 to {grid.size - 1}, got {node!r}")
-    x, y = grid.positions[node] * MM
-    where = f"taxel {node} (x {x:.1f} mm, y {y:.1f} mm)"
-    if solved is None or len(solved.stress) != grid.size:
-        return where
-    fx, fy, fz = solved.result.forces[node] * 1e3
-    return (f"{where}: stress {solved.stress[node] / 1e3:.2f} kPa, "
-            f"Fx {fx:+.2f} Fy {fy:+.2f} Fz {fz:.2f} mN")
-
-
-def _solid_arrow(tip_length, tip_radius, shaft_radius):
-    """A 3-D arrow along +x from 0 to 1: points, point normals and triangles."""
-    template = pv.Arrow(tip_length=tip_length, tip_radius=tip_radius, shaft_radius=shaft_radius,
-                        tip_resolution=12, shaft_resolution=12).triangulate()
-    # smooth normals, split at the rims so the discs and the cone stay crisp
-    template = template.compute_normals(cell_normals=False, split_vertices=True, feature_angle=45)
-    return (np.asarray(template.points, dtype=float), np.asarray(template.point_data["Normals"], dtype=float),
-            np.asarray(template.faces).reshape(-1, 4)[:, 1:])
-
-
-def _flat_arrow(tip_length, tip_width, shaft_width):
-    """The arrow's outline in the x-y plane from (0, 0) to (1, 0): points, normals, triangles.
-
-    The normals are -z: :func:`_orientations` takes the template's z to
-    ``along x (along x z)``, which is -z for any direction in the plane, so
-    the drawn arrow faces up.
-    """
-    neck = 1.0 - tip_length
-    points = np.array([[0, -shaft_width, 0], [neck, -shaft_width, 0], [neck, shaft_width, 0],
-                       [0, shaft_width, 0], [neck, -tip_width, 0], [1, 0, 0], [neck, tip_width, 0]],
-                      dtype=float)
-    normals = np.tile([0.0, 0.0, -1.0], (len(points), 1))
-    return points, normals, np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6]])
-
-
-def _glyphs(template, starts, vectors, values) -> pv.PolyData:
-    """Copies of ``template`` (points, normals, triangles of a unit arrow along +x), copy k
-    spanning ``starts[k] .. starts[k] + vectors[k]``, thickness in proportion; each point
-    carries its arrow's ``values[k]`` as "mN" (none when ``values`` is None)."""
-    template_points, template_normals, template_triangles = template
-    rotations = _orientations(vectors)
-    points = starts[:, None, :] + np.einsum("kij,pj->kpi", rotations, template_points)
-    count, per_arrow = len(starts), len(template_points)
-    triangles = template_triangles[None, :, :] + per_arrow * np.arange(count)[:, None, None]
-    faces = np.concatenate([np.full(triangles.shape[:2] + (1,), 3), triangles], axis=2)
-    glyphs = pv.PolyData(points.reshape(-1, 3), faces=faces.ravel())
-    lengths = np.linalg.norm(vectors, axis=1)
-    normals = np.einsum("kij,pj->kpi", rotations / lengths[:, None, None], template_normals)
-    if values is not None:
-        glyphs.point_data["mN"] = np.repeat(values, per_arrow)
-    glyphs.point_data.set_array(normals.reshape(-1, 3), "Normals")
-    glyphs.point_data.active_normals_name = "Normals"
-    return glyphs
-
-
-def _orientations(vectors: np.ndarray) -> np.ndarray:
-    """(k, 3, 3) matrices taking the +x unit vector to each of the (k, 3) ``vectors``,
-    scaling every direction by the vector's length."""
-    length = np.linalg.norm(vectors, axis=1)
-    along = vectors / length[:, None]
-    # any unit vector across `along` (z unless nearly parallel to it), then the third
-    helper = np.where(np.abs(along[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-    across = np.cross(along, helper)
-    across /= np.linalg.norm(across, axis=1)[:, None]
-    return length[:, None, None] * np.stack([along, across, np.cross(along, across)], axis=2)
-
-
-def _squares(centres: np.ndarray, side: float, z: float) -> pv.PolyData:
-    """One axis-aligned square (a quad cell) of ``side`` around each centre, at height ``z``."""
-    corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * side / 2
-    points = (centres[:, None, :] + corners[None, :, :]).reshape(-1, 2)
-    faces = np.column_stack([np.full(len(centres), 4), np.arange(4 * len(centres)).reshape(-1, 4)])
-    return pv.PolyData(np.column_stack([points, np.full(len(points), z)]), faces=faces.ravel())
-
-
-def _box_faces(bounds, which: str) -> pv.PolyData:
-    """Faces of an axis-aligned box: ``"sides"``, ``"top"`` or ``"sides and bottom"``."""
-    x0, x1, y0, y1, z0, z1 = bounds
-    points = np.array([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0],
-                       [x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]], dtype=float)
-    sides = [[0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]  # outward normals
-    chosen = {"sides": sides, "top": [[4, 5, 6, 7]], "sides and bottom": sides + [[0, 3, 2, 1]]}[which]
-    return pv.PolyData(points, faces=np.hstack([[4, *face] for face in chosen]))
-
-
-# -- flat text and shapes: (points (n, 2), triangles (k, 3)) pairs ----------------------------------
-
-def _nice_step(raw: float) -> float:
-    """The smallest of 1, 2, 5 times a power of ten that is at least ``raw``."""
-    power = 10.0 ** math.floor(math.log10(raw))
-    return next(f * power for f in (1, 2, 5, 10) if f * power >= raw * (1 - 1e-9))
-
-
-def _rectangle(x0, x1, y0, y1):
-    return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=float), np.array([[0, 1, 2], [0, 2, 3]])
-
-
-def _vector_text(string: str):
-    """A string's outline in vtkVectorText's units (capitals about 1 tall), as triangles."""
-    source = vtkVectorText()
-    source.SetText(string)
-    source.Update()
-    mesh = pv.wrap(source.GetOutput())
-    return np.asarray(mesh.points, dtype=float)[:, :2], np.asarray(mesh.faces).reshape(-1, 4)[:, 1:]
-
-
-def _text(string, anchor, height, halign, valign, *, turned=False):
-    """Flat text ``height`` tall, its box aligned at ``anchor`` (``"left"``, ``"center"`` or
-    ``"right"``; ``"bottom"``, ``"center"`` or ``"top"``), turned a quarter left if asked."""
-    points, triangles = _vector_text(string)
-    points = points * height
-    if turned:
-        points = np.column_stack([-points[:, 1], points[:, 0]])
-    low, high = points.min(axis=0), points.max(axis=0)
-    shift = np.array([{"left": low[0], "center": (low[0] + high[0]) / 2, "right": high[0]}[halign],
-                      {"bottom": low[1], "center": (low[1] + high[1]) / 2, "top": high[1]}[valign]])
-    return points - shift + np.asarray(anchor, dtype=float), triangles
-
-
-def _numbers(numbers: np.ndarray, centres: np.ndarray, height: float):
-    """Flat decimal numbers centred on ``centres``, built from ten digit outlines (a label per
-    taxel of a large skin in a fraction of a second). Returns points (n, 2), triangles and the
-    index into ``numbers`` of each point."""
-    strings = [str(int(n)) for n in numbers]
-    lengths = np.array([len(s) for s in strings])
-    digits = np.zeros((len(strings), lengths.max()), dtype=int)
-    for k, s in enumerate(strings):
-        digits[k, :len(s)] = [int(c) for c in s]
-    outlines = [_vector_text(str(d)) for d in range(10)]
-    points, triangles, owner, count = [], [], [], 0
-    for place in range(digits.shape[1]):
-        for digit in range(10):
-            which = np.flatnonzero((lengths > place) & (digits[:, place] == digit))
-            if not which.size:
-                continue
-            outline, faces = outlines[digit]
-            # the string's box runs from 0.2 to about 0.93 + 0.8 (n - 1); its middle goes on the centre
-            offset = np.column_stack([(place - (lengths[which] - 1) / 2) * DIGIT_ADVANCE - 0.565,
-                                      np.full(which.size, -0.47)])
-            placed = centres[which, None, :] + (outline[None, :, :] + offset[:, None, :]) * height
-            points.append(placed.reshape(-1, 2))
-            per = len(outline)
-            starts = count + per * np.arange(which.size)
-            triangles.append((faces[None, :, :] + starts[:, None, None]).reshape(-1, 3))
-            owner.append(np.repeat(which, per))
-            count += per * which.size
-    return np.concatenate(points), np.concatenate(triangles), np.concatenate(owner)
-
-
-def _merge(parts):
-    points, triangles, count = [], [], 0
-    for part_points, part_triangles in parts:
-        points.append(part_points)
-        triangles.append(np.asarray(part_triangles) + count)
-        count += len(part_points)
-    return np.concatenate(points), np.concatenate(triangles)

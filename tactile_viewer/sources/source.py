@@ -22,7 +22,7 @@ import numpy as np
 
 from solver import SensorGrid
 
-from ..io.mcap import Recorder
+from ..io.mcap_writer import Recorder
 from ..io.recording import Recording, RecordingError, StressCalibration
 from .playback import PlaybackClock
 

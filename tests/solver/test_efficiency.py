@@ -11,8 +11,6 @@ import solver.search as search
 from solver import SensorGrid, loads
 from solver.efficiency import ContactFit, NoShear
 from solver.inverse import DenseSolver
-from solver.kernels import stress_matrix
-from solver.threads import one_blas_thread
 
 
 @pytest.fixture(scope="module")
@@ -84,37 +82,6 @@ def test_region_holds_the_contact_and_drops_isolated_spikes(reconstructor, shear
 
 
 # -- what the contact fit sees and fits ----------------------------------------------------------
-
-def test_frame_columns_are_the_sub_cells_of_the_region(reconstructor, sheared):
-    # The frame is the sub-cell (bilinear hat) stress matrix restricted to the sensors near the contact
-    # and to the sub-cells of its region's nodes: built here independently of _frame.
-    r, b = reconstructor, np.asarray(sheared.stress)
-    assert r.subdivision == 2
-    seen = r._frame(b)
-    frame, labels, nodes = seen.frame, seen.labels, seen.frame.column_node
-    m, cells = r.grid.size, 4
-    region = np.flatnonzero(labels)
-    assert frame.contacts == labels.max() == 1
-    distance = np.linalg.norm(r.grid.positions[:, None] - r.grid.positions[None, region], axis=2).min(axis=1)
-    rows = np.flatnonzero(distance <= r._rings * r.grid.pitch * 1.0001)
-    columns = (np.arange(cells)[:, None] * m + region).ravel()  # sub-cell q of node j: q m + j
-    full = stress_matrix(r.grid, r.kernel, subdivision=2, profile=r.profile)
-    width = cells * m
-    np.testing.assert_array_equal(frame.stress, b[rows])
-    for k, part in enumerate((frame.fit_x, frame.fit_y, frame.fit_z)):
-        np.testing.assert_array_equal(part, full[np.ix_(rows, columns + k * width)])
-    np.testing.assert_array_equal(nodes, np.tile(region, cells))
-    np.testing.assert_array_equal(frame.column_contact, np.zeros(columns.size, int))
-    assert frame.row_contact.shape == (rows.size, 1) and frame.row_contact.all()
-    # the answer is one force per node: the sum of its sub-cells' profile
-    # on one BLAS thread, as the solve runs: the same products, summed in the same order
-    with one_blas_thread():
-        choice = r.efficiency.choose(frame)
-    result = r.solve(b)
-    np.testing.assert_allclose(result.forces[:, 2], np.bincount(nodes, weights=choice.profile, minlength=m),
-                               rtol=1e-12, atol=0)
-    np.testing.assert_array_equal(result.contacts[0].nodes, labels == 1)
-
 
 def test_fit_is_the_nonnegative_least_squares_profile(reconstructor, sheared):
     frame = reconstructor._frame(np.asarray(sheared.stress)).frame

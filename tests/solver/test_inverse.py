@@ -483,7 +483,7 @@ def test_found_parameters_do_not_depend_on_the_solves_before(ratio):
 
 
 def test_a_load_broader_than_the_fit_budget_gets_a_cheaper_member_and_says_so():
-    from solver.inverse import WHOLE_CELLS
+    from solver.seen_frame import WHOLE_CELLS
 
     grid = SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3, poisson_ratio=0.49)
     frame = loads.simulate(grid, loads.hertz((0.2e-3, -0.3e-3), 5 * 1.5e-3, 1.0, shear_ratio=0.2),

@@ -59,3 +59,23 @@ def test_every_setting_answers_the_one_solve_signature(configuration):
     # the setting's own path when exact is not given: the exact setting gives the exact member
     assert automatic.exact == (configuration.path == "exact")
     assert made.solve_normal(frame.stress).normal_only
+
+
+@pytest.mark.parametrize("configuration", solver.quality.CONFIGURATIONS, ids=lambda c: c.name)
+def test_every_setting_solves_a_large_skin_window_by_window(configuration):
+    # 64x64: a setting's dense engine would need the whole skin's matrices (1.6 GB); it runs its
+    # path on each contact's window instead, and answers as it does on a 16x16 skin
+    answers = []
+    for n in (16, 64):
+        grid = SensorGrid.regular(n, n, 1.5e-3, 1.5e-3)
+        frame = loads.simulate(grid, loads.hertz((0, 0), 3e-3, 1.0, shear_ratio=0.3), noise=0.0)
+        made = Reconstructor(grid, quality=configuration)
+        engine = made.engine.reconstructor if configuration.path != "region" else made.engine
+        assert isinstance(engine, RegionSolver if n == 64 else type(engine))
+        answers.append((made.solve(frame.stress), made.solve(frame.stress, shear_ratio=0.3, shear_direction=0.0)))
+    (small, small_given), (large, large_given) = answers
+    assert isinstance(engine, RegionSolver)
+    assert large.normal_only == small.normal_only == (configuration.path == "normal")
+    np.testing.assert_allclose(large.total_force, small.total_force, atol=0.02)
+    # the given shear is applied alike (or, normal only, ignored alike)
+    np.testing.assert_allclose(large_given.total_force, small_given.total_force, atol=0.02)

@@ -21,7 +21,7 @@ SLOW_DISK = """
 import io, sys, time
 from pathlib import Path
 from tactile_viewer.cli import tactile_record as record
-from tactile_viewer.io import mcap as container
+from tactile_viewer.io import mcap_writer as container
 
 marker = Path(sys.argv[1])
 
@@ -143,7 +143,7 @@ def test_errors_are_named_and_nothing_is_left_running(board, tmp_path, arguments
 FULL_DISK = """
 import errno, io, sys
 from tactile_viewer.cli import tactile_record as record
-from tactile_viewer.io import mcap as container
+from tactile_viewer.io import mcap_writer as container
 
 class FullDisk(io.FileIO):
     room = 60000  # bytes: the header and a chunk or two of 16x16 frames

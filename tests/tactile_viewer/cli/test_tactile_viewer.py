@@ -96,7 +96,8 @@ def test_module_entry_point_runs():
 
 def test_report_names_the_poisson_ratio_and_taxel_size(tmp_path, capsys):
     from solver import SensorGrid
-    from tactile_viewer.io.recording import Recording, save
+    from tactile_viewer.io.files import save
+    from tactile_viewer.io.recording import Recording
 
     grid = SensorGrid.regular(6, 5, 2e-3, 2e-3, poisson_ratio=0.45, sensor_size=1e-3)
     stress = 5e3 * np.exp(-(grid.positions**2).sum(axis=1) / (3e-3) ** 2)  # a smooth press, pascals
@@ -120,7 +121,7 @@ def test_kernel_choices_are_the_solvers(capsys):
 
 
 def test_info_prints_one_fact_per_line_of_a_live_recording_cut_short(tmp_path, capsys):
-    from tactile_viewer.io.mcap import Recorder
+    from tactile_viewer.io.mcap_writer import Recorder
     from tactile_viewer.io.recording import StressCalibration, Tare
     from tests.tactile_viewer.skins import grid32
 
@@ -146,7 +147,7 @@ def test_info_prints_one_fact_per_line_of_a_live_recording_cut_short(tmp_path, c
 
 
 def test_info_reads_a_damaged_recording_whole_and_says_what_fails(tmp_path, capsys):
-    from tests.tactile_viewer.io.test_mcap import chunk_positions, flipped, tared_recording
+    from tests.tactile_viewer.io.test_mcap_reader import chunk_positions, flipped, tared_recording
 
     path = tmp_path / "damaged.mcap"
     tared_recording(path)
@@ -164,7 +165,7 @@ def test_info_reads_a_damaged_recording_whole_and_says_what_fails(tmp_path, caps
 
 
 def test_info_says_when_a_tare_was_taken_or_that_it_is_unknown(tmp_path, capsys):
-    from tactile_viewer.io.mcap import Recorder
+    from tactile_viewer.io.mcap_writer import Recorder
     from tactile_viewer.io.recording import StressCalibration, Tare
     from tests.tactile_viewer.skins import grid32
 
@@ -195,7 +196,7 @@ def test_info_needs_a_recording(capsys):
 @pytest.mark.parametrize("options", [["--report"], ["--screenshot", "never.png"]])
 @pytest.mark.parametrize("frame", ["30", "-1"])
 def test_a_frame_out_of_range_is_named_as_for_a_movie(tmp_path, capsys, monkeypatch, options, frame):
-    # one frame check for the command line's --frame and a movie's --start (movie.check_frame)
+    # one frame check for the command line's --frame and a movie's --start (movie_settings.check_frame)
     monkeypatch.chdir(tmp_path)
     assert main([str(SAMPLES / "hertz_static.npz"), "--frame", frame, *options]) == 2
     assert capsys.readouterr().err == (f"tactile-viewer: --frame must be a whole number from 0 to 29 (the frame to "

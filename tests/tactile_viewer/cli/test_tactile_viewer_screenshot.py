@@ -62,7 +62,7 @@ def test_a_screenshot_refuses_to_overwrite_an_unrelated_file_of_the_sidecar_name
 def test_a_top_screenshot_lays_the_arrows_flat_as_the_windows_top_view(tmp_path, monkeypatch):
     # Display.seen_from: --camera top draws in-plane arrows, as the window's Top button does; iso 3-D ones
     from tactile_viewer.cli.tactile_viewer import main
-    from tactile_viewer.model import viewer_model as model
+    from tactile_viewer.model import display as model
 
     cameras = []
     seen_from = model.Display.seen_from

@@ -1,7 +1,7 @@
 """The viewer model in plain Python (no Qt): installing, signals, parameters, solving, describing, Display."""
 
 import math
-from dataclasses import FrozenInstanceError, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -10,14 +10,9 @@ import pytest
 from solver import ContactTracker, Reconstructor, SensorGrid, loads
 from solver.kernels import KERNELS
 from tactile_viewer.io.recording import Recording
-from tactile_viewer.model.viewer_model import (
-    MAX_SHEAR_RATIO,
-    Display,
-    Solved,
-    ViewerModel,
-    _display_scales,
-    geometry_text,
-)
+from tactile_viewer.model.display import Display, display_scales
+from tactile_viewer.model.shear_parameters import MAX_SHEAR_RATIO
+from tactile_viewer.model.viewer_model import ViewerModel
 from tactile_viewer.sources.source import RecordingSource, Source, SourceFrame
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -252,32 +247,6 @@ def test_set_display_rejects_a_bad_value_and_keeps_the_display(model):
     assert model.display is before and events == []
 
 
-@pytest.mark.parametrize("name", ["arrow_scale", "resultant_scale", "threshold", "range_max"])
-@pytest.mark.parametrize("value", [-1e-6, math.nan, math.inf, -math.inf])
-def test_display_rejects_negative_and_non_finite_scales(name, value):
-    with pytest.raises(ValueError, match=rf"{name} must be finite and >= 0, got {value!r}"):
-        Display(**{name: value})
-    with pytest.raises(ValueError, match=rf"{name} must be finite and >= 0"):
-        replace(Display(), **{name: value})  # replace() runs the same checks
-
-
-@pytest.mark.parametrize("kind", ["Pressure", "", "heat", None])
-def test_display_rejects_unknown_maps(kind):
-    with pytest.raises(ValueError, match=r"map must be one of \('pressure', 'stress', 'none'\)"):
-        Display(map=kind)
-
-
-def test_display_accepts_zero_and_every_map():
-    for kind in ("pressure", "stress", "none"):
-        assert Display(map=kind).map == kind
-    zero = Display(arrow_scale=0.0, resultant_scale=0.0, threshold=0.0, range_max=0.0)
-    assert zero.threshold == 0.0
-    with pytest.raises(FrozenInstanceError):
-        zero.threshold = 1.0
-
-
-# -- solving -------------------------------------------------------------------------------------
-
 def test_auto_solve_reports_what_it_found_and_keeps_the_manual_values(model, recording, reconstructor):
     model.set_parameters(shear_ratio=0.7, shear_direction=-2.0)
     model.set_auto(True)
@@ -362,14 +331,6 @@ def test_describe_names_the_material_solved_with(recording):
 
 def test_the_default_kernel_is_the_solvers_first():
     assert ViewerModel().kernel == KERNELS[0]
-
-
-def test_geometry_text_names_nu_and_the_taxel():
-    assert geometry_text(SensorGrid.regular(6, 5, PITCH, THICKNESS)) == (
-        "6x5 taxels, pitch 2 mm, thickness 2 mm, nu 0.5, point sensors")
-    irregular = SensorGrid(np.zeros((3, 2)) + [[0, 0], [1e-3, 0], [0, 1e-3]], THICKNESS, PITCH, (3,),
-                           poisson_ratio=0.45, sensor_size=1.5e-3)
-    assert geometry_text(irregular) == "3 taxels, pitch 2 mm, thickness 2 mm, nu 0.45, taxel 1.5 mm"
 
 
 def test_describe_without_a_path(recording, reconstructor):
@@ -541,22 +502,6 @@ def test_a_change_waits_for_a_fast_solve_up_to_settle(recording, reconstructor):
         model.close()
 
 
-def test_solved_carries_the_pressure_map_and_the_load_centroid(model, recording, reconstructor):
-    # the scene draws these; it computes no physics
-    solved = model.solve()
-    grid = recording.grid
-    fz = solved.result.forces[:, 2]
-    np.testing.assert_allclose(solved.pressure, fz / PITCH**2)
-    push = np.clip(fz, 0, None)
-    np.testing.assert_allclose(solved.centroid, grid.positions.T @ push / push.sum())
-    assert -2e-3 - PITCH < solved.centroid[0] < -2e-3 + PITCH  # frame 0: the contact sits at x = -2 mm
-    assert not solved.pressure.flags.writeable
-    nothing = Solved.of(grid, np.zeros(grid.size), reconstructor.solve(np.zeros(grid.size)))
-    assert nothing.centroid is None and not np.any(nothing.pressure)
-
-
-# -- sources that push frames (a live board) -------------------------------------------------------
-
 class Pushed(Source):
     """A live source whose frames come from a thread of its own."""
 
@@ -674,7 +619,7 @@ def test_a_tare_retaken_cleared_or_restored_changes_what_is_solved_not_the_file(
     import hashlib
 
     from tactile_viewer.io.files import load
-    from tactile_viewer.io.mcap import Recorder
+    from tactile_viewer.io.mcap_writer import Recorder
     from tactile_viewer.io.recording import StressCalibration, Tare
 
     path = tmp_path / "take.mcap"
@@ -705,7 +650,7 @@ def test_a_tare_retaken_cleared_or_restored_changes_what_is_solved_not_the_file(
 
 def test_the_display_scales_follow_a_tare_cleared_or_taken(recording, reconstructor, tmp_path):
     from tactile_viewer.io.files import load
-    from tactile_viewer.io.mcap import Recorder
+    from tactile_viewer.io.mcap_writer import Recorder
     from tactile_viewer.io.recording import StressCalibration, Tare
 
     # an untared board reads a large offset: cleared, the scales must be those of what is shown
@@ -721,26 +666,11 @@ def test_the_display_scales_follow_a_tare_cleared_or_taken(recording, reconstruc
     model.set_source(source, reconstructor)
     tared = model.display
     model.retare("clear")
-    assert model.display.resultant_scale == pytest.approx(_display_scales(source, reconstructor)["resultant_scale"])
+    assert model.display.resultant_scale == pytest.approx(display_scales(source, reconstructor)["resultant_scale"])
     assert model.display.resultant_scale < tared.resultant_scale / 5  # the total is far larger now
     model.retare("recorded")
     assert model.display.resultant_scale == pytest.approx(tared.resultant_scale)
     assert model.display.arrow_scale == pytest.approx(tared.arrow_scale)
-
-
-@pytest.mark.parametrize("name", ["hertz_static.npz", "two_contacts.npz", "three_contacts.npz"])
-def test_the_fixed_map_range_holds_the_pressure_the_map_shows(name):
-    # it came from the normal-only solve: the core of every contact saturated on most frames
-    from pathlib import Path
-
-    from tactile_viewer.io.files import load
-
-    recording = load(Path(__file__).resolve().parents[3] / "sample_data" / name)
-    solver = ViewerModel.build(recording.grid, "layer")
-    scales = _display_scales(RecordingSource(recording), solver)
-    every = recording.frames[:: max(1, len(recording) // 15)]
-    peaks = [Solved.of(recording.grid, b, solver.solve(b)).pressure.max() for b in every]
-    assert max(peaks) <= scales["range_max"] <= 2 * max(peaks)  # held, and not washed out
 
 
 def test_retare_errors_are_named(model):
@@ -753,7 +683,7 @@ def test_retare_errors_are_named(model):
 def test_a_damaged_chunk_is_reported_once_and_the_rest_of_the_recording_shows(recording, reconstructor,
                                                                              tmp_path):
     from tactile_viewer.io.files import load
-    from tactile_viewer.io.mcap import Recorder
+    from tactile_viewer.io.mcap_writer import Recorder
 
     path = tmp_path / "damaged.mcap"
     recorder = Recorder(path, recording.grid, dtype="float64", flush_interval=0.1)
@@ -777,7 +707,7 @@ def test_a_damaged_chunk_is_reported_once_and_the_rest_of_the_recording_shows(re
 
 
 def test_a_new_recording_hides_arrows_under_two_percent_of_its_largest_node_force(recording, reconstructor):
-    from tactile_viewer.model.viewer_model import HIDE_BELOW
+    from tactile_viewer.model.display import HIDE_BELOW
 
     model = ViewerModel()
     model.set_source(RecordingSource(recording, "takes/sliding.npz"), reconstructor)
@@ -907,34 +837,6 @@ def test_smoothing_steadies_the_drawn_node_forces_and_leaves_the_solved_ones(rec
     pitch = recording.grid.pitch
     np.testing.assert_allclose(model.drawn.pressure, model.drawn.forces_drawn[:, 2] / pitch**2)
     assert model.last.drawn_forces is None and model.last.forces_drawn is model.last.result.forces
-
-
-def test_smoothing_follows_a_step_with_the_lag_it_states(model):
-    from tactile_viewer.model.viewer_model import ForceSmoothing
-
-    model.solve()
-    base = model.last
-    grid = model.reconstructor.grid
-    smooth = ForceSmoothing()
-
-    def at(time, level, frame=None):
-        forces = np.zeros((grid.size, 3))
-        forces[:, 2] = level
-        frame = round(time * 100) if frame is None else frame
-        return replace(base, frame=frame, time=time, result=replace(base.result, forces=forces))
-
-    assert smooth(at(0.0, 0.0), 0.1, grid.pitch).forces_drawn[0, 2] == 0.0
-    for k in range(1, 11):  # a step to 1 N at t = 0.01 s, frames every 0.01 s, tau 0.1 s
-        drawn = smooth(at(k / 100, 1.0), 0.1, grid.pitch)
-    assert drawn.forces_drawn[0, 2] == pytest.approx(1 - math.exp(-1))  # 63% after one time constant
-    skipped = smooth(at(0.3, 1.0), 0.1, grid.pitch)  # playback skipped frames: their time counts
-    assert skipped.forces_drawn[0, 2] == pytest.approx(1 - math.exp(-3))
-    again = smooth(at(0.3, 0.5), 0.1, grid.pitch)  # the same frame solved again with other parameters
-    # from where the frame's first solve started (63% at 0.1 s), 0.2 s towards 0.5 N
-    assert again.forces_drawn[0, 2] == pytest.approx(0.5 + math.exp(-2) * ((1 - math.exp(-1)) - 0.5))
-    back = smooth(at(0.05, 0.25), 0.1, grid.pitch)  # a seek back starts afresh
-    assert back.forces_drawn[0, 2] == 0.25
-    assert smooth(at(0.06, 0.7), 0.0, grid.pitch).drawn_forces is None  # off: the frame as solved
 
 
 def test_smoothing_is_checked_and_switching_it_redraws_from_the_frame_shown(model):

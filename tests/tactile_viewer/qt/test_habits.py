@@ -391,7 +391,7 @@ def test_a_normal_only_solve_lists_the_whole_frame(opened, qtbot):
 
 def test_each_contact_centroid_is_over_its_own_nodes():
     from solver import Reconstructor, SensorGrid, loads
-    from tactile_viewer.model.viewer_model import Solved
+    from tactile_viewer.model.solved import Solved
 
     grid = SensorGrid.regular(16, 16, 2e-3, 2e-3, poisson_ratio=0.5)
     # two separate contacts (finely integrated, independent of the solver's kernel): each centroid

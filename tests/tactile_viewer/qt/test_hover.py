@@ -14,7 +14,8 @@ import pytest
 from PyQt6 import QtCore
 
 from tactile_viewer.qt.hover import TaxelReadout
-from tactile_viewer.render.scene import MM, taxel_text
+from tactile_viewer.render.meshes import MM
+from tactile_viewer.render.taxel_readout import taxel_text
 
 LINE = re.compile(r"taxel (\d+) \(x (\S+) mm, y (\S+) mm\): stress (\S+) kPa, "
                   r"Fx (\S+) Fy (\S+) Fz (\S+) mN(  \(pinned\))?")

@@ -194,7 +194,7 @@ def test_a_recording_cut_short_says_so_when_it_opens(window, qtbot, tmp_path):
 
 
 def test_a_damaged_recording_says_what_is_lost_when_it_opens(window, qtbot, tmp_path):
-    from tests.tactile_viewer.io.test_mcap import chunk_positions, flipped, tared_recording
+    from tests.tactile_viewer.io.test_mcap_reader import chunk_positions, flipped, tared_recording
 
     path = tmp_path / "damaged.mcap"
     tared_recording(path)
@@ -613,7 +613,7 @@ def test_a_png_name_added_to_the_name_picked_never_replaces_a_file(opened, tmp_p
 
 def test_the_tare_of_a_live_recording_is_retaken_and_cleared_from_the_menu(window, qtbot, tmp_path):
     from tactile_viewer.io.files import load
-    from tactile_viewer.io.mcap import Recorder
+    from tactile_viewer.io.mcap_writer import Recorder
     from tactile_viewer.io.recording import StressCalibration, Tare
 
     sample = load(SAMPLES / "hertz_shear_turning.npz")

@@ -181,7 +181,7 @@ def test_a_double_click_undoes_a_zoom(window, shown, qtbot):
 def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(window, shown, qtbot):
     from dataclasses import replace
 
-    from tactile_viewer.qt.time_plots import ERROR_ROWS, FIRST_ROWS, ROWS
+    from tactile_viewer.model.time_plot_rows import ERROR_ROWS, FIRST_ROWS, ROWS
 
     layout = shown.graphics.ci
     series = shown.series
@@ -214,7 +214,7 @@ def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(
 
 def test_each_contact_has_curves_of_its_own_when_there_are_several(window, shown, qtbot):
     from tactile_viewer.io.files import load
-    from tactile_viewer.qt.time_plots import ROWS
+    from tactile_viewer.model.time_plot_rows import ROWS
 
     assert shown.series.identities == (1,) and shown.contact_curves == {}  # one contact: the totals say it
     assert legend_names(shown.plots["fz"]) == ["estimate", "truth"]
@@ -275,7 +275,7 @@ def test_csv_and_png_exports(window, shown, qtbot, tmp_path):
     pixels = np.array([[image.pixelColor(x, y).getRgb()[:3] for x in range(0, image.width(), 2)]
                        for y in range(0, image.height(), 2)])
     colours = {tuple(p) for p in pixels.reshape(-1, 3)}
-    from tactile_viewer.qt.time_plots import ESTIMATE_PEN, TRUTH_PEN
+    from tactile_viewer.qt.time_plot_stack import ESTIMATE_PEN, TRUTH_PEN
 
     for pen in (ESTIMATE_PEN, TRUTH_PEN):  # the estimate's and the truth's curves are in the image
         assert pen.color().getRgb()[:3] in colours
@@ -292,22 +292,6 @@ def test_nothing_to_export_before_a_recording(dock):
     assert dock.series is None and not dock.csv_button.isEnabled()
     assert dock.export_csv("series.csv") is None
     assert dock.errors.take() == [("Nothing to export", "no series has been solved yet")]
-
-
-def test_curves_are_not_drawn_across_an_outage():
-    from tactile_viewer.qt.time_plots import OUTAGE, _outages_cut
-
-    # a board at 100 Hz, unplugged for a second: no straight line across the second nobody measured
-    t = np.r_[np.arange(10) * 0.01, 1.09 + np.arange(5) * 0.01]
-    y = np.arange(15.0)
-    x, cut = _outages_cut(t, y)
-    assert np.isnan(cut).sum() == 1 and np.flatnonzero(np.isnan(cut)).tolist() == [10]
-    assert x[10] == pytest.approx((t[9] + t[10]) / 2)
-    np.testing.assert_array_equal(cut[~np.isnan(cut)], y)
-    # frames a little late are no outage
-    steady = np.cumsum(np.r_[0.0, np.full(9, 0.01), 0.01 * (OUTAGE - 0.5), np.full(4, 0.01)])
-    assert not np.isnan(_outages_cut(steady, y)[1]).any()
-    assert _outages_cut(t[:2], y[:2])[1].tolist() == [0.0, 1.0]
 
 
 def test_a_live_source_draws_the_frames_solved_so_far(window, qtbot):
@@ -439,7 +423,7 @@ def test_at_1280x800_the_rows_shown_and_their_time_axis_are_in_view(window, show
 
 def test_frames_a_damaged_file_lost_are_shaded_on_every_row(window, qtbot, tmp_path):
     # before: a damaged recording opened with no mark where its frames were missing
-    from tests.tactile_viewer.io.test_mcap import chunk_positions, flipped, tared_recording
+    from tests.tactile_viewer.io.test_mcap_reader import chunk_positions, flipped, tared_recording
 
     path = tmp_path / "damaged.mcap"
     tared_recording(path)

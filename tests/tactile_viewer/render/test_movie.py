@@ -13,9 +13,11 @@ import pytest
 
 from tactile_viewer.cli.tactile_viewer import main
 from tactile_viewer.io.files import load
+from tactile_viewer.model import movie_settings
 from tactile_viewer.model.viewer_model import ViewerModel
 from tactile_viewer.model.worker import Cancelled
 from tactile_viewer.render import movie
+from tactile_viewer.render.frame_renderer import FrameRenderer
 
 SAMPLES = Path(__file__).resolve().parents[3] / "sample_data"
 SMALL = (320, 240)  # small frames keep each test to a few seconds of software rendering
@@ -74,34 +76,6 @@ def test_gif_delays_keep_the_rate_in_whole_hundredths():
     delays = movie._gif_delays(30, 30)
     assert set(delays) == {30, 40} and sum(delays) == 1000  # 30 frames at 30 fps: one second exactly
     assert movie._gif_delays(10, 3) == [100, 100, 100]
-
-
-def test_a_frame_shows_its_own_caption():
-    from types import SimpleNamespace
-
-    result = SimpleNamespace(shear_ratio=0.25, shear_direction=np.radians(-120), total_force=np.array([0.3, 0.4, 2.0]))
-    text = movie.caption(SimpleNamespace(frame=7, time=0.2333, result=result, auto=False))
-    assert text == ("frame 7   t 0.233 s   Fz 2.000 N   Ft 0.500 N\n"
-                    "shear ratio 0.25   direction -120 deg   (fixed)")
-
-
-@pytest.mark.parametrize("options, message", [
-    (["--stop", "0"], r"--stop must be a whole number from 1 to 30 \(exclusive: the movie ends before frame --stop; the recording has 30 frames and --start is 0\), got 0"),
-    (["--stop", "31"], r"--stop must be a whole number from 1 to 30 .*, got 31"),
-    (["--start", "30"], r"--start must be a whole number from 0 to 29 \(the first frame, numbered from 0; the recording has 30 frames\), got 30"),
-    (["--start", "-1"], r"--start must be a whole number from 0 to 29 .*, got -1"),
-    (["--start", "10", "--stop", "10"], r"--stop must be a whole number from 11 to 30 .* and --start is 10\), got 10"),
-    (["--fps", "0"], r"--fps must be finite and > 0, got 0\.0"),
-    (["--fps", "nan"], r"--fps must be finite and > 0, got nan"),
-    (["--size", "641x480"], r"--size must have an even width and height for a video \(H\.264, yuv420p\), got 641 x 480"),
-    (["--shear-ratio", "2"], r"--shear-ratio must be in \[0, 1\.5\], got 2\.0"),
-])
-def test_bad_movie_options_are_named_and_exit_2(tmp_path, capsys, options, message):
-    out = tmp_path / "m.mp4"
-    assert main([str(SAMPLES / "hertz_static.npz"), "--movie", str(out), *options]) == 2
-    err = capsys.readouterr().err
-    assert re.fullmatch(f"tactile-viewer: {message}\n", err), err
-    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.parametrize("name, options, message", [
@@ -366,7 +340,7 @@ def spy_on_frames(monkeypatch) -> list:
     """What each movie frame was drawn with: the solved frame, the display, the renderer's camera and the
     image, recorded as FrameRenderer.render returns it (before the writer sees it)."""
     used = []
-    render = movie.FrameRenderer.render
+    render = FrameRenderer.render
 
     def spy(self, solved, display):
         image = render(self, solved, display)
@@ -376,7 +350,7 @@ def spy_on_frames(monkeypatch) -> list:
                          position=camera.GetPosition(), image=image.copy()))
         return image
 
-    monkeypatch.setattr(movie.FrameRenderer, "render", spy)
+    monkeypatch.setattr(FrameRenderer, "render", spy)
     return used
 
 
@@ -431,15 +405,6 @@ def test_the_command_line_movie_draws_its_camera_as_the_window_does(tmp_path, mo
     assert not used[0]["display"].auto_range and not used[0]["display"].arrow_auto_range
 
 
-def test_the_default_display_follows_the_camera_and_checks_it():
-    recording = load(SAMPLES / "hertz_static.npz")
-    solver = ViewerModel.build(recording.grid, "layer")
-    assert movie.default_display(recording, solver, camera="top").in_plane
-    assert not movie.default_display(recording, solver).in_plane
-    with pytest.raises(ValueError, match=r"camera must be one of \('top', 'iso'\), got 'side'"):
-        movie.default_display(recording, solver, camera="side")
-
-
 def test_a_movie_camera_is_a_preset_or_a_vtk_camera(tmp_path):
     recording = load(SAMPLES / "hertz_static.npz")
     solver = ViewerModel.build(recording.grid, "layer")
@@ -450,22 +415,6 @@ def test_a_movie_camera_is_a_preset_or_a_vtk_camera(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("options, message", [
-    (["--shear-ratio", "nan"], r"--shear-ratio must be in \[0, 1\.5\], got nan"),
-    (["--shear-direction", "inf"], r"--shear-direction must be finite degrees, got inf"),
-    (["--shear-ratio", "-0.1", "--shear-direction", "10"], r"--shear-ratio must be in \[0, 1\.5\], got -0\.1"),
-])
-def test_bad_movie_parameters_are_checked_by_the_movies_own_check(tmp_path, capsys, monkeypatch, options, message):
-    checked = []
-    check = movie.check_parameters
-    monkeypatch.setattr(movie, "check_parameters", lambda *a, **k: (checked.append(k["names"]), check(*a, **k))[1])
-    assert main([str(SAMPLES / "hertz_static.npz"), "--movie", str(tmp_path / "m.mp4"), *options]) == 2
-    err = capsys.readouterr().err
-    assert re.fullmatch(f"tactile-viewer: {message}\n", err), err
-    assert checked == [("--shear-ratio", "--shear-direction")]
-    assert list(tmp_path.iterdir()) == []
-
-
 def test_the_movie_dialog_offers_every_movie_type(opened, tmp_path, monkeypatch):
     from PyQt6 import QtWidgets
 
@@ -473,7 +422,7 @@ def test_the_movie_dialog_offers_every_movie_type(opened, tmp_path, monkeypatch)
 
     filters = export_dialogs.MOVIE_FILTERS.split(";;")
     assert [export_dialogs._filter_suffix(f) for f in filters] == [".mp4", ".mkv", ".avi", ".gif"]
-    assert sorted(export_dialogs._filter_suffix(f) for f in filters) == sorted((*movie.VIDEO_SUFFIXES, movie.GIF_SUFFIX))
+    assert sorted(export_dialogs._filter_suffix(f) for f in filters) == sorted((*movie_settings.VIDEO_SUFFIXES, movie_settings.GIF_SUFFIX))
     monkeypatch.setattr(QtWidgets.QDialog, "exec", lambda dialog: QtWidgets.QDialog.DialogCode.Accepted)
     asked = []
     monkeypatch.setattr(opened.exports, "export_movie", lambda path, **options: asked.append(path))

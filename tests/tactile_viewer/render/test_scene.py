@@ -18,99 +18,26 @@ import pyvista as pv
 from PyQt6 import QtCore
 from vtkmodules.util.numpy_support import vtk_to_numpy
 
-from solver import Reconstruction, Reconstructor, SensorGrid, loads
+from solver import Reconstructor, SensorGrid
 from tactile_viewer.io.files import load
-from tactile_viewer.model.viewer_model import Display, Solved
-from tactile_viewer.render.scene import MAX_TAXEL_IDS, Scene, taxel_text
+from tactile_viewer.model.display import Display
+from tactile_viewer.model.solved import Solved
+from tests.tactile_viewer.render.hertz_frames import (
+    DIRECTION,
+    MM,
+    PITCH,
+    RATIO,
+    THICKNESS,
+    WINDOW,
+    force_vectors,
+    reconstruct,
+    regular_grid,
+    show,
+    split_arrows,
+    surface_points,
+)
 
 SAMPLES = Path(__file__).resolve().parents[3] / "sample_data"
-
-MM = 1e3  # metres -> scene millimetres
-PITCH, THICKNESS = 2e-3, 2e-3
-WINDOW = (400, 300)
-RATIO, DIRECTION = 0.4, 2.2  # shear pointing to -x, +y: a sign slip in either axis shows
-
-
-def regular_grid():
-    # nx != ny so that an x/y swap cannot pass
-    return SensorGrid.regular(8, 6, PITCH, THICKNESS)
-
-
-def staggered_grid():
-    # every other row shifted by half a pitch, rows 0.9 pitch apart, each taxel jittered:
-    # an irregular layout (shape (m,)) whose positions match no regular lattice
-    rng = np.random.default_rng(7)  # fixed seed: the jitter of the taxels
-    ix, iy = np.meshgrid(np.arange(7), np.arange(6))
-    positions = np.column_stack([(ix + 0.5 * (iy % 2)).ravel(), 0.9 * iy.ravel()]) * PITCH
-    positions = positions - positions.mean(axis=0) + rng.uniform(-0.15, 0.15, positions.shape) * PITCH
-    return SensorGrid(positions, THICKNESS, PITCH, (len(positions),))
-
-
-LAYOUTS = {"regular": regular_grid, "staggered": staggered_grid}
-
-
-def reconstruct(grid):
-    """Stress and the manual-parameter reconstruction of a sheared Hertz contact off the grid's nodes."""
-    contact = loads.hertz((0.7e-3, -0.4e-3), 4e-3, 1.5, shear_ratio=RATIO, shear_direction=DIRECTION)
-    # 1% noise gives every node a non-zero force, some pulling (Fz < 0): arrows in every direction
-    # half-space data: compressive at every sensor (a bonded layer pulls slightly far away), which
-    # test_auto_range_spans_zero_to_the_frame_maximum needs; the scene draws whatever it is given
-    frame = loads.simulate(grid, contact, noise=0.01, rng=np.random.default_rng(7),  # fixed seed: the noise
-                           medium="halfspace")
-    result = Reconstructor(grid).solve(frame.stress, shear_ratio=RATIO, shear_direction=DIRECTION)
-    return frame.stress, result
-
-
-@pytest.fixture(scope="module", params=sorted(LAYOUTS))
-def frame(request):
-    """(grid, stress, reconstruction) for a regular and an irregular layout."""
-    grid = LAYOUTS[request.param]()
-    stress, result = reconstruct(grid)
-    return grid, stress, result
-
-
-@pytest.fixture(scope="module")
-def regular_frame():
-    grid = regular_grid()
-    stress, result = reconstruct(grid)
-    return grid, stress, result
-
-
-@pytest.fixture
-def plotter(no_plotter_leak):
-    plotter = pv.Plotter(off_screen=True, window_size=list(WINDOW))
-    yield plotter
-    plotter.close()
-
-
-@pytest.fixture
-def scene(plotter):
-    return Scene(plotter)
-
-
-def show(scene, frame, display=None):
-    grid, stress, result = frame
-    scene.set_grid(grid)
-    scene.update(Solved.of(grid, stress, result), display or Display(arrow_scale=0.02), render=False)
-    return grid, stress, result
-
-
-def split_arrows(scene):
-    """Points (k, n, 3) and mN values (k, n) of the k drawn arrows, in arrow_nodes order."""
-    count = len(scene.arrow_nodes)
-    points = np.asarray(scene.arrows.points, dtype=float)
-    assert count > 0 and points.shape[0] % count == 0, "every arrow must have the same number of points"
-    values = np.asarray(scene.arrows.point_data["mN"], dtype=float)
-    return points.reshape(count, -1, 3), values.reshape(count, -1)
-
-
-def force_vectors(forces, scale):
-    """Arrow vectors in mm: the force with z flipped (pressing into the skin points down)."""
-    return np.column_stack([forces[:, 0], forces[:, 1], -forces[:, 2]]) * scale * MM
-
-
-def surface_points(grid):
-    return np.column_stack([grid.positions * MM, np.zeros(grid.size)])
 
 
 # -- arrows --------------------------------------------------------------------------------------
@@ -137,28 +64,6 @@ def test_each_arrow_ends_on_its_node_and_points_along_its_force(scene, frame):
         across = relative - np.outer(relative @ vectors[node] / length**2, vectors[node])
         assert np.linalg.norm(across, axis=1).max() <= 0.12 * length * (1 + 1e-9)
         assert np.linalg.norm(across, axis=1).max() >= 0.11 * length  # a real arrow head, not a line
-
-
-def test_each_arrow_is_the_template_turned_and_scaled_uniformly(scene, regular_frame):
-    # not sheared, squashed or mirrored (a mirrored copy would turn its faces inside out)
-    display = Display(arrow_scale=0.02)
-    grid, _, result = show(scene, regular_frame, display)
-    points, _ = split_arrows(scene)
-    template = scene._arrow_points  # the unit arrow along +x that every glyph copies
-    assert np.isclose(template[:, 0].min(), 0.0) and np.isclose(template[:, 0].max(), 1.0)
-    design = np.column_stack([template, np.ones(len(template))])
-    vectors = force_vectors(result.forces, display.arrow_scale)
-    tips = surface_points(grid)
-    for k, node in enumerate(scene.arrow_nodes):
-        fit, *_ = np.linalg.lstsq(design, points[k], rcond=None)
-        np.testing.assert_allclose(design @ fit, points[k], rtol=0, atol=1e-9)  # exactly affine
-        linear, start = fit[:3].T, fit[3]
-        length = np.linalg.norm(vectors[node])
-        np.testing.assert_allclose(linear @ [1.0, 0.0, 0.0], vectors[node], rtol=0, atol=1e-9)
-        np.testing.assert_allclose(start, tips[node] - vectors[node], rtol=0, atol=1e-9)
-        np.testing.assert_allclose(linear.T @ linear, length**2 * np.eye(3), rtol=0,
-                                   atol=1e-9 * max(length**2, 1))
-        assert np.linalg.det(linear) > 0
 
 
 def test_arrow_colours_are_the_force_in_millinewtons(scene, frame):
@@ -698,38 +603,7 @@ def test_a_zero_scale_draws_nothing_instead_of_nan_arrows(scene, regular_frame):
     assert scene.resultants.n_points == 0 and not scene._actors["resultant"].GetVisibility()
 
 
-# -- axes, taxel numbers -------------------------------------------------------------------------
-
-def test_axes_tick_the_skin_in_millimetres_beside_it(scene, frame):
-    grid, stress, result = show(scene, frame)  # on by default
-    actor = scene._actors["axes"]
-    assert actor.GetVisibility()
-    points = np.asarray(actor.mapper.dataset.points)
-    p = grid.pitch * MM
-    x0, y0 = grid.positions.min(axis=0) * MM - p / 2
-    x1, y1 = grid.positions.max(axis=0) * MM + p / 2
-    # flat in the surface's plane, just above it, and never over the skin (the map stays whole)
-    assert np.ptp(points[:, 2]) == 0 and 0 < points[0, 2] < 0.05 * p
-    inside = (points[:, 0] > x0 + 1e-9) & (points[:, 0] < x1 - 1e-9) & (points[:, 1] > y0 + 1e-9) \
-        & (points[:, 1] < y1 - 1e-9)
-    assert not inside.any()
-    for axis, (low, high) in (("x", (x0, x1)), ("y", (y0, y1))):
-        ticks = scene.ticks[axis]
-        step = ticks[1] - ticks[0]
-        mantissa = step / 10 ** np.floor(np.log10(step))
-        assert any(np.isclose(mantissa, (1, 2, 5)))  # a round step
-        np.testing.assert_allclose(ticks / step, np.round(ticks / step), atol=1e-9)
-        assert 5 <= ticks.size <= 10 and low - 1e-9 <= ticks.min() and ticks.max() <= high + 1e-9
-        assert ticks.min() - step < low and ticks.max() + step > high  # every tick that fits
-        # a tick mark below the skin (x) or left of it (y) at each
-        for tick in ticks:
-            if axis == "x":
-                near = (np.abs(points[:, 0] - tick) < 0.05 * p) & (points[:, 1] < y0)
-            else:
-                near = (np.abs(points[:, 1] - tick) < 0.05 * p) & (points[:, 0] < x0)
-            assert near.any()
-    scene.update(Solved.of(grid, stress, result), Display(axes=False), render=False)
-    assert not actor.GetVisibility()
+# -- axes ---------------------------------------------------------------------------------------
 
 
 def test_the_axes_never_change_how_a_camera_preset_frames_the_skin(scene, plotter, regular_frame):
@@ -745,38 +619,6 @@ def test_the_axes_never_change_how_a_camera_preset_frames_the_skin(scene, plotte
             scene.update(solved, Display(axes=not axes), render=True)  # switching never moves it either
             assert plotter.camera_position == views[-1][0]
         assert views[0] == views[1] == views[2], preset
-
-
-def test_taxel_numbers_one_on_each_taxel(scene, frame):
-    grid, stress, result = show(scene, frame)
-    assert "labels" not in scene._actors  # off by default, and not even built
-    scene.update(Solved.of(grid, stress, result), Display(taxel_ids=True), render=False)
-    actor = scene._actors["labels"]
-    assert actor.GetVisibility()
-    np.testing.assert_array_equal(scene.label_nodes, np.arange(grid.size))
-    points, owner = np.asarray(scene._labels.points), scene._label_owner
-    assert set(owner) == set(range(grid.size))  # one label per taxel
-    p = grid.pitch * MM
-    assert np.ptp(points[:, 2]) == 0 and scene._map.points[:, 2].max() < points[0, 2] < 0.05 * p
-    widths, heights = np.zeros(grid.size), np.zeros(grid.size)
-    for node in range(grid.size):
-        mine = points[owner == node, :2]
-        low, high = mine.min(axis=0), mine.max(axis=0)
-        np.testing.assert_allclose((low + high) / 2, grid.positions[node] * MM, rtol=0, atol=0.08 * p)
-        assert np.all(high - low < 0.96 * p)  # within its square
-        widths[node] = high[0] - low[0]
-        heights[node] = high[1] - low[1]
-    # two digits are about twice as wide as one: the labels are the numbers, not one glyph
-    assert 1.6 < np.median(widths[10:]) / np.median(widths[:10]) < 2.6
-    # as tall as the widest number lets them be: they were 0.3 p, 4 px at 1280x800
-    digits = len(str(grid.size - 1))
-    assert np.median(heights) >= 0.9 * min(0.5 * p, 0.95 * p / (0.8 * digits)) > 0.35 * p
-    # readable: dark numbers on the light squares, light numbers on the dark ones
-    colours = np.asarray(scene._labels.point_data["rgb"])
-    brightest, darkest = np.argmax(result.forces[:, 2]), np.argmin(result.forces[:, 2])
-    assert np.all(colours[owner == brightest] == 0) and np.all(colours[owner == darkest] == 255)
-    scene.update(Solved.of(grid, stress, result), Display(taxel_ids=False), render=False)
-    assert not actor.GetVisibility()
 
 
 # -- reading the scene ---------------------------------------------------------------------------
@@ -808,21 +650,6 @@ def test_node_at_covers_each_square_of_a_regular_grid(scene, plotter, regular_fr
             assert scene.node_at(*screen_x(plotter, x, y)) == node
 
 
-def test_taxel_text_names_the_taxel_and_its_values(regular_frame):
-    grid, stress, result = regular_frame
-    solved = Solved.of(grid, stress, result)
-    node = 13
-    text = taxel_text(solved, grid, node)
-    x, y = grid.positions[node] * MM
-    fx, fy, fz = result.forces[node] * 1e3
-    assert text == (f"taxel 13 (x {x:.1f} mm, y {y:.1f} mm): stress {stress[node] / 1e3:.2f} kPa, "
-                    f"Fx {fx:+.2f} Fy {fy:+.2f} Fz {fz:.2f} mN")
-    assert taxel_text(None, grid, node) == f"taxel 13 (x {x:.1f} mm, y {y:.1f} mm)"
-    for bad in (-1, grid.size, 2.0, True):
-        with pytest.raises(ValueError, match=rf"node must be an index from 0 to {grid.size - 1}, got {bad!r}"):
-            taxel_text(solved, grid, bad)
-
-
 # -- Display -------------------------------------------------------------------------------------
 
 def test_display_defaults_keep_the_scene_cheap_and_oriented():
@@ -850,19 +677,6 @@ def test_display_refuses_a_bad_value_naming_the_field_the_rule_and_the_value(cha
         Display(**changes)
     with pytest.raises(ValueError, match=message):
         replace(Display(), **changes)  # replace() runs the same checks
-
-
-def test_a_skin_too_large_to_number_gets_no_numbers(scene):
-    side = int(np.ceil(np.sqrt(MAX_TAXEL_IDS + 1)))
-    grid = SensorGrid.regular(side, side, PITCH, THICKNESS)
-    assert grid.size > MAX_TAXEL_IDS
-    m = grid.size
-    result = Reconstruction(forces=np.zeros((m, 3)), shear_ratio=0.0, shear_direction=0.0, efficiency=math.nan,
-                            residual=0.0, condition=1.0, regularized=False, normal_only=True,
-                            shear_detected=False, region=np.zeros(m, bool))
-    scene.set_grid(grid)
-    scene.update(Solved.of(grid, np.zeros(m), result), Display(taxel_ids=True), render=False)
-    assert scene.label_nodes.size == 0 and "labels" not in scene._actors
 
 
 def test_a_larger_screenshot_can_be_transparent(scene, regular_frame, tmp_path):

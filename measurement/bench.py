@@ -1,4 +1,4 @@
-"""Solver benchmarks: ``python -m solver.bench`` (``make bench``).
+"""Solver benchmarks: ``python -m measurement.bench`` (``make bench``).
 
 Prints, for every kernel, the median per-frame ``solve`` time, wall and CPU,
 on an n x n skin (default 16; automatic parameters cold, after another frame
@@ -18,22 +18,22 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import platform
 import resource
 import time
 import tracemalloc
 
 import numpy as np
 
-from . import layer, loads
-from .geometry import SensorGrid
-from .inverse import DenseSolver
-from .kernels import KERNELS, stress_matrix
-from .reconstructor import Reconstructor
+from solver import layer, loads
+from solver.geometry import SensorGrid
+from solver.inverse import DenseSolver
+from solver.kernels import KERNELS, stress_matrix
+from solver.reconstructor import Reconstructor
 
-__all__ = ["machine", "fastest_in_rounds", "timed_in_rounds", "per_frame", "contact_frames", "multi_contact",
-           "press_frames", "broad_press", "layer_tables", "setup", "main"]
+from .timing import fastest_in_rounds, machine, median_ms, spread, timed_in_rounds
+
+__all__ = ["per_frame", "contact_frames", "multi_contact", "press_frames", "broad_press", "layer_tables",
+           "setup", "main"]
 
 # the skin of the multi-contact frames and of the broad press: pitch 1.5 mm, h / pitch 1, nu 0.49
 PITCH = 1.5e-3
@@ -41,92 +41,6 @@ POISSON_RATIO = 0.49
 CONTACT_COUNTS = (1, 2, 3)
 _CONTACT_SEED = 29  # fixed seeds: the same frames every run
 _PRESS_SEED = 64
-
-
-def machine() -> str:
-    """One line naming the machine a measurement ran on: CPU, cores, numpy, Python."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            cpu = next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, numpy {np.__version__}, python {platform.python_version()}"
-
-
-def _median_ms(fn, repeat):
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return 1e3 * float(np.median(times))
-
-
-def fastest_in_rounds(call, items, repeat, *, before=None):
-    """Each item's fastest of ``repeat`` timed calls, wall and CPU, taken in rounds over all items.
-
-    A round calls ``call(item)`` on every item in turn, so no call follows one
-    on the same item (a solver keeps the last frame's work for slider moves);
-    the fastest of the rounds is kept per item, since this machine is a shared
-    VM whose hiccups would otherwise dominate.
-
-    Parameters
-    ----------
-    call : callable
-        ``item -> result``, the work timed.
-    items : sequence
-    repeat : int
-        Rounds.
-    before : callable, optional
-        ``item -> None``, called before each timed call, not timed.
-
-    Returns
-    -------
-    wall, cpu : (len(items),) ndarray
-        Seconds.
-    results : list
-        What ``call`` returned for each item in the first round.
-    """
-    wall, cpu, results = timed_in_rounds(call, items, repeat, before=before)
-    return wall.min(axis=0), cpu.min(axis=0), results
-
-
-def timed_in_rounds(call, items, repeat, *, before=None):
-    """Every one of ``repeat`` timed calls on each item, wall and CPU, taken in rounds over all items.
-
-    As :func:`fastest_in_rounds` (same arguments), but every timing is kept,
-    for medians and percentiles over all of them.
-
-    Returns
-    -------
-    wall, cpu : (repeat, len(items)) ndarray
-        Seconds, ``[round, item]``; CPU is the process's (``time.process_time``).
-    results : list
-        What ``call`` returned for each item in the first round.
-    """
-    wall = np.full((repeat, len(items)), np.inf)
-    cpu = np.full((repeat, len(items)), np.inf)
-    results = []
-    for run in range(repeat):
-        for k, item in enumerate(items):
-            if before is not None:
-                before(item)
-            start_cpu = time.process_time()
-            start = time.perf_counter()
-            result = call(item)
-            wall[run, k] = time.perf_counter() - start
-            cpu[run, k] = time.process_time() - start_cpu
-            if run == 0:
-                results.append(result)
-    return wall, cpu, results
-
-
-def _spread(wall, cpu, scale=1e3):
-    # median and 95th percentile over every timing, wall and CPU (milliseconds by default)
-    wall, cpu = scale * np.ravel(wall), scale * np.ravel(cpu)
-    return dict(wall=float(np.median(wall)), wall_p95=float(np.percentile(wall, 95)),
-                cpu=float(np.median(cpu)), cpu_p95=float(np.percentile(cpu, 95)))
 
 
 def _skin(n):
@@ -141,7 +55,7 @@ def _rss_mb():
 def per_frame(n=16, frames=40, kernel="layer", repeat=5):
     """Median over frames of the solve time on simulated Hertzian frames with 1% noise.
 
-    Each frame's fastest of ``repeat`` solves is kept (:func:`fastest_in_rounds`).
+    Each frame's fastest of ``repeat`` solves is kept (:func:`~measurement.timing.fastest_in_rounds`).
     ``slider`` is a slider move: the frame just solved, solved again at
     parameters one step away. ``playback`` is the automatic solve of a
     recording's frames in order (a contact sliding 0.05 mm and turning its
@@ -270,7 +184,7 @@ def multi_contact(counts=CONTACT_COUNTS, *, n=16, frames=20, repeat=5):
 
     The solver is :class:`solver.Reconstructor` of the skin (the viewer's). One
     untimed round over the frames first (compilation, caches), then
-    ``repeat`` timed rounds over all frames (:func:`timed_in_rounds`: no solve
+    ``repeat`` timed rounds over all frames (:func:`~measurement.timing.timed_in_rounds`: no solve
     follows one of the same frame).
 
     Parameters
@@ -299,7 +213,7 @@ def multi_contact(counts=CONTACT_COUNTS, *, n=16, frames=20, repeat=5):
         solver = Reconstructor(grid)
         found = [len(solver.solve(b).contacts) for b in stress]  # the untimed round
         wall, cpu, _ = timed_in_rounds(solver.solve, stress, repeat)
-        out[count] = dict(_spread(wall, cpu), fastest=1e3 * float(np.median(wall.min(axis=0))),
+        out[count] = dict(spread(wall, cpu), fastest=1e3 * float(np.median(wall.min(axis=0))),
                           fastest_cpu=1e3 * float(np.median(cpu.min(axis=0))), solves=wall.size,
                           frames=len(stress), found=float(np.median(found)))
     return out
@@ -385,7 +299,7 @@ def broad_press(n, *, frames=3, memory=True):
             traced = tracemalloc.get_traced_memory()[1] / 2**20
         finally:
             tracemalloc.stop()
-    return dict(_spread(wall, cpu, scale=1.0), setup=setup_wall, setup_cpu=setup_cpu, first=float(wall[0, 0]),
+    return dict(spread(wall, cpu, scale=1.0), setup=setup_wall, setup_cpu=setup_cpu, first=float(wall[0, 0]),
                 first_cpu=float(cpu[0, 0]), solves=wall.size,
                 found=float(np.median([len(r.contacts) for r in results])), solver=kind,
                 fallbacks=sum(bool(getattr(r, "fallback", "")) for r in results),
@@ -437,7 +351,7 @@ def setup(n, *, pinv=True, repeat=1, kernel="layer"):
         Seconds of ``numpy.linalg.pinv``, None without ``pinv``.
     """
     grid = SensorGrid.regular(n, n, 2e-3, 2e-3)
-    ours = _median_ms(lambda: DenseSolver(grid, kernel=kernel), repeat) / 1e3
+    ours = median_ms(lambda: DenseSolver(grid, kernel=kernel), repeat) / 1e3
     reference = None
     if pinv:
         C = stress_matrix(grid, kernel)
@@ -448,7 +362,7 @@ def setup(n, *, pinv=True, repeat=1, kernel="layer"):
 
 
 def main(argv=None):
-    """The command ``python -m solver.bench``: prints the timings (module notes).
+    """The command ``python -m measurement.bench``: prints the timings (module notes).
 
     Parameters
     ----------
@@ -456,7 +370,7 @@ def main(argv=None):
         The arguments; default ``sys.argv[1:]``.
     """
     parser = argparse.ArgumentParser(
-        prog="python -m solver.bench",
+        prog="python -m measurement.bench",
         description="Solver timings: per-frame solves against the dense-product floor, and set-up.")
     parser.add_argument("--sizes", type=int, nargs="*", default=[32, 64],
                         help="skins (n x n) whose set-up is timed (default 32 64; none: skip)")

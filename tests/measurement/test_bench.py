@@ -1,16 +1,11 @@
-"""``python -m solver.bench``: the solve timings beside the dense-product floor of the same run."""
+"""``python -m measurement.bench``: the solve timings beside the dense-product floor of the same run."""
 
 import re
 
 import numpy as np
 import pytest
 
-from solver import bench
-
-
-def test_the_machine_is_one_line():
-    line = bench.machine()
-    assert "\n" not in line and "cores, numpy" in line
+from measurement import bench
 
 
 def test_per_frame_times_every_path_wall_and_cpu():
@@ -52,26 +47,6 @@ def test_the_command_refuses_a_skin_or_frame_count_it_cannot_time(arguments, mes
     with pytest.raises(SystemExit):
         bench.main(arguments)
     assert re.search(message, capsys.readouterr().err)
-
-
-def test_fastest_in_rounds_calls_every_item_once_per_round_and_keeps_the_first_results():
-    calls, prepared = [], []
-    wall, cpu, results = bench.fastest_in_rounds(lambda item: calls.append(item) or item * 10, ["a", "b", "c"], 3,
-                                           before=prepared.append)
-    # rounds over all the items: no call follows one on the same item
-    assert calls == ["a", "b", "c"] * 3
-    assert prepared == calls
-    assert results == ["a" * 10, "b" * 10, "c" * 10]
-    assert wall.shape == cpu.shape == (3,)
-    assert np.all(wall >= 0) and np.all(np.isfinite(wall)) and np.all(cpu >= 0)
-
-
-def test_timed_in_rounds_keeps_every_timing_round_by_round():
-    calls = []
-    wall, cpu, results = bench.timed_in_rounds(lambda item: calls.append(item) or -item, [1, 2], 3)
-    assert calls == [1, 2] * 3 and results == [-1, -2]
-    assert wall.shape == cpu.shape == (3, 2)
-    assert np.all(np.isfinite(wall)) and np.all(wall >= 0) and np.all(cpu >= 0)
 
 
 def test_contact_frames_are_fixed_and_each_frame_is_its_own():

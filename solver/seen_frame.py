@@ -1,0 +1,144 @@
+"""A frame as a dense solve sees it: its contacts, and the contact fit's view of them (:class:`SeenFrame`).
+
+:class:`solver.inverse.DenseSolver` finds a frame's contacts in its
+normal-only solution and keeps them, with the fit's matrices, for slider
+moves on that frame. The contact fit's budget is applied here: over it, a
+frame's weakest contacts are left out and the fit takes whole cells instead
+of sub-cells; beyond :data:`WHOLE_CELLS` times it there is no fit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .arrays import read_only
+from .functional import Frame
+from .geometry import SensorGrid
+from .search import gather
+
+__all__ = ["SeenFrame", "noise_level", "WHOLE_CELLS", "NOISE_EVIDENCE"]
+
+# The contact fit takes whole cells instead of sub-cells for loads of up to this many times
+# DenseSolver's fit_budget nodes; beyond, the normal-only answer (DenseSolver.fit_budget).
+WHOLE_CELLS = 2
+# Over the fit's budget, contacts whose normal-only total is within this many noise deviations
+# of zero are noise and left out of the fit (same sets: noise contacts on 32x32 skins reached 4.7,
+# a 1 N load under 20% noise 3.3).
+NOISE_EVIDENCE = 1.0
+
+
+def noise_level(b: np.ndarray, grid: SensorGrid) -> float:
+    # The sensors' noise deviation, from one frame: the layer smooths every load over about its
+    # thickness, so on a regular grid the 5-point Laplacian of the stress is noise (variance 20
+    # sigma^2) but for a few edges, which the median's robust deviation ignores; elsewhere the
+    # robust deviation of the stress itself (an overestimate where a load covers the skin).
+    if grid.is_regular and min(grid.shape) >= 3:
+        image = b.reshape(grid.shape)
+        laplacian = (4 * image[1:-1, 1:-1] - image[:-2, 1:-1] - image[2:, 1:-1] - image[1:-1, :-2]
+                     - image[1:-1, 2:])
+        return 1.4826 * float(np.median(np.abs(laplacian - np.median(laplacian)))) / math.sqrt(20.0)
+    return 1.4826 * float(np.median(np.abs(b - np.median(b))))
+
+
+@dataclass(frozen=True, eq=False)
+class SeenFrame:
+    # A frame as the last solve saw it, kept for slider moves on it: what the contact fit
+    # looks at, and what every result of the frame repeats.
+    key: bytes             # the stress's bytes
+    frame: Frame | None    # the contact fit's view; None without a compressive contact
+    labels: np.ndarray     # (m,) contact 1..K of each node, 0 outside every contact
+    nodes: np.ndarray      # (K, m) bool, read-only: each contact's region (Contact.nodes)
+    weights: np.ndarray    # (K, m) float: the same, to sum each contact's forces in one product
+    at_edge: np.ndarray    # (K,) bool: the region touches the skin's border
+    region: np.ndarray     # (m,) bool, read-only: every contact's nodes
+    over: int = 0          # the contacts' nodes when more than the fit's budget (then no frame)
+    fallback: str = ""     # why the fit takes whole cells instead of sub-cells, if it does
+
+    @classmethod
+    def of(cls, b: np.ndarray, normal: np.ndarray, labels: np.ndarray, near: np.ndarray, *, grid: SensorGrid,
+           normal_inverse, fit_budget: int, fit_columns: np.ndarray, subdivision: int,
+           whole_columns: np.ndarray, max_shear_ratio: float, neighbours: tuple) -> SeenFrame:
+        """The frame's contacts, and the contact fit's view of it.
+
+        The view: sub-cell columns of every contact's region and the sensors
+        near the contacts.
+
+        Parameters
+        ----------
+        b : (m,) ndarray
+            Sensor stress, pascals.
+        normal : (m,) ndarray
+            Its normal-only solution (``normal_inverse.solve(b)``), newtons.
+        labels, near : ndarray
+            Its contacts (:meth:`solver.inverse.DenseSolver.contact_labels`).
+        grid : SensorGrid
+        normal_inverse : SymmetricInverse
+            The inverse of ``Cz`` (:class:`solver.symmetric.SymmetricInverse`).
+        fit_budget : int
+            :class:`~solver.inverse.DenseSolver`'s ``fit_budget``.
+        fit_columns : (3 s^2 m, m) ndarray
+            The sub-cell stress matrix's columns as rows (``s`` the subdivision).
+        subdivision : int
+            ``s``, 1 for whole cells.
+        whole_columns : (3m, m) ndarray
+            The whole-cell stress matrix's columns as rows.
+        max_shear_ratio : float
+        neighbours : tuple of two ndarrays of int
+            :attr:`solver.functional.Frame.neighbours`.
+        """
+        m = grid.size
+        # A damped normal-only solve (a thick layer) turns noise into contacts whose totals say
+        # nothing (a real 1 N load at 1% noise read 3.6 deviations): there only the fit's load
+        # decision tells load from noise, whatever it costs, and the budget does not apply.
+        budget = fit_budget if normal_inverse.shift == 0 else m
+        left_out = 0
+        if np.count_nonzero(labels) > budget and near.shape[1] > 0:
+            # Over the budget: contacts whose normal-only total does not stand NOISE_EVIDENCE noise
+            # deviations out are noise (a noisy frame on a large skin covers it with small ones),
+            # and of the rest the fit takes the strongest that its budget holds (the load
+            # decision then tells load from noise among them); the others are left out.
+            weights = (labels == np.arange(1, near.shape[1] + 1)[:, None]).astype(float)
+            evidence = (weights @ normal) / (noise_level(b, grid)
+                                             * np.linalg.norm(normal_inverse.solve(weights.T), axis=0))
+            kept = evidence >= NOISE_EVIDENCE
+            order = np.argsort(-evidence)
+            held = np.cumsum(weights.sum(axis=1)[order]) <= WHOLE_CELLS * budget
+            if held[0]:  # else one load is broader than the budget: the normal-only answer
+                kept[order[~held]] = False
+                left_out = int(np.count_nonzero(evidence >= NOISE_EVIDENCE) - np.count_nonzero(kept))
+            labels = np.concatenate([[0], np.cumsum(kept) * kept])[labels]
+            near = np.ascontiguousarray(near[:, kept])
+        nodes = labels == np.arange(1, near.shape[1] + 1)[:, None]  # (K, m)
+        seen = dict(key=b.tobytes(), labels=labels, nodes=read_only(nodes, bool),
+                    weights=nodes.astype(float), at_edge=(nodes & grid.border).any(axis=1),
+                    region=read_only(labels > 0, bool))
+        if near.shape[1] == 0:
+            return cls(frame=None, **seen)
+        covered = int(np.count_nonzero(labels))
+        if covered > WHOLE_CELLS * budget:
+            return cls(frame=None, over=covered, **seen)
+        rows = np.flatnonzero(near.any(axis=1))
+        index = np.flatnonzero(labels)
+        source, cells = fit_columns, subdivision ** 2
+        if covered > budget and cells > 1:
+            # whole cells: a quarter of the columns, the same compressive, friction-shaped fit
+            source, cells = whole_columns, 1
+            seen["fallback"] = (f"whole-cell fit: the contacts cover {covered} nodes, more than the sub-cell "
+                                f"fit's budget of {fit_budget} (fit_budget)")
+        if left_out:
+            seen["fallback"] = "; ".join(filter(None, [seen.get("fallback", ""), (
+                f"{left_out} contact(s) of weaker evidence left out: the fit's budget of "
+                f"{WHOLE_CELLS * budget} nodes ({WHOLE_CELLS} x fit_budget) held the strongest")]))
+        columns = (np.arange(cells)[:, None] * m + index).ravel()  # sub-cell q of node j: q m + j
+        width = cells * m
+        every = np.concatenate([columns, columns + width, columns + 2 * width])
+        fit = gather(source, rows, every).T  # (R, 3n), each column contiguous
+        n = columns.size
+        frame = Frame(stress=b[rows], fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],
+                      column_contact=np.tile(labels[index] - 1, cells).astype(np.intp),
+                      row_contact=near[rows], max_shear_ratio=max_shear_ratio,
+                      column_node=np.tile(index, cells), neighbours=neighbours, column_id=columns)
+        return cls(frame=frame, **seen)

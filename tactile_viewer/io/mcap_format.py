@@ -1,0 +1,66 @@
+"""The MCAP recording format: its constants, the layout of its records and its checksums. No Qt.
+
+Live recordings are MCAP files: :class:`~tactile_viewer.io.mcap_writer.Recorder`
+writes them, :func:`~tactile_viewer.io.mcap_reader.open_recording` reads them
+lazily. Both go through the MCAP container of the ``mcap`` package (the ROS 2
+bag format): records are only ever appended, so a file cut short by a kill, a
+power cut of the program or a full disk is complete up to its last whole chunk.
+HDF5 in SWMR mode was tried too and rejected: on a full disk its writer
+crashed the process and its file showed frames that were never written (the
+figures are in ``docs/recordings.md``).
+
+A file holds
+- metadata ``tactile-viewer.recording``: ``version``, ``description``,
+  ``taxels``, ``dtype`` of the raw values (``float32`` as a binary board sends
+  them, ``float64`` for text), the ``channel`` id of the frames;
+- metadata ``tactile-viewer.geometry``: the fields of
+  :func:`~tactile_viewer.io.recording.geometry_fields` (JSON values);
+- metadata ``tactile-viewer.calibration``: ``units``, ``gain``, ``offset``
+  turning raw values into pascals (``gain * (raw - offset) * scale(units)``);
+- metadata ``tactile-viewer.tare``, zero or more: a baseline (pascals)
+  subtracted from frame ``from_frame`` on, with the receive time it was taken;
+- one message per frame on channel ``/tactile/raw``: the raw values as
+  received, little-endian; ``log_time`` the receive time (UNIX nanoseconds),
+  ``sequence`` the frame's sequence number (modulo 2**32).
+
+From version 2 on every metadata record of ours carries ``crc32``
+(:func:`metadata_checksum`), and each chunk is followed by a record
+``tactile-viewer.chunk`` of it: where it is, its frames' numbers, the checksum
+of their receive times (:func:`times_checksum`) and the tares written so far.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import zlib
+
+import numpy as np
+
+__all__ = ["SUFFIX", "VERSION", "VERSIONS", "TOPIC", "RAW_DTYPES", "MAGIC", "RECORD", "CHUNK_HEAD",
+           "MESSAGE_HEAD", "BLOCK", "metadata_checksum", "times_checksum"]
+
+SUFFIX = ".mcap"
+VERSION = "2"  # 2: a checksum in every metadata record of ours, and a record of each chunk
+VERSIONS = ("1", "2")
+TOPIC = "/tactile/raw"
+RAW_DTYPES = {"float32": "<f4", "float64": "<f8"}
+MAGIC = b"\x89MCAP0\r\n"
+RECORD = struct.Struct("<BQ")  # opcode, content length
+CHUNK_HEAD = struct.Struct("<QQQII")  # start time, end time, uncompressed size, crc, compression length
+MESSAGE_HEAD = 9 + 22  # record header, then channel u16, sequence u32, log time u64, publish time u64
+# bytes read at a time: when looking past damage, and checking the data section's CRC
+BLOCK = 2**24
+
+
+def metadata_checksum(fields: dict) -> str:
+    """CRC-32 of a metadata record's fields but ``crc32`` in a canonical form, as 8 hex digits."""
+    # metadata values are strings
+    text = json.dumps(sorted((key, value) for key, value in fields.items() if key != "crc32"),
+                      separators=(",", ":"))
+    return f"{zlib.crc32(text.encode()):08x}"
+
+
+def times_checksum(times) -> str:
+    """CRC-32 of receive times (UNIX nanoseconds, little-endian u64), as 8 hex digits."""
+    return f"{zlib.crc32(np.asarray(times, dtype='<u8').tobytes()):08x}"
