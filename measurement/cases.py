@@ -61,7 +61,8 @@ class Case:
     frame: loads.SimulatedFrame
 
 
-def standard_contact(shape: str, center, pitch: float, rng, *, scale: float = 1.0, **shear) -> loads.Contact:
+def standard_contact(shape: str, center, pitch: float, rng, *, scale: float = 1.0,
+                     **shear) -> loads.ContactLoad:
     """One contact of the standard set, 1 N: Hertz and cone 2.5 pitches in radius, flat punch 2,
     ellipse with semi-axes 3 and 1.8 pitches turned at random (drawn from ``rng``); every size
     times ``scale``."""

@@ -33,7 +33,7 @@ from solver.geometry import SensorGrid
 from .bounds import shear_bounds
 from .tables import Column, format_table, value
 
-__all__ = ["Scene", "KINDS", "TUNING_SEED", "VALIDATION_SEED", "scene_cases", "evaluate", "summarize",
+__all__ = ["ContactScene", "KINDS", "TUNING_SEED", "VALIDATION_SEED", "scene_cases", "evaluate", "summarize",
            "format_scenes", "format_summary", "main"]
 
 KINDS = ("pinch", "two", "three", "edge")
@@ -46,7 +46,7 @@ _FALSE_RATE = 3 / 20
 
 
 @dataclass(frozen=True)
-class Scene:
+class ContactScene:
     """One simulated frame of several contacts, with each contact's own truth.
 
     Attributes
@@ -125,7 +125,7 @@ def _place(kind, pitch, half, rng):
 
 def scene_cases(*, seed: int = VALIDATION_SEED, noise: float = 0.01, kinds=KINDS, repeats: int = 3,
                 thickness_ratios=(0.5, 1.0, 1.5), n: int = 16, pitch: float = 1.5e-3,
-                poisson_ratio: float = 0.49) -> list[Scene]:
+                poisson_ratio: float = 0.49) -> list[ContactScene]:
     """Scenes of every kind on an ``n x n`` skin of the bonded layer.
 
     Parameters
@@ -145,7 +145,7 @@ def scene_cases(*, seed: int = VALIDATION_SEED, noise: float = 0.01, kinds=KINDS
 
     Returns
     -------
-    list of Scene
+    list of ContactScene
     """
     for kind in kinds:
         one_of("kinds", kind, KINDS)
@@ -163,7 +163,7 @@ def scene_cases(*, seed: int = VALIDATION_SEED, noise: float = 0.01, kinds=KINDS
                 frame = loads.simulate(grid, contacts, noise=noise, rng=rng)
                 truths = tuple(loads.simulate(grid, c).forces for c in contacts)
                 name = f"{kind} h/p={ratio_h:g} gap={gap:.1f}"
-                scenes.append(Scene(name, kind, ratio_h, gap, frame, truths))
+                scenes.append(ContactScene(name, kind, ratio_h, gap, frame, truths))
     return scenes
 
 
@@ -186,7 +186,7 @@ def evaluate(scenes, make_solver=None, *, solve=None, bounds: bool = True) -> li
 
     Parameters
     ----------
-    scenes : list of Scene
+    scenes : list of ContactScene
     make_solver : callable, optional
         ``grid -> solver`` (once per distinct grid). Default the
         :class:`~solver.Reconstructor` of the grid.

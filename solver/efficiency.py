@@ -26,7 +26,7 @@ import numpy as np
 
 from . import search
 from .checks import real_number, whole_number
-from .functional import Choice, Frame
+from .functional import Choice, FunctionalInput
 from .search import (
     BOTH,
     DIRECTION,
@@ -135,7 +135,7 @@ class ContactFit:
 
     # -- the profile at given parameters ---------------------------------------------
 
-    def fit(self, frame: Frame, shear: np.ndarray, *, support=None):
+    def fit(self, frame: FunctionalInput, shear: np.ndarray, *, support=None):
         """Best compressive profile at the pairs ``shear`` (K, 2) and its residual vector.
 
         Returns
@@ -158,7 +158,7 @@ class ContactFit:
 
     # -- the search ------------------------------------------------------------------------
 
-    def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None, start=None) -> Choice:
+    def choose(self, frame: FunctionalInput, *, shear_ratio=None, shear_direction=None, start=None) -> Choice:
         groups = independent_groups(frame)
         if len(groups) > 1:
             # contacts that share no sensor are separate problems: each costs a fraction of the
@@ -317,17 +317,18 @@ class ContactFit:
         return g, residual, load_evidence
 
 
-def independent_groups(frame: Frame) -> list:
+def independent_groups(frame: FunctionalInput) -> list:
     """The frame's contacts in groups that share no sensor, each as a frame of its own.
 
-    Contacts whose sensors near them (:attr:`~solver.functional.Frame.row_contact`) overlap, directly
+    Contacts whose sensors near them
+    (:attr:`~solver.functional.FunctionalInput.row_contact`) overlap, directly
     or through others, are one group: their fits are coupled. Between groups the
     columns' stress on the other group's sensors is beyond the fit's reach (below
     1% of its peak with the default reach), and is left out.
 
     Returns
     -------
-    list of (contacts, Frame)
+    list of (contacts, FunctionalInput)
         ``contacts`` (k,) the group's contacts in ``frame``, in order; one item
         holding ``frame`` itself when every contact is in one group.
     """
@@ -355,7 +356,7 @@ def independent_groups(frame: Frame) -> list:
         renumber = np.zeros(K, np.intp)
         renumber[contacts] = np.arange(contacts.size)
         fit_x, fit_y, fit_z = (_block(a, rows, columns) for a in (frame.fit_x, frame.fit_y, frame.fit_z))
-        groups.append((contacts, Frame(
+        groups.append((contacts, FunctionalInput(
             stress=frame.stress[rows], fit_x=fit_x, fit_y=fit_y, fit_z=fit_z,
             column_contact=renumber[frame.column_contact[columns]],
             row_contact=np.ascontiguousarray(near[rows][:, contacts]),
@@ -416,7 +417,7 @@ class NoShear:
 
     name = "no_shear"
 
-    def choose(self, frame: Frame, *, shear_ratio=None, shear_direction=None, start=None) -> Choice:
+    def choose(self, frame: FunctionalInput, *, shear_ratio=None, shear_direction=None, start=None) -> Choice:
         return ContactFit().choose(frame, shear_ratio=shear_ratio or 0.0,
                                    shear_direction=shear_direction or 0.0, start=start)
 

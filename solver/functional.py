@@ -1,6 +1,6 @@
-"""What an efficiency functional looks at and what it returns: :class:`Frame` and :class:`Choice`.
+"""What an efficiency functional looks at and what it returns: :class:`FunctionalInput` and :class:`Choice`.
 
-A functional (:mod:`solver.efficiency`) is given the :class:`Frame` of one
+A functional (:mod:`solver.efficiency`) is given the :class:`FunctionalInput` of one
 frame, the contact fit's view of it, and returns its :class:`Choice`: the
 shear parameters of every contact and the template's compressive profile.
 """
@@ -11,10 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Frame", "Choice"]
+__all__ = ["FunctionalInput", "Choice"]
 
 @dataclass(frozen=True, eq=False)
-class Frame:
+class FunctionalInput:
     """What a functional may look at for one frame.
 
     The contact fit works on the sensors near the contacts (``rows``) and on
@@ -87,7 +87,7 @@ class Choice:
         notes of :class:`~solver.efficiency.ContactFit`; 0 when none was kept, ``nan`` when a
         parameter was given).
     column_id : (n,) ndarray of int
-        The frame's :attr:`Frame.column_id`.
+        The frame's :attr:`FunctionalInput.column_id`.
     shear_free : (n,) ndarray or None
         The best compressive profile with no shear, where the automatic
         search starts (None when none was fitted), newtons: the next

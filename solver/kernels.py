@@ -41,14 +41,14 @@ from . import layer
 from .checks import one_of, whole_number
 from .geometry import SensorGrid, check_poisson_ratio
 
-__all__ = ["KERNELS", "offset_tables", "point_force_stress", "cell_force_stress", "layer_force_stress",
+__all__ = ["KERNELS", "offset_tables", "half_space_point_stress", "cell_force_stress", "layer_force_stress",
            "taxel_points", "subcell_offsets", "stress_matrix", "PROFILES"]
 
 KERNELS = ("layer", "cell", "point")
 PROFILES = ("uniform", "bilinear")
 
 
-def point_force_stress(dx, dy, depth):
+def half_space_point_stress(dx, dy, depth):
     """Stress ``T33`` at ``depth`` per newton of a point force.
 
     Parameters
@@ -259,7 +259,7 @@ def _evaluator(grid, kernel, width):
 
     def at_point(dx, dy):
         if kernel == "point":
-            return point_force_stress(dx, dy, h)
+            return half_space_point_stress(dx, dy, h)
         if kernel == "cell":
             return cell_force_stress(dx, dy, h, width)
         return layer_force_stress(dx, dy, h, width, grid.poisson_ratio)

@@ -53,7 +53,7 @@ from scipy.special import j0, j1
 from .arrays import read_only
 from .geometry import check_poisson_ratio
 
-__all__ = ["transfer", "LayerTable", "table", "point_force_stress", "EDGE_PANEL",
+__all__ = ["transfer", "LayerTable", "table", "layer_point_stress", "EDGE_PANEL",
            "transfer_table"]
 
 # Tables reach this many thicknesses from the load; beyond it the base stress
@@ -239,7 +239,7 @@ def table(poisson_ratio: float) -> LayerTable:
     return LayerTable.compute(check_poisson_ratio(poisson_ratio))
 
 
-def point_force_stress(dx, dy, thickness: float, poisson_ratio: float):
+def layer_point_stress(dx, dy, thickness: float, poisson_ratio: float):
     """``T33`` on the base per newton of a point force on the surface.
 
     Parameters

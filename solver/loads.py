@@ -43,10 +43,10 @@ from . import layer
 from .arrays import read_only
 from .checks import one_of, whole_number
 from .geometry import SensorGrid
-from .kernels import point_force_stress, taxel_points
+from .kernels import half_space_point_stress, taxel_points
 
 __all__ = [
-    "Contact", "SimulatedFrame", "hertz", "cone", "flat_punch", "ellipse", "ring",
+    "ContactLoad", "SimulatedFrame", "hertz", "cone", "flat_punch", "ellipse", "ring",
     "simulate", "cell_forces", "SHAPES", "MEDIA",
 ]
 
@@ -60,7 +60,7 @@ LAYER_REACH = 15.0
 
 
 @dataclass(frozen=True)
-class Contact:
+class ContactLoad:
     """One continuous contact on the skin surface.
 
     Attributes
@@ -155,35 +155,35 @@ class Contact:
         return p
 
 
-def _contact(shape, center, radius, force, **kw) -> Contact:
+def _contact(shape, center, radius, force, **kw) -> ContactLoad:
     radius = float(radius) if np.ndim(radius) == 0 else radius
     axes = (radius, radius) if np.ndim(radius) == 0 else tuple(radius)
-    return Contact(shape, center, axes, force, **kw)
+    return ContactLoad(shape, center, axes, force, **kw)
 
 
-def hertz(center, radius, force, **kw) -> Contact:
+def hertz(center, radius, force, **kw) -> ContactLoad:
     """Hertzian contact ``p(r) = p0 sqrt(1 - r^2/a^2)`` of radius ``radius`` (m)."""
     return _contact("hertz", center, radius, force, **kw)
 
 
-def cone(center, radius, force, **kw) -> Contact:
+def cone(center, radius, force, **kw) -> ContactLoad:
     """Conical indenter, ``p(r) ~ arccosh(a/r)``."""
     return _contact("cone", center, radius, force, **kw)
 
 
-def flat_punch(center, radius, force, *, clip=0.02, **kw) -> Contact:
+def flat_punch(center, radius, force, *, clip=0.02, **kw) -> ContactLoad:
     """Rigid flat punch, ``p(r) ~ 1/sqrt(1 - r^2/a^2)``, edge clipped at ``(1-clip) a``."""
     return _contact("flat_punch", center, radius, force, clip=clip, **kw)
 
 
-def ellipse(center, semi_axes, force, *, angle=0.0, **kw) -> Contact:
+def ellipse(center, semi_axes, force, *, angle=0.0, **kw) -> ContactLoad:
     """Uniform pressure over an ellipse of semi-axes ``(a, b)`` (m) turned by ``angle``."""
-    return Contact("ellipse", center, tuple(semi_axes), force, angle=angle, **kw)
+    return ContactLoad("ellipse", center, tuple(semi_axes), force, angle=angle, **kw)
 
 
-def ring(center, inner_radius, outer_radius, force, **kw) -> Contact:
+def ring(center, inner_radius, outer_radius, force, **kw) -> ContactLoad:
     """Uniform pressure over an annulus."""
-    return Contact("ring", center, (outer_radius, outer_radius), force,
+    return ContactLoad("ring", center, (outer_radius, outer_radius), force,
                    inner_radius=inner_radius, **kw)
 
 
@@ -202,7 +202,7 @@ class SimulatedFrame:
         True forces per node (Fx, Fy, Fz), newtons: the traction integrated over
         each node's cell. Load falling outside every cell is off the skin and
         counted nowhere.
-    contacts : tuple of Contact
+    contacts : tuple of ContactLoad
     noise : float
         Standard deviation of the added noise relative to the peak clean stress.
     medium : str
@@ -218,12 +218,12 @@ class SimulatedFrame:
     medium: str = "layer"
 
 
-def cell_forces(contact: Contact, x, y, step: float, supersample: int):
+def cell_forces(contact: ContactLoad, x, y, step: float, supersample: int):
     """The contact's unnormalised normal force on square cells, by supersampling its profile.
 
     Parameters
     ----------
-    contact : Contact
+    contact : ContactLoad
     x, y : ndarray
         Cell centres, metres.
     step : float
@@ -245,7 +245,7 @@ def cell_forces(contact: Contact, x, y, step: float, supersample: int):
     return total / supersample**2 * step * step
 
 
-def _normalisation(contact: Contact, step, supersample, anchor):
+def _normalisation(contact: ContactLoad, step, supersample, anchor):
     # Integrals of the profile over its whole support (on or off the skin),
     # on the skin's own sub-cell lattice (through ``anchor``), so clipped and
     # discretised shapes carry exactly the requested totals.
@@ -268,7 +268,7 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
     Parameters
     ----------
     grid : SensorGrid
-    contacts : Contact or sequence of Contact
+    contacts : ContactLoad or sequence of ContactLoad
     noise : float, optional
         Gaussian sensor noise, standard deviation relative to the peak clean
         stress (``0.01`` is 1%). Default 0.
@@ -290,11 +290,11 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
     -------
     SimulatedFrame
     """
-    if isinstance(contacts, Contact):
+    if isinstance(contacts, ContactLoad):
         contacts = (contacts,)
     contacts = tuple(contacts)
-    if not contacts or not all(isinstance(c, Contact) for c in contacts):
-        raise ValueError(f"contacts must be one or more Contact, got {contacts!r}")
+    if not contacts or not all(isinstance(c, ContactLoad) for c in contacts):
+        raise ValueError(f"contacts must be one or more ContactLoad, got {contacts!r}")
     if not (math.isfinite(noise) and noise >= 0):
         raise ValueError(f"noise must be finite and >= 0, got {noise!r}")
     one_of("medium", medium, MEDIA)
@@ -373,7 +373,7 @@ def _halfspace_stress(grid: SensorGrid, x, y, fx, fy, fz):
         sx, sy = grid.positions[:, 0, None] + ox, grid.positions[:, 1, None] + oy
         for start in range(0, x.size, chunk):
             sl = slice(start, start + chunk)
-            kx, ky, kz = point_force_stress(sx - x[None, sl], sy - y[None, sl], grid.thickness)
+            kx, ky, kz = half_space_point_stress(sx - x[None, sl], sy - y[None, sl], grid.thickness)
             stress += weight * (kx @ fx[sl] + ky @ fy[sl] + kz @ fz[sl])
     return stress
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .arrays import read_only
-from .functional import Frame
+from .functional import FunctionalInput
 from .geometry import SensorGrid
 from .search import gather
 
@@ -48,7 +48,7 @@ class SeenFrame:
     # A frame as the last solve saw it, kept for slider moves on it: what the contact fit
     # looks at, and what every result of the frame repeats.
     key: bytes             # the stress's bytes
-    frame: Frame | None    # the contact fit's view; None without a compressive contact
+    frame: FunctionalInput | None    # the contact fit's view; None without a compressive contact
     labels: np.ndarray     # (m,) contact 1..K of each node, 0 outside every contact
     nodes: np.ndarray      # (K, m) bool, read-only: each contact's region (Contact.nodes)
     weights: np.ndarray    # (K, m) float: the same, to sum each contact's forces in one product
@@ -87,7 +87,7 @@ class SeenFrame:
             The whole-cell stress matrix's columns as rows.
         max_shear_ratio : float
         neighbours : tuple of two ndarrays of int
-            :attr:`solver.functional.Frame.neighbours`.
+            :attr:`solver.functional.FunctionalInput.neighbours`.
         """
         m = grid.size
         # A damped normal-only solve (a thick layer) turns noise into contacts whose totals say
@@ -137,7 +137,7 @@ class SeenFrame:
         every = np.concatenate([columns, columns + width, columns + 2 * width])
         fit = gather(source, rows, every).T  # (R, 3n), each column contiguous
         n = columns.size
-        frame = Frame(stress=b[rows], fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],
+        frame = FunctionalInput(stress=b[rows], fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],
                       column_contact=np.tile(labels[index] - 1, cells).astype(np.intp),
                       row_contact=near[rows], max_shear_ratio=max_shear_ratio,
                       column_node=np.tile(index, cells), neighbours=neighbours, column_id=columns)

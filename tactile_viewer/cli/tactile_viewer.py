@@ -191,7 +191,7 @@ def movie(path, out, *, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg
     if shear_ratio is not None or shear_direction_deg is not None:  # one given: the other is 0
         shear_ratio = 0.0 if shear_ratio is None else shear_ratio
         shear_direction_deg = 0.0 if shear_direction_deg is None else shear_direction_deg
-    ratio, direction = movie_settings.check_parameters(shear_ratio, shear_direction_deg, degrees=True,
+    ratio, direction = movie_settings.check_movie_parameters(shear_ratio, shear_direction_deg, degrees=True,
                                                        names=("--shear-ratio", "--shear-direction"))
     Display().seen_from(camera)  # a preset, checked before the recording is loaded
     recording = load(path)

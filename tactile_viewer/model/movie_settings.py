@@ -28,7 +28,7 @@ from .shear_parameters import MAX_SHEAR_RATIO
 from .viewer_model import ViewerModel
 
 __all__ = ["default_display", "movie_kind", "check_frame", "check_frames", "check_fps", "check_size",
-           "check_parameters", "check_camera", "VIDEO_SUFFIXES", "GIF_SUFFIX",
+           "check_movie_parameters", "check_camera", "VIDEO_SUFFIXES", "GIF_SUFFIX",
            "DEFAULT_FPS", "DEFAULT_SIZE", "GIF_MAX_FPS", "GIF_MAX_BYTES"]
 
 VIDEO_SUFFIXES = (".mp4", ".mkv", ".avi")
@@ -186,7 +186,7 @@ def check_size(size, kind: str = "video", *, name: str = "size") -> tuple:
     return width, height
 
 
-def check_parameters(shear_ratio, shear_direction, *, names=("shear_ratio", "shear_direction"),
+def check_movie_parameters(shear_ratio, shear_direction, *, names=("shear_ratio", "shear_direction"),
                      degrees: bool = False) -> tuple:
     """The parameters a movie is solved with: both None (found for each frame) or both given (fixed).
 

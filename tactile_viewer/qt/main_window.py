@@ -37,10 +37,10 @@ from .preferences import (
     RecentFiles,
     last_folder,
     remember_folder,
-    save_layout,
     save_view,
-    saved_layout,
+    save_window_state,
     saved_view,
+    saved_window_state,
 )
 from .presets import PresetMeasurer
 from .quick_help import HELP_HTML, about_text
@@ -174,7 +174,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.model.solve_failed.connect(lambda message: self.statusBar().showMessage(message, 10000))
         self.model.message.connect(self._on_message)
         self.setAcceptDrops(True)  # a recording dropped anywhere on the window opens
-        docks = saved_layout("docks")
+        docks = saved_window_state("docks")
         if docks is not None and not self.restoreState(docks):  # time plots shown or hidden, their size
             log.warning("settings: the saved dock layout could not be restored; using the default")
         self._restore_view()
@@ -441,15 +441,15 @@ class MainWindow(QtWidgets.QMainWindow):
 
     def _place(self):
         # where the user left it; the first time, a size that fits the screen with its title bar
-        geometry = saved_layout("geometry")
+        geometry = saved_window_state("geometry")
         if geometry is not None and self.restoreGeometry(geometry):
             return
         screen = self.screen().availableGeometry()
         self.resize(*first_size(screen.width(), screen.height()))
 
     def closeEvent(self, event):
-        save_layout("geometry", self.saveGeometry())
-        save_layout("docks", self.saveState())
+        save_window_state("geometry", self.saveGeometry())
+        save_window_state("docks", self.saveState())
         save_view(self.model.display, speed=self.playback.speed, loop=self.playback.loop_box.isChecked())
         self.playback.stop()
         self.tasks.close()  # first: a result arriving while the source stops is dropped

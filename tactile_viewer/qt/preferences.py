@@ -34,9 +34,9 @@ from ..model.display import Display
 
 log = logging.getLogger(__name__)
 
-__all__ = ["Settings", "window_settings", "saved_layout", "save_layout", "RecentFiles", "last_folder",
-           "remember_folder", "saved_view", "save_view", "saved_rows", "save_rows", "PER_SOURCE",
-           "RECENT_MAX", "MAX_SETTINGS_BYTES"]
+__all__ = ["Settings", "window_settings", "saved_window_state", "save_window_state", "RecentFiles",
+           "last_folder", "remember_folder", "saved_view", "save_view", "saved_rows", "save_rows",
+           "PER_SOURCE", "RECENT_MAX", "MAX_SETTINGS_BYTES"]
 
 RECENT_MAX = 8  # entries of File > Open recent
 # Display fields every new source sets from its own loads (model.display.display_scales), and the in-plane
@@ -142,7 +142,7 @@ def window_settings() -> Settings:
     return Settings("window")
 
 
-def saved_layout(name: str) -> QtCore.QByteArray | None:
+def saved_window_state(name: str) -> QtCore.QByteArray | None:
     """The window's saved ``"geometry"`` (size and place) or ``"docks"`` (the docks' state); None when
     there is none or it is not what Qt saved (an edited file: logged, and the default is used)."""
     value = window_settings().value(name)
@@ -157,7 +157,7 @@ def saved_layout(name: str) -> QtCore.QByteArray | None:
     return None
 
 
-def save_layout(name: str, state: QtCore.QByteArray):
+def save_window_state(name: str, state: QtCore.QByteArray):
     """Keep the window's ``"geometry"`` or ``"docks"`` for the next run."""
     window_settings().set_value(name, base64.b64encode(bytes(state)).decode("ascii"))
 

@@ -62,7 +62,7 @@ from ..model.movie_settings import (
     check_camera,
     check_fps,
     check_frames,
-    check_parameters,
+    check_movie_parameters,
     check_size,
     default_display,
     movie_kind,
@@ -305,7 +305,7 @@ class MovieExport:
                              "make a video (.mp4) or a shorter or smaller GIF")
         if display is not None and not isinstance(display, Display):
             raise ValueError(f"display must be a Display, got {shown(display)}")
-        self.shear_ratio, self.shear_direction = check_parameters(shear_ratio, shear_direction)
+        self.shear_ratio, self.shear_direction = check_movie_parameters(shear_ratio, shear_direction)
         camera = check_camera(camera)
         self.recording, self.solver, self.path = recording, solver, path
         if display is None:

@@ -63,7 +63,7 @@ import numpy as np
 from solver.arrays import read_only
 from solver.checks import one_of
 
-__all__ = ["SYNC", "MAX_VALUES", "FORMATS", "Frame", "Decoder", "TextDecoder", "BinaryDecoder",
+__all__ = ["SYNC", "MAX_VALUES", "FORMATS", "DecodedFrame", "Decoder", "TextDecoder", "BinaryDecoder",
            "crc16", "encode_binary", "encode_text", "make_decoder"]
 
 SYNC = b"\xa5\x5a"
@@ -115,7 +115,7 @@ def encode_text(values, *, digits: int = 6, checksum: bool = False) -> bytes:
 
 
 @dataclass(frozen=True)
-class Frame:
+class DecodedFrame:
     """One decoded frame.
 
     Attributes
@@ -169,7 +169,7 @@ class Decoder:
         """Bytes held while waiting for the rest of a frame."""
         return len(self._buffer)
 
-    def feed(self, data: bytes) -> list[Frame]:
+    def feed(self, data: bytes) -> list[DecodedFrame]:
         raise NotImplementedError
 
     def _accept(self, values: np.ndarray, seq, out: list) -> None:
@@ -179,7 +179,7 @@ class Decoder:
         elif not np.all(np.isfinite(values)):
             self.rejected["non-finite value"] += 1
         else:
-            out.append(Frame(values, seq))
+            out.append(DecodedFrame(values, seq))
             self.accepted += 1
 
 
@@ -224,8 +224,8 @@ class TextDecoder(Decoder):
         self._overlong = False
         self._checked = False
 
-    def feed(self, data: bytes) -> list[Frame]:
-        out: list[Frame] = []
+    def feed(self, data: bytes) -> list[DecodedFrame]:
+        out: list[DecodedFrame] = []
         self._buffer += data
         start = 0
         buffer = self._buffer
@@ -343,8 +343,8 @@ class BinaryDecoder(Decoder):
         from the next byte, so the decoder never waits for a bogus length.
     """
 
-    def feed(self, data: bytes) -> list[Frame]:
-        out: list[Frame] = []
+    def feed(self, data: bytes) -> list[DecodedFrame]:
+        out: list[DecodedFrame] = []
         buffer = self._buffer
         buffer += data
         position = 0

@@ -29,7 +29,7 @@ import numpy as np
 from solver import SensorGrid, loads
 from solver.checks import one_of, whole_number
 
-__all__ = ["CYCLE", "Cycle", "SCENES", "Scene", "contact_cycle", "scene_contacts", "scene_frame",
+__all__ = ["CYCLE", "Cycle", "SCENES", "BoardScene", "contact_cycle", "scene_contacts", "scene_frame",
            "shared_cycle"]
 
 CYCLE = 100  # frames per period of every scene
@@ -152,7 +152,7 @@ def _twist(skin: _Skin, phase: float):
 
 
 @dataclass(frozen=True)
-class Scene:
+class BoardScene:
     """What a board simulates: contacts as a function of the phase, repeating every ``period`` seconds.
 
     Attributes
@@ -162,7 +162,7 @@ class Scene:
         Seconds per cycle.
     summary : str
     contacts : callable
-        ``contacts(skin, phase)``, phase in ``[0, 1)``: the tuple of :class:`solver.loads.Contact`.
+        ``contacts(skin, phase)``, phase in ``[0, 1)``: the tuple of :class:`solver.loads.ContactLoad`.
     """
 
     name: str
@@ -172,20 +172,19 @@ class Scene:
 
 
 SCENES = {scene.name: scene for scene in (
-    Scene("circle", 2.0, "a Hertzian contact circling the centre, force 0.5 to 1 N, shear ratio 0.3 turning "
-                         "with it", _circle),
-    Scene("pinch", 3.0, "two Hertzian contacts closing in and parting again along the skin's long side, "
-                        "0.3 to 0.8 N each, shear ratio 0.3 pointing at each other", _pinch),
-    Scene("two", 4.0, "two contacts moving independently: one circling in one half of the skin with "
-                      "shear 0.3 along its motion, one on a figure of eight in the other with shear 0.15 "
-                      "towards 120 degrees", _two),
-    Scene("three", 4.0, "three contacts, each on its own path about its home: one circling (shear 0.3 "
-                        "along +x), one moving in and out (shear 0.2 turning), one sideways (no shear)",
-          _three),
-    Scene("press", 6.0, "a broad Hertzian press over 69% of the skin, mean pressure 5 to 10 kPa, no shear",
-          _press),
-    Scene("twist", 4.0, "a 1 N Hertzian press twisted back and forth about its axis (torsion only, no "
-                        "shear): invisible to normal-stress sensors, so the stream never changes", _twist),
+    BoardScene("circle", 2.0, "a Hertzian contact circling the centre, force 0.5 to 1 N, shear ratio 0.3 "
+               "turning with it", _circle),
+    BoardScene("pinch", 3.0, "two Hertzian contacts closing in and parting again along the skin's long side, "
+               "0.3 to 0.8 N each, shear ratio 0.3 pointing at each other", _pinch),
+    BoardScene("two", 4.0, "two contacts moving independently: one circling in one half of the skin with "
+               "shear 0.3 along its motion, one on a figure of eight in the other with shear 0.15 "
+               "towards 120 degrees", _two),
+    BoardScene("three", 4.0, "three contacts, each on its own path about its home: one circling (shear 0.3 "
+               "along +x), one moving in and out (shear 0.2 turning), one sideways (no shear)", _three),
+    BoardScene("press", 6.0, "a broad Hertzian press over 69% of the skin, mean pressure 5 to 10 kPa, "
+               "no shear", _press),
+    BoardScene("twist", 4.0, "a 1 N Hertzian press twisted back and forth about its axis (torsion only, no "
+               "shear): invisible to normal-stress sensors, so the stream never changes", _twist),
 )}
 
 

@@ -8,8 +8,8 @@ import pytest
 from solver import SensorGrid, loads
 from solver.kernels import (
     cell_force_stress,
+    half_space_point_stress,
     layer_force_stress,
-    point_force_stress,
     stress_matrix,
     subcell_offsets,
     taxel_points,
@@ -51,7 +51,7 @@ def test_cell_kernel_matches_fine_quadrature_of_point_kernel(point):
     w, z, n = 2e-3, 0.8e-3, 600
     s = ((np.arange(n) + 0.5) / n - 0.5) * w
     u, v = np.meshgrid(s, s)
-    expected = [k.mean() for k in point_force_stress(point[0] - u, point[1] - v, z)]
+    expected = [k.mean() for k in half_space_point_stress(point[0] - u, point[1] - v, z)]
     got = cell_force_stress(np.array(point[0]), np.array(point[1]), z, w)
     scale = max(abs(e) for e in expected)
     np.testing.assert_allclose(got, expected, atol=1e-5 * scale)

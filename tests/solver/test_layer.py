@@ -90,7 +90,7 @@ def test_point_load_base_stress_carries_the_load_and_the_moment(nu):
     # tangential T33 = cos(phi) T(r): integral of x T33 over the plane is pi int r^2 T dr
     assert np.trapezoid(np.pi * r**2 * tangential, r) == pytest.approx(h, rel=1e-5)
     # compression ahead of the load (+x), relief behind it
-    kx, _, _ = layer.point_force_stress(np.array([h, -h]), np.zeros(2), h, nu)
+    kx, _, _ = layer.layer_point_stress(np.array([h, -h]), np.zeros(2), h, nu)
     assert kx[0] > 0 > kx[1]
 
 
@@ -248,7 +248,7 @@ def test_sensor_size_averages_the_kernel_over_the_taxel(kernel):
             elif kernel == "cell":
                 parts = kernels.cell_force_stress(dx, dy, h, pitch)
             else:
-                parts = kernels.point_force_stress(dx, dy, h)
+                parts = kernels.half_space_point_stress(dx, dy, h)
             total += np.hstack(parts)
     total /= fine.size**2
     assert np.abs(averaged - total).max() <= 2e-3 * np.abs(total).max()
@@ -269,7 +269,7 @@ def test_simulated_layer_data_match_the_point_kernel_summed_over_the_load(nu, ra
     x, y = (a.ravel() for a in np.meshgrid(axis + 0.4e-3, axis - 0.3e-3))
     fz = contact.profile(x, y)
     fz *= 1.0 / fz.sum()
-    kx, ky, kz = layer.point_force_stress(grid.positions[:, 0, None] - x, grid.positions[:, 1, None] - y,
+    kx, ky, kz = layer.layer_point_stress(grid.positions[:, 0, None] - x, grid.positions[:, 1, None] - y,
                                           grid.thickness, nu)
     reference = (0.3 * math.cos(0.5) * kx + 0.3 * math.sin(0.5) * ky + kz) @ fz
     assert np.abs(frame.stress - reference).max() <= 5e-3 * reference.max()
@@ -390,7 +390,7 @@ def test_a_divergence_free_traction_puts_no_stress_on_the_sensors(nu):
     dx, dy = grid.positions[:, 0, None] - x, grid.positions[:, 1, None] - y
     r2 = dx * dx + dy * dy + h * h
     cerruti = (3 * h * h * dx / (2 * np.pi * r2**2.5), 3 * h * h * dy / (2 * np.pi * r2**2.5))
-    on_layer = layer.point_force_stress(dx, dy, h, nu)[:2]
+    on_layer = layer.layer_point_stress(dx, dy, h, nu)[:2]
     scale = magnitude.sum() * area / h**2            # the traction's total magnitude over h^2
     for (kx, ky), tolerance in ((cerruti, 1e-10), (on_layer, 1e-6)):
         stress = {name: (kx @ fx + ky @ fy) * area for name, (fx, fy) in fields.items()}

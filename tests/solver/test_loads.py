@@ -152,7 +152,7 @@ def test_arrays_are_read_only(grid):
     (lambda: loads.hertz((0.0, 0.0), 1e-3, 1.0, shear_ratio=-0.1), "shear_ratio must be finite and >= 0"),
     (lambda: loads.ring((0.0, 0.0), 3e-3, 2e-3, 1.0), r"inner_radius must be in \[0, outer radius"),
     (lambda: loads.flat_punch((0.0, 0.0), 1e-3, 1.0, clip=1.5), r"clip must be in \(0, 1\)"),
-    (lambda: loads.Contact("blob", (0, 0), (1e-3, 1e-3), 1.0), "shape must be one of"),
+    (lambda: loads.ContactLoad("blob", (0, 0), (1e-3, 1e-3), 1.0), "shape must be one of"),
 ], ids=["radius", "center", "force", "shear", "ring", "clip", "shape"])
 def test_invalid_contacts_are_rejected(make, message):
     with pytest.raises(ValueError, match=message):
@@ -161,7 +161,7 @@ def test_invalid_contacts_are_rejected(make, message):
 
 def test_invalid_simulation_arguments_are_rejected(grid):
     contact = loads.hertz((0.0, 0.0), 3e-3, 1.0)
-    with pytest.raises(ValueError, match="contacts must be one or more Contact"):
+    with pytest.raises(ValueError, match="contacts must be one or more ContactLoad"):
         loads.simulate(grid, [])
     with pytest.raises(ValueError, match="noise must be finite and >= 0, got -0.1"):
         loads.simulate(grid, contact, noise=-0.1)

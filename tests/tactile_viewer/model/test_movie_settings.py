@@ -50,8 +50,8 @@ def test_the_default_display_follows_the_camera_and_checks_it():
 ])
 def test_bad_movie_parameters_are_checked_by_the_movies_own_check(tmp_path, capsys, monkeypatch, options, message):
     checked = []
-    check = movie_settings.check_parameters
-    monkeypatch.setattr(movie_settings, "check_parameters", lambda *a, **k: (checked.append(k["names"]), check(*a, **k))[1])
+    check = movie_settings.check_movie_parameters
+    monkeypatch.setattr(movie_settings, "check_movie_parameters", lambda *a, **k: (checked.append(k["names"]), check(*a, **k))[1])
     assert main([str(SAMPLES / "hertz_static.npz"), "--movie", str(tmp_path / "m.mp4"), *options]) == 2
     err = capsys.readouterr().err
     assert re.fullmatch(f"tactile-viewer: {message}\n", err), err

@@ -22,7 +22,7 @@ from tactile_viewer.sources.protocol import (
     MAX_VALUES,
     SYNC,
     BinaryDecoder,
-    Frame,
+    DecodedFrame,
     TextDecoder,
     crc16,
     encode_binary,
@@ -52,7 +52,7 @@ def raw_frame(seq: int, count: int, body: bytes) -> bytes:
     return SYNC + payload + struct.pack("<H", crc16_reference(payload))
 
 
-def feed_all(decoder, chunks) -> list[Frame]:
+def feed_all(decoder, chunks) -> list[DecodedFrame]:
     frames = []
     for chunk in chunks:
         frames += decoder.feed(chunk)
@@ -899,7 +899,7 @@ def test_text_lines_of_letters_are_each_counted_once_and_lose_no_frame(pieces, c
     assert decoder.skipped_bytes == 0 and decoder.pending == 0
 
 
-# ---------------------------------------------------------------- construction and Frame
+# ---------------------------------------------------------------- construction and DecodedFrame
 
 
 @pytest.mark.parametrize("fmt, cls", [("text", TextDecoder), ("binary", BinaryDecoder)])
@@ -945,7 +945,7 @@ def test_frame_values_are_read_only(fmt, data):
 
 def test_frame_copies_the_array_it_is_given():
     source = np.array([1.0, 2.0])
-    frame = Frame(source, 5)
+    frame = DecodedFrame(source, 5)
     source[0] = 99.0  # the caller's array stays writable and the frame does not see the change
     assert frame.values.tolist() == [1.0, 2.0] and frame.values.dtype == float
 
