@@ -95,21 +95,8 @@ class TimePlotsDock(QtWidgets.QDockWidget):
     series : Series or None
         What the curves show.
     graphics : TimePlotStack
-        The plots; the attributes below are its own.
-    plots : dict of str to pyqtgraph.PlotItem
-        By row key (:data:`~tactile_viewer.model.time_plot_rows.ROWS`,
-        :data:`~tactile_viewer.model.time_plot_rows.ERROR_ROWS`).
-    curves, truth_curves : dict of str to pyqtgraph.PlotDataItem
-        The estimate's and the truth's curve of each row of ``ROWS``.
-    error_curves : dict of str to list of pyqtgraph.PlotDataItem
-        The curves of each row of ``ERROR_ROWS``.
-    contact_curves : dict of int to (dict of str to pyqtgraph.PlotDataItem)
-        By contact identity, its curve of each row of ``ROWS`` (only the
-        contacts drawn).
-    cursors : list of pyqtgraph.InfiniteLine
-        One per plot.
-    lost_marks : list of (pyqtgraph.PlotItem, pyqtgraph.LinearRegionItem)
-        The shading of frames a damaged file lost.
+        The plots: by row, their curves (estimate, truth, errors, each contact's),
+        cursors and lost-frame shading.
     schedule : SeriesSchedule
         What is solved in the background, when, and what is kept.
     """
@@ -173,11 +160,6 @@ class TimePlotsDock(QtWidgets.QDockWidget):
 
         self.graphics = TimePlotStack(rows_shown)
         self.graphics.seek_requested.connect(self.seek_time)
-        # the stack's, by the names the dock has always given them
-        graphics = self.graphics
-        self.plots, self.curves, self.cursors = graphics.plots, graphics.curves, graphics.cursors
-        self.truth_curves, self.error_curves = graphics.truth_curves, graphics.error_curves
-        self.contact_curves, self.lost_marks = graphics.contact_curves, graphics.lost_marks
         scroll = QtWidgets.QScrollArea()
         scroll.setWidgetResizable(True)
         scroll.setFrameShape(QtWidgets.QFrame.Shape.NoFrame)
@@ -214,9 +196,9 @@ class TimePlotsDock(QtWidgets.QDockWidget):
 
     def show_rows(self, **shown: bool):
         """Show (True) or hide (False) rows by key (``ROWS``, ``ERROR_ROWS``); one stays."""
-        unknown = set(shown) - set(self.plots)
+        unknown = set(shown) - set(self.graphics.plots)
         if unknown:
-            raise ValueError(f"rows must be among {sorted(self.plots)}, got {sorted(unknown)}")
+            raise ValueError(f"rows must be among {sorted(self.graphics.plots)}, got {sorted(unknown)}")
         rows = {key for key in self.rows_shown if shown.get(key, True)} | {k for k, on in shown.items() if on}
         if not rows & {key for key, *_ in ROWS}:
             rows.add("fz")  # a plot with no row has no time axis to stand on

@@ -44,7 +44,7 @@ def click_at(qtbot, dock, key, x):
     """A real left click on plot ``key`` at time ``x`` (half way up its view)."""
     from PyQt6 import QtCore
 
-    box = dock.plots[key].getViewBox()
+    box = dock.graphics.plots[key].getViewBox()
     # the view follows new curves when it is next painted
     qtbot.waitUntil(lambda: box.viewRange()[0][0] <= x <= box.viewRange()[0][1], timeout=5000)
     (_, _), (low, high) = box.viewRange()
@@ -56,16 +56,16 @@ def click_at(qtbot, dock, key, x):
 
 def lines_at(dock, t):
     return dock.lines_time == t and all(cursor.isVisible() and cursor.value() == pytest.approx(t, abs=1e-12)
-                                        for cursor in dock.cursors)
+                                        for cursor in dock.graphics.cursors)
 
 
 def test_the_curves_fill_in_with_one_point_per_frame(window, shown):
     recording = window.model.recording
     series = shown.series
     assert series.complete and len(series) == FRAMES and series.mode == "auto"
-    np.testing.assert_array_equal(shown.curves["fz"].xData, recording.t)
-    np.testing.assert_allclose(shown.curves["fz"].yData, series.estimate.fz * 1e3)
-    np.testing.assert_allclose(shown.curves["centroid_x"].yData, series.estimate.centroid_x * 1e3)
+    np.testing.assert_array_equal(shown.graphics.curves["fz"].xData, recording.t)
+    np.testing.assert_allclose(shown.graphics.curves["fz"].yData, series.estimate.fz * 1e3)
+    np.testing.assert_allclose(shown.graphics.curves["centroid_x"].yData, series.estimate.centroid_x * 1e3)
     # the frame on screen is the series' frame: the same solver, the same parameters
     last = window.model.last
     assert series.estimate.fz[last.frame] == pytest.approx(last.result.forces[:, 2].sum(), rel=1e-12)
@@ -98,14 +98,14 @@ def test_partial_series_are_drawn_while_solving(window, dock, qtbot):
     window.model.set_source(RecordingSource(recording), solver)
     qtbot.waitUntil(lambda: dock.series is not None and 0 < len(dock.series) < FRAMES, timeout=10000)
     assert not dock.series.complete and "solving" in dock.status.text()
-    assert len(dock.curves["fz"].xData) == len(dock.series)
+    assert len(dock.graphics.curves["fz"].xData) == len(dock.series)
     # a partial series is not exported
     assert not dock.csv_button.isEnabled() and dock.export_csv("unused.csv") is None
     refused = dock.errors.take()
     assert refused[0][0] == "Series not complete" and "frames): export it when it is complete" in refused[0][1]
     with qtbot.waitSignal(dock.computed, timeout=30000):
         pass
-    assert len(dock.curves["fz"].xData) == FRAMES
+    assert len(dock.graphics.curves["fz"].xData) == FRAMES
 
 
 def test_the_cursor_follows_steps_and_playback(window, shown, qtbot):
@@ -146,23 +146,23 @@ def test_a_click_on_a_plot_seeks_to_the_nearest_frame(window, shown, qtbot):
     assert model.frame == 12
     qtbot.waitUntil(lambda: model.last.frame == 12, timeout=5000)
     # dragging a cursor shows the frame under it; the other cursors follow it
-    cursor = shown.cursors[2]
+    cursor = shown.graphics.cursors[2]
     cursor.setValue(t[25] + 0.01)
     with qtbot.waitSignal(model.frame_changed, timeout=5000):
         cursor.sigDragged.emit(cursor)
     assert model.frame == 25
-    assert all(other.value() == t[25] + 0.01 for other in shown.cursors)  # at once, under the mouse
+    assert all(other.value() == t[25] + 0.01 for other in shown.graphics.cursors)  # at once, under the mouse
     qtbot.waitUntil(lambda: lines_at(shown, t[25]), timeout=5000)  # then at the frame drawn
 
 
 def test_a_double_click_undoes_a_zoom(window, shown, qtbot):
     from PyQt6 import QtCore
 
-    box = shown.plots["fz"].getViewBox()
+    box = shown.graphics.plots["fz"].getViewBox()
     qtbot.waitUntil(lambda: box.viewRange()[0][1] > 0, timeout=5000)
     whole = box.viewRange()[0]
     box.scaleBy((0.2, 0.2))  # as the wheel does
-    shown.plots["tangential"].getViewBox().scaleBy((0.3, 0.3))
+    shown.graphics.plots["tangential"].getViewBox().scaleBy((0.3, 0.3))
     qtbot.waitUntil(lambda: box.viewRange()[0][1] - box.viewRange()[0][0] < 0.5 * (whole[1] - whole[0]),
                     timeout=5000)
     x = (box.viewRange()[0][0] + box.viewRange()[0][1]) / 2
@@ -174,7 +174,7 @@ def test_a_double_click_undoes_a_zoom(window, shown, qtbot):
     qtbot.mouseDClick(view, left, pos=point)
     qtbot.mouseRelease(view, left, pos=point)
     qtbot.waitUntil(lambda: box.viewRange()[0] == pytest.approx(whole, rel=1e-6), timeout=5000)
-    other = shown.plots["tangential"].getViewBox()
+    other = shown.graphics.plots["tangential"].getViewBox()
     qtbot.waitUntil(lambda: other.viewRange()[0] == pytest.approx(whole, rel=1e-6), timeout=5000)
 
 
@@ -187,56 +187,56 @@ def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(
     series = shown.series
     assert series.truth is not None
     for key, *_ in ROWS:
-        assert shown.truth_curves[key] in shown.plots[key].items
-    np.testing.assert_allclose(shown.truth_curves["fz"].yData, window.model.recording.truth_forces[:, :, 2].sum(1) * 1e3)
-    assert legend_names(shown.plots["fz"]) == ["estimate", "truth"]
+        assert shown.graphics.truth_curves[key] in shown.graphics.plots[key].items
+    np.testing.assert_allclose(shown.graphics.truth_curves["fz"].yData, window.model.recording.truth_forces[:, :, 2].sum(1) * 1e3)
+    assert legend_names(shown.graphics.plots["fz"]) == ["estimate", "truth"]
     for key, *_ in ERROR_ROWS:
-        assert (shown.plots[key] in layout.items) == (key in FIRST_ROWS)
+        assert (shown.graphics.plots[key] in layout.items) == (key in FIRST_ROWS)
     shown.show_rows(direction_error=True)
-    assert shown.plots["direction_error"] in layout.items
-    np.testing.assert_allclose(shown.error_curves["error"][0].yData, series.errors.normal * 100)
-    np.testing.assert_allclose(shown.error_curves["direction_error"][0].yData, series.errors.direction_deg)
+    assert shown.graphics.plots["direction_error"] in layout.items
+    np.testing.assert_allclose(shown.graphics.error_curves["error"][0].yData, series.errors.normal * 100)
+    np.testing.assert_allclose(shown.graphics.error_curves["direction_error"][0].yData, series.errors.direction_deg)
 
     show(window, shown, qtbot, replace(window.model.recording, truth_forces=None))
     assert shown.series.truth is None and len(shown.series) == FRAMES
     for key, *_ in ROWS:
-        assert shown.truth_curves[key] not in shown.plots[key].items
+        assert shown.graphics.truth_curves[key] not in shown.graphics.plots[key].items
     for key, *_ in ERROR_ROWS:
-        assert shown.plots[key] not in layout.items
-    assert legend_names(shown.plots["fz"]) == ["estimate"]
+        assert shown.graphics.plots[key] not in layout.items
+    assert legend_names(shown.graphics.plots["fz"]) == ["estimate"]
     # one time axis, under the lowest plot shown
-    assert shown.plots["direction"].getAxis("bottom").isVisible()
-    assert not shown.plots["fz"].getAxis("bottom").isVisible()
+    assert shown.graphics.plots["direction"].getAxis("bottom").isVisible()
+    assert not shown.graphics.plots["fz"].getAxis("bottom").isVisible()
     shown.show_rows(centroid_y=True)
-    assert shown.plots["centroid_y"].getAxis("bottom").isVisible()
-    assert not shown.plots["direction"].getAxis("bottom").isVisible()
+    assert shown.graphics.plots["centroid_y"].getAxis("bottom").isVisible()
+    assert not shown.graphics.plots["direction"].getAxis("bottom").isVisible()
 
 
 def test_each_contact_has_curves_of_its_own_when_there_are_several(window, shown, qtbot):
     from tactile_viewer.io.files import load
     from tactile_viewer.model.time_plot_rows import ROWS
 
-    assert shown.series.identities == (1,) and shown.contact_curves == {}  # one contact: the totals say it
-    assert legend_names(shown.plots["fz"]) == ["estimate", "truth"]
+    assert shown.series.identities == (1,) and shown.graphics.contact_curves == {}  # one contact: the totals say it
+    assert legend_names(shown.graphics.plots["fz"]) == ["estimate", "truth"]
     show(window, shown, qtbot, load(SAMPLES / "two_contacts.npz"))
     series = shown.series
-    assert series.identities == (1, 2) and sorted(shown.contact_curves) == [1, 2]
+    assert series.identities == (1, 2) and sorted(shown.graphics.contact_curves) == [1, 2]
     for identity in (1, 2):
         quantities = series.contact(identity)
         for key, *_ in ROWS:
-            assert shown.contact_curves[identity][key] in shown.plots[key].items
-        np.testing.assert_allclose(shown.contact_curves[identity]["fz"].yData, quantities.fz * 1e3)
-        np.testing.assert_allclose(shown.contact_curves[identity]["centroid_x"].yData,
+            assert shown.graphics.contact_curves[identity][key] in shown.graphics.plots[key].items
+        np.testing.assert_allclose(shown.graphics.contact_curves[identity]["fz"].yData, quantities.fz * 1e3)
+        np.testing.assert_allclose(shown.graphics.contact_curves[identity]["centroid_x"].yData,
                                    quantities.centroid_x * 1e3)
-    assert np.isnan(shown.contact_curves[2]["fz"].yData[0])  # the second press is not there yet
-    assert legend_names(shown.plots["fz"]) == ["estimate", "truth", "#1", "#2"]
+    assert np.isnan(shown.graphics.contact_curves[2]["fz"].yData[0])  # the second press is not there yet
+    assert legend_names(shown.graphics.plots["fz"]) == ["estimate", "truth", "#1", "#2"]
     # the contacts table numbers the frame drawn as the curves do (both followed from frame 0)
     last = window.model.last
     for contact in last.result.contacts:
         assert series.contact(contact.identity).fz[last.frame] == pytest.approx(contact.total_force[2],
                                                                                 rel=1e-6)
     show(window, shown, qtbot)  # one contact again: its curves go, from the legend too
-    assert shown.contact_curves == {} and legend_names(shown.plots["fz"]) == ["estimate", "truth"]
+    assert shown.graphics.contact_curves == {} and legend_names(shown.graphics.plots["fz"]) == ["estimate", "truth"]
 
 
 def test_new_parameters_solve_a_new_series_and_auto_again_is_kept(window, shown, qtbot):
@@ -321,7 +321,7 @@ def test_a_live_source_draws_the_frames_solved_so_far(window, qtbot):
     qtbot.waitUntil(lambda: dock.series is not None and len(dock.series) and dock.series.frame[-1] == 11,
                     timeout=5000)
     np.testing.assert_array_equal(dock.series.frame, np.arange(6, 12))
-    np.testing.assert_array_equal(dock.curves["fz"].xData, times[6:])
+    np.testing.assert_array_equal(dock.graphics.curves["fz"].xData, times[6:])
     assert dock.series.truth is None and dock.series.mode == "as shown" and "live" in dock.status.text()
     # a click does not seek a live source
     click_at(qtbot, dock, "fz", times[8])
@@ -399,13 +399,13 @@ def test_at_1280x800_the_rows_shown_and_their_time_axis_are_in_view(window, show
     assert view.verticalScrollBar().maximum() == 0
     # (the plots' own view: the scroll area around it covers it whole)
     assert in_view(window, shown.graphics.viewport()) and in_view(window, shown.rows_button)
-    lowest = shown.plots["direction"]
+    lowest = shown.graphics.plots["direction"]
     assert lowest.getAxis("bottom").isVisible()
     assert shown.graphics.rect().contains(shown.graphics.mapFromScene(lowest.getAxis("bottom").sceneBoundingRect())
                                           .boundingRect())
     # the Rows menu shows and hides; one row always stays
     shown.row_actions["centroid_x"].trigger()
-    assert shown.plots["centroid_x"] in shown.graphics.ci.items and "centroid_x" in shown.rows_shown
+    assert shown.graphics.plots["centroid_x"] in shown.graphics.ci.items and "centroid_x" in shown.rows_shown
     shown.show_rows(fz=False, tangential=False, direction=False, centroid_x=False)
     assert shown.rows_shown == {"fz"} and shown.row_actions["fz"].isChecked()
     shown.show_rows(shear_ratio=True)
@@ -434,12 +434,12 @@ def test_frames_a_damaged_file_lost_are_shaded_on_every_row(window, qtbot, tmp_p
         assert window.open(path)
     dock = window.time_plots
     assert window.model.recording.lost_spans == (pytest.approx((0.6, 1.0)),)
-    assert len(dock.lost_marks) == len(dock.plots)
-    for plot, mark in dock.lost_marks:
+    assert len(dock.graphics.lost_marks) == len(dock.graphics.plots)
+    for plot, mark in dock.graphics.lost_marks:
         assert mark in plot.items and mark.getRegion() == pytest.approx((0.6, 1.0)) and not mark.movable
     with qtbot.waitSignal(window.ready, timeout=20000):
         assert window.open(SAMPLES / "hertz_static.npz")
-    assert dock.lost_marks == []
+    assert dock.graphics.lost_marks == []
 
 
 def test_an_empty_window_says_where_the_plots_come_from_instead_of_empty_axes(window, qtbot):
