@@ -67,12 +67,20 @@ def load_npz(path) -> Recording:
     if not start.startswith((b"PK", b"\x93NUMPY")):
         raise RecordingError(f"{path}: not an NPZ archive (an NPZ is a zip of .npy arrays; this file starts "
                              f"with {start!r})")
-    try:
-        data = np.load(path, allow_pickle=False)
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise RecordingError(f"{path}: not a readable NPZ archive ({exc})") from None
-    if not isinstance(data, np.lib.npyio.NpzFile):
-        raise RecordingError(f"{path}: not an NPZ archive (a single array, as .npy writes)")
+    # our own handle, closed whatever happens: np.load leaves a file it opened itself open when
+    # the zip inside is broken
+    with open(path, "rb") as handle:
+        try:
+            data = np.load(handle, allow_pickle=False)
+        except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+            raise RecordingError(f"{path}: not a readable NPZ archive ({exc})") from None
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise RecordingError(f"{path}: not an NPZ archive (a single array, as .npy writes)")
+        return _read(data, path)
+
+
+def _read(data, path) -> Recording:
+    # the recording in an opened archive, which it closes
     with data:
         _check_member_names(data, path)
         # the members each field is read from: its own, or those of the chunks of a live recording

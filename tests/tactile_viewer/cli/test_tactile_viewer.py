@@ -204,7 +204,8 @@ def test_a_frame_out_of_range_is_named_as_for_a_movie(tmp_path, capsys, monkeypa
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("module", ["tactile_sim", "tactile_record", "tactile_tradeoff", "tactile_viewer"])
+@pytest.mark.parametrize("module", ["tactile_sim", "tactile_record", "tactile_tradeoff", "tactile_viewer",
+                                    "tactile_batch"])
 def test_every_command_says_in_plain_words_what_each_option_is(module, capsys, monkeypatch):
     import argparse
     import importlib
