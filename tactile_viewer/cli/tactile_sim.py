@@ -35,13 +35,13 @@ from pathlib import Path
 
 import numpy as np
 
-from solver import SensorGrid
 from solver.checks import one_of, real_number
 
 from ..io.layout import SensorLayout, save_layout
 from ..sources.device import announce_board, forget_board
 from ..sources.protocol import encode_binary, encode_text
 from ..sources.simulated import SCENES, shared_cycle
+from .skin_options import add_skin_arguments, skin_grid
 
 __all__ = ["Board", "main"]
 
@@ -192,14 +192,7 @@ def main(argv=None) -> int:
                         help="frames as binary packets with a CRC (default) or as text lines")
     parser.add_argument("--checksum", action="store_true",
                         help="end each text line with *XXXX, its CRC-16 (text format only)")
-    parser.add_argument("--nx", type=int, default=16, help="taxels along x (default 16)")
-    parser.add_argument("--ny", type=int, default=16, help="taxels along y (default 16)")
-    parser.add_argument("--pitch", type=float, default=2e-3, help="metres")
-    parser.add_argument("--thickness", type=float, default=2e-3, help="metres")
-    parser.add_argument("--poisson-ratio", type=float, default=0.5,
-                        help="Poisson ratio nu of the elastomer, in [0, 0.5] (default 0.5: incompressible)")
-    parser.add_argument("--sensor-size", type=float, default=0.0,
-                        help="side of a square taxel, metres, at most the pitch (default 0: point sensors)")
+    add_skin_arguments(parser)
     parser.add_argument("--units", choices=("Pa", "kPa", "MPa"), default="kPa",
                         help="units of the values sent (default kPa)")
     parser.add_argument("--noise", type=float, default=0.01,
@@ -229,11 +222,7 @@ def main(argv=None) -> int:
     for name in ("garbage", "dropout"):
         if not 0 <= getattr(args, name) <= 1:
             parser.error(f"--{name} must be a probability in [0, 1], got {getattr(args, name):g}")
-    try:
-        grid = SensorGrid.regular(args.nx, args.ny, args.pitch, args.thickness,
-                                  poisson_ratio=args.poisson_ratio, sensor_size=args.sensor_size)
-    except ValueError as exc:
-        parser.error(str(exc))
+    grid = skin_grid(parser, args)
     layout = SensorLayout(grid, args.units)
     if args.layout:
         save_layout(layout, args.layout)

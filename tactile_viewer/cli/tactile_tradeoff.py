@@ -17,11 +17,11 @@ import numpy as np
 from measurement import tradeoff as measured
 from measurement.cases import default_cases
 from measurement.timing import machine
-from solver import SensorGrid
 from solver.kernels import KERNELS
 from solver.quality import CONFIGURATIONS, Configuration
 
 from ..model.captions import KERNEL_HELP, geometry_text
+from .skin_options import add_skin_arguments, skin_grid
 
 __all__ = ["plot", "on_kernel", "main"]
 
@@ -135,14 +135,7 @@ def chart_of(measurements, *, title=""):
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="tactile-tradeoff", description=__doc__.splitlines()[0])
-    parser.add_argument("--nx", type=int, default=16, help="taxels along x (default 16)")
-    parser.add_argument("--ny", type=int, default=16, help="taxels along y (default 16)")
-    parser.add_argument("--pitch", type=float, default=2e-3, help="metres")
-    parser.add_argument("--thickness", type=float, default=2e-3, help="metres")
-    parser.add_argument("--poisson-ratio", type=float, default=0.5,
-                        help="Poisson ratio nu of the elastomer, in [0, 0.5] (default 0.5: incompressible)")
-    parser.add_argument("--sensor-size", type=float, default=0.0,
-                        help="side of a square taxel, metres, at most the pitch (default 0: point sensors)")
+    add_skin_arguments(parser)
     parser.add_argument("--kernel", choices=KERNELS, default=KERNELS[0], help=KERNEL_HELP)
     parser.add_argument(
         "--noise",
@@ -162,11 +155,7 @@ def main(argv=None) -> int:
         "skins up to 64 also time the full set-up",
     )
     args = parser.parse_args(argv)
-    try:
-        grid = SensorGrid.regular(args.nx, args.ny, args.pitch, args.thickness,
-                                  poisson_ratio=args.poisson_ratio, sensor_size=args.sensor_size)
-    except ValueError as exc:
-        parser.error(str(exc))
+    grid = skin_grid(parser, args)
     if any(not 0 <= n < 1 for n in args.noise):
         parser.error(f"--noise levels must be in [0, 1), got {args.noise}")
     cases = default_cases(grid, noises=tuple(args.noise))

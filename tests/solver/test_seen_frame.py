@@ -1,26 +1,10 @@
 """The frame as a dense solve sees it: its contacts and the contact fit's view of them."""
 
-import math
 
 import numpy as np
-import pytest
 
-from solver import SensorGrid, loads
-from solver.inverse import DenseSolver
 from solver.kernels import stress_matrix
 from solver.threads import one_blas_thread
-
-
-@pytest.fixture(scope="module")
-def reconstructor():
-    return DenseSolver(SensorGrid.regular(14, 12, 2e-3, 2e-3))
-
-
-@pytest.fixture(scope="module")
-def sheared(reconstructor):
-    # shear 0.4 towards 120 degrees, no noise
-    contact = loads.hertz((0.5e-3, -0.3e-3), 5e-3, 1.0, shear_ratio=0.4, shear_direction=math.radians(120))
-    return loads.simulate(reconstructor.grid, contact)
 
 
 def test_frame_columns_are_the_sub_cells_of_the_region(reconstructor, sheared):

@@ -14,34 +14,11 @@ from tactile_viewer.model.display import Display, display_scales
 from tactile_viewer.model.shear_parameters import MAX_SHEAR_RATIO
 from tactile_viewer.model.viewer_model import ViewerModel
 from tactile_viewer.sources.source import RecordingSource, Source, SourceFrame
+from tests.tactile_viewer.model.conftest import PITCH, THICKNESS
 
 ROOT = Path(__file__).resolve().parents[3]
-PITCH, THICKNESS = 2e-3, 2e-3
+
 SIGNALS = ("recording_changed", "frame_changed", "parameters_changed", "display_changed", "solved")
-
-
-@pytest.fixture(scope="module")
-def recording():
-    """Four frames of a sheared Hertz contact sliding along x on a 6x5 skin, with their truth."""
-    grid = SensorGrid.regular(6, 5, PITCH, THICKNESS)
-    rng = np.random.default_rng(7)  # fixed seed: the sensor noise of all four frames
-    frames = [loads.simulate(grid, loads.hertz((x, 0.3e-3), 3e-3, 1.0 + x / 1e-2, shear_ratio=0.4,
-                                               shear_direction=0.5), noise=0.01, rng=rng)
-              for x in (-2e-3, -0.5e-3, 1e-3, 2.5e-3)]
-    return Recording(grid, [f.stress for f in frames], [0.0, 0.05, 0.1, 0.15],
-                     truth_forces=[f.forces for f in frames], description="sliding contact")
-
-
-@pytest.fixture(scope="module")
-def reconstructor(recording):
-    return ViewerModel.build(recording.grid, "layer")
-
-
-@pytest.fixture
-def model(recording, reconstructor):
-    model = ViewerModel()
-    model.set_source(RecordingSource(recording, "takes/sliding.npz"), reconstructor)
-    return model
 
 
 def listen(model):
