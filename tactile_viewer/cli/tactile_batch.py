@@ -1,12 +1,17 @@
 """tactile-batch: reconstruct every frame of many recordings into force files, in parallel.
 
 ``tactile-batch INPUT... --out DIR [--preset NAME | --view SIDECAR.view.json] [--kernel K]
-[--format npz|csv] [--workers N] [--scheduler local|tcp://host:port] [--chunk FRAMES]``
+[--format npz|csv|foxglove] [--workers N] [--scheduler local|tcp://host:port] [--chunk FRAMES]
+[--layout SKIN.json [--topic T] [--field F]]``
 writes ``DIR/<recording name>.forces.npz`` (or ``.csv``) for each recording, the
-viewer's whole-recording force export (File > Export forces), and beside it
+viewer's whole-recording force export (File > Export forces), or ``.forces.mcap``
+for Foxglove (``--format foxglove``: File > Export for Foxglove), and beside it
 ``<output>.batch.json`` naming the input and the settings; a rerun skips the
 outputs already finished. Frames are solved in chunks on joblib's processes or a
-Dask cluster. A progress line and a summary go to stderr; a file that fails is
+Dask cluster. ROS 2 bags among the inputs (a folder with ``metadata.yaml``, a
+``.db3``, another program's ``.mcap``) are read through ``--layout`` (and
+``--topic``/``--field``), each decoded at most once per worker process. A
+progress line and a summary go to stderr; a file that fails is
 named with its reason and the others go on (exit status 1). No Qt.
 """
 
@@ -24,16 +29,14 @@ from solver.kernels import KERNELS
 from ..io.recording import RecordingError
 from ..model.batch import (
     DEFAULT_CHUNK,
-    FORMATS,
     PRESET_NAMES,
     FileOutcome,
-    find_recordings,
-    is_finished,
     plan_file,
     settings_from_preset,
     settings_from_view,
 )
 from ..model.batch_engines import DaskEngine, JoblibEngine, check_scheduler, run_batch
+from ..model.batch_inputs import FORMATS, BagOptions, find_recordings, is_finished
 from ..model.captions import KERNEL_HELP
 
 __all__ = ["main"]
@@ -49,8 +52,10 @@ def _cpu_count() -> int:
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("inputs", nargs="+", metavar="INPUT",
-                        help="recordings (.mcap, .npz, .csv) or folders: every recording in a folder and its "
-                             "sub-folders (hidden files and *.forces.* files left out)")
+                        help="recordings (.mcap, .npz, .csv), ROS 2 bags (a folder with metadata.yaml, "
+                             "a .db3, another program's .mcap) or folders: every recording and bag in a "
+                             "folder and its sub-folders (a bag folder is one bag; hidden files and "
+                             "*.forces.* files left out)")
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="the folder for the force files (made if missing); a folder's recordings keep "
                              "their sub-folders there")
@@ -65,7 +70,9 @@ def _parser() -> argparse.ArgumentParser:
                         help="the stress kernel, replacing the preset's or sidecar's (default: theirs, "
                              f"else {KERNELS[0]}). " + KERNEL_HELP.replace("\n", " "))
     parser.add_argument("--format", choices=FORMATS, default="npz",
-                        help="the force files' format (default npz; the viewer's force export formats)")
+                        help="the force files' format (default npz; npz and csv are the viewer's force "
+                             "exports, foxglove an MCAP file Foxglove shows: <name>.forces.mcap with "
+                             "pressure maps, force arrows and per-contact totals)")
     parser.add_argument("--workers", type=int, metavar="N",
                         help="worker processes on this machine for joblib or --scheduler local "
                              f"(default: the CPUs this process may use, {_cpu_count()} here)")
@@ -73,9 +80,19 @@ def _parser() -> argparse.ArgumentParser:
                         help="solve on Dask: 'local' starts a cluster of --workers processes here, "
                              "tcp://host:port uses a running cluster (its workers need tactile-viewer "
                              "installed and the recordings at the same paths); default: joblib")
+    bags = parser.add_argument_group("ROS 2 bags", "how every bag among the inputs is read (recordings of "
+                                     "this viewer carry their own layout and ignore these)")
+    bags.add_argument("--layout", metavar="FILE",
+                      help="the skin's sensor layout JSON (geometry, units, gain, offset; the one a live "
+                           "board uses): needed when an input is a bag")
+    bags.add_argument("--topic", metavar="TOPIC",
+                      help="the bags' array topic (default: the only one whose messages fit the layout)")
+    bags.add_argument("--field", metavar="FIELD",
+                      help="the numeric array field of its messages, dot-separated when nested (default: the "
+                           "only one)")
     parser.add_argument("--chunk", type=int, default=DEFAULT_CHUNK, metavar="FRAMES",
-                        help=f"frames per task (default {DEFAULT_CHUNK}); each task opens its recording "
-                             "and solves its frames")
+                        help=f"frames per task (default {DEFAULT_CHUNK}); a worker opens each recording "
+                             "or bag once and solves its chunks")
     return parser
 
 
@@ -186,7 +203,12 @@ def main(argv=None) -> int:
                     else settings_from_preset(args.preset, args.kernel))
         if args.scheduler not in (None, "local"):
             check_scheduler(args.scheduler)
-        inputs = find_recordings(args.inputs, args.out, args.format)
+        if args.layout is None and (args.topic, args.field) != (None, None):
+            raise ValueError("--topic and --field choose what a ROS 2 bag is read from: give --layout too "
+                             f"(got --topic {args.topic}, --field {args.field})")
+        bag = (None if args.layout is None
+               else BagOptions.from_layout_file(args.layout, topic=args.topic, field=args.field))
+        inputs = find_recordings(args.inputs, args.out, args.format, bag=bag)
         if os.path.lexists(args.out) and not Path(args.out).is_dir():
             raise ValueError(f"--out must be a folder, got {args.out!r} (a file)")
     except ValueError as exc:
@@ -199,6 +221,9 @@ def main(argv=None) -> int:
         return 2
     progress = ProgressLine(sys.stderr)
     outcomes: list[FileOutcome] = []
+    if bag is not None and all(i.bag is None for i in inputs):
+        progress.say(f"{PROG}: note: --layout, --topic and --field are unused: no input is a ROS 2 bag "
+                     "(recordings of this viewer carry their own layout)")
 
     def tell(outcome: FileOutcome):
         outcomes.append(outcome)

@@ -20,8 +20,8 @@ import time
 from pathlib import Path
 
 from ..io.layout import LayoutError, load_layout
-from ..sources.protocol import FORMATS
 from ..sources.serial_reader import SerialReader
+from .board_options import add_board_arguments, check_duration, seconds_left
 
 __all__ = ["main"]
 
@@ -34,14 +34,9 @@ def main(argv=None) -> int:
                         help="the sensor layout: geometry and the calibration of the raw values")
     parser.add_argument("--out", required=True, metavar="FILE.mcap", help="the recording to write")
     parser.add_argument("--overwrite", action="store_true", help="replace FILE.mcap if it exists")
-    parser.add_argument("--format", choices=FORMATS, default="binary", help="the board's frame format")
-    parser.add_argument("--baudrate", type=int, default=115200,
-                        help="the board's baud rate (default 115200; pseudo-terminals and sockets ignore it)")
-    parser.add_argument("--duration", type=float, metavar="S",
-                        help="stop after S seconds (default: on Ctrl+C or SIGTERM)")
+    add_board_arguments(parser)
     args = parser.parse_args(argv)
-    if args.duration is not None and not args.duration > 0:
-        parser.error(f"--duration must be > 0 seconds, got {args.duration!r}")
+    check_duration(parser, args)
     try:
         layout = load_layout(args.layout)
     except (OSError, LayoutError) as exc:
@@ -80,7 +75,7 @@ def main(argv=None) -> int:
     print(f"recording {args.url} ({args.format}) to {args.out}; Ctrl+C stops", flush=True)
     start = time.monotonic()
     try:
-        while not stop.wait(min(1.0, _left(start, args.duration))):
+        while not stop.wait(min(1.0, seconds_left(start, args.duration))):
             elapsed = time.monotonic() - start
             stats = reader.stats.snapshot(reader.now())
             print(f"{elapsed:7.1f} s  {stats.rate:7.1f} frames/s  recorded {recorder.added}  "
@@ -108,12 +103,6 @@ def main(argv=None) -> int:
     if mismatch:
         print(f"tactile-record: rejected for their value count: {mismatch}", file=sys.stderr, flush=True)
     return 1 if failed.is_set() else 0
-
-
-def _left(start: float, duration: float | None) -> float:
-    if duration is None:
-        return 1.0
-    return max(0.0, duration - (time.monotonic() - start))
 
 
 if __name__ == "__main__":

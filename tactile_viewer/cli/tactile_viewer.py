@@ -1,6 +1,9 @@
 """Command line: ``tactile-viewer [RECORDING] [options]``.
 
-- no option: open the window (on RECORDING if given);
+RECORDING is a recording file, or a ROS 2 bag with ``--layout FILE`` (and ``--topic``,
+``--field`` when the bag has several numeric array topics: :mod:`tactile_viewer.io.ros2_bag`).
+
+- no option: open the window (on RECORDING if given; a bag without ``--layout`` asks for it);
 - ``--screenshot out.png``: render one frame off screen, save the PNG and its
   JSON sidecar ``out.png.view.json``, exit (batch figures);
 - ``--movie out.mp4``: render frames ``--start`` to ``--stop`` (exclusive) off screen with the
@@ -33,8 +36,11 @@ from ..model.display import Display
 from ..model.viewer_model import ViewerModel
 
 
-def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None, out=None):
+def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None, out=None,
+           bag=None):
     """Reconstruct a recording headlessly and print one line per frame (with errors when it has truth).
+
+    ``bag``: the ``layout``, ``topic`` and ``field`` of a ROS 2 bag (:func:`tactile_viewer.io.files.load`).
 
     The first line names the geometry, the elastomer's Poisson ratio included. Under each
     frame's line, one line per contact (largest normal force first): its identity
@@ -44,7 +50,7 @@ def report(path, *, frame=None, kernel=KERNELS[0], shear_ratio=None, shear_direc
     columns, then its centre in millimetres.
     """
     out = sys.stdout if out is None else out
-    recording = load(path)
+    recording = load(path, **(bag or {}))
     grid = recording.grid
     start = time.perf_counter()
     reconstructor = Reconstructor(grid, kernel=kernel)
@@ -91,9 +97,11 @@ def _frame_index(frame, recording):
 
 
 def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None,
-               scale=1, transparent=False, camera="iso", size=(1200, 800), display_map="pressure"):
+               scale=1, transparent=False, camera="iso", size=(1200, 800), display_map="pressure", bag=None):
     """Render one frame off screen with the window's own scene; save the PNG and its sidecar
     ``<PNG>.view.json`` (never over a file that is not an earlier sidecar).
+
+    ``bag``: the ``layout``, ``topic`` and ``field`` of a ROS 2 bag (:func:`tactile_viewer.io.files.load`).
 
     The display is the window's default for the recording seen from ``camera``
     (:meth:`Display.seen_from`): from ``"top"`` the arrows lie flat (in-plane), as the
@@ -116,7 +124,7 @@ def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear
     if not out.suffix:  # pyvista would write <out>.png, a name the user did not give
         raise ValueError(f"{out}: --screenshot needs a file name with its type, e.g. {out.name}.png")
     sidecar.check_sidecar(out)  # refused before anything is rendered or written
-    recording = load(path)
+    recording = load(path, **(bag or {}))
     model = ViewerModel()
     model.set_source(RecordingSource(recording, path), ViewerModel.build(recording.grid, kernel))
     model.set_frame(_frame_index(frame, recording))
@@ -139,7 +147,7 @@ def screenshot(path, out, *, frame=0, kernel=KERNELS[0], shear_ratio=None, shear
 
 
 def movie(path, out, *, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg=None, start=0, stop=None,
-          fps=30.0, size=(1200, 800), camera="iso", display_map="pressure", stream=None):
+          fps=30.0, size=(1200, 800), camera="iso", display_map="pressure", stream=None, bag=None):
     """Write a movie of a recording's frames ``start .. stop - 1`` (``stop`` exclusive) off screen.
 
     The display is the window's default for the recording with the colour ranges fixed over the
@@ -168,6 +176,8 @@ def movie(path, out, *, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg
     display_map : {"pressure", "stress", "none"}
     stream : file, optional
         Where progress is printed.
+    bag : dict, optional
+        The ``layout``, ``topic`` and ``field`` of a ROS 2 bag (:func:`tactile_viewer.io.files.load`).
 
     Returns
     -------
@@ -194,7 +204,7 @@ def movie(path, out, *, kernel=KERNELS[0], shear_ratio=None, shear_direction_deg
     ratio, direction = movie_settings.check_movie_parameters(shear_ratio, shear_direction_deg, degrees=True,
                                                        names=("--shear-ratio", "--shear-direction"))
     Display().seen_from(camera)  # a preset, checked before the recording is loaded
-    recording = load(path)
+    recording = load(path, **(bag or {}))
     frames = movie_settings.check_frames(len(recording), start, stop, names=("--start", "--stop"))
     solver = ViewerModel.build(recording.grid, kernel)
     display = movie_settings.default_display(recording, solver, display_map=display_map, camera=camera)
@@ -231,7 +241,16 @@ def main(argv=None):
         prog="tactile-viewer", description="Contact forces on a robot skin from its normal-stress sensors: "
         "open RECORDING in the viewer (no option), or describe, report or render it headlessly.")
     parser.add_argument("recording", nargs="?", metavar="RECORDING",
-                        help="a recording to open: .mcap (live recordings), .npz or .csv")
+                        help="a recording to open: .mcap (live recordings), .npz or .csv; or a ROS 2 bag "
+                             "(a folder with metadata.yaml, a .mcap or .db3) with --layout")
+    parser.add_argument("--layout", metavar="FILE",
+                        help="a ROS 2 bag's sensor layout (JSON, as for a live board): geometry, units, gain "
+                             "and offset of its values; the window asks for it when not given")
+    parser.add_argument("--topic", metavar="T", help="the bag's topic of numeric arrays (default: the only "
+                        "one, or the only one whose messages hold the layout's taxel count of values)")
+    parser.add_argument("--field", metavar="F", help="the field of its messages that holds the values, "
+                        "dot-separated when nested, e.g. data or array.data (default: the only numeric "
+                        "array)")
     parser.add_argument("--info", action="store_true",
                         help="print frames, span, sequence gaps, receive times, geometry and calibration "
                              "of RECORDING, one per line, and exit (nothing is solved)")
@@ -270,6 +289,8 @@ def main(argv=None):
                         help="screenshot and movie colour map: pressure (normal force per area, default), "
                              "stress (sensor readings) or none")
     args = parser.parse_args(argv)
+    # a ROS 2 bag's choices, as load takes them (only those given)
+    bag = {name: value for name in ("layout", "topic", "field") if (value := getattr(args, name)) is not None}
     movie_options = [f"--{name}" for name in ("fps", "start", "stop") if getattr(args, name) is not None]
     if args.movie:
         if args.info or args.report or args.screenshot:
@@ -285,22 +306,22 @@ def main(argv=None):
             if not args.recording:
                 parser.error("a RECORDING is needed with --info, --report, --screenshot or --movie")
             if args.info:
-                print("\n".join(facts(load(args.recording))))
+                print("\n".join(facts(load(args.recording, **bag))))
             elif args.report:
                 report(args.recording, frame=args.frame, kernel=args.kernel, shear_ratio=args.shear_ratio,
-                       shear_direction_deg=args.shear_direction)
+                       shear_direction_deg=args.shear_direction, bag=bag)
             elif args.movie:
                 written = movie(args.recording, args.movie, kernel=args.kernel, shear_ratio=args.shear_ratio,
                                 shear_direction_deg=args.shear_direction, start=args.start or 0,
                                 stop=args.stop, fps=30.0 if args.fps is None else args.fps, size=args.size,
-                                camera=args.camera, display_map=args.map)
+                                camera=args.camera, display_map=args.map, bag=bag)
                 print(written.summary())
             else:
                 solved = screenshot(args.recording, args.screenshot, frame=args.frame or 0,
                                     kernel=args.kernel,
                                     shear_ratio=args.shear_ratio, shear_direction_deg=args.shear_direction,
                                     scale=args.scale, transparent=args.transparent, camera=args.camera,
-                                    size=args.size, display_map=args.map)
+                                    size=args.size, display_map=args.map, bag=bag)
                 print(f"saved {args.screenshot} (frame {solved.frame}, mu {solved.result.shear_ratio:.2f}, "
                       f"theta {math.degrees(solved.result.shear_direction):+.0f} deg)")
             return 0
@@ -311,10 +332,13 @@ def main(argv=None):
         reason = f"{exc.filename}: {exc.strerror}" if exc.filename and exc.strerror else str(exc)
         print(f"tactile-viewer: {reason}", file=sys.stderr)
         return 2
-    return run_window(args.recording, kernel=args.kernel)
+    if bag and not args.recording:
+        parser.error("--layout, --topic and --field go with a ROS 2 bag given as RECORDING")
+    return run_window(args.recording, kernel=args.kernel, bag=bag)
 
 
-def run_window(path=None, *, kernel=KERNELS[0]):
+def run_window(path=None, *, kernel=KERNELS[0], bag=None):
+    # ``bag``: the layout, topic and field of a ROS 2 bag; the window asks for what is not given
     from PyQt6 import QtWidgets
 
     from ..qt import errors
@@ -332,7 +356,7 @@ def run_window(path=None, *, kernel=KERNELS[0]):
     window.parameters.show_kernel(kernel)  # nothing is open yet: nothing to rebuild
     window.show()
     if path:
-        window.open(path)
+        window.open(path, **(bag or {}))
     return app.exec()
 
 

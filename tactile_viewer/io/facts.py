@@ -66,8 +66,8 @@ def facts(recording: Recording) -> list[str]:
                  f"poisson ratio {grid.poisson_ratio:g}, sensor size {grid.sensor_size * 1e3:g} mm")
     calibration = recording.calibration
     if calibration is None:
-        lines.append("calibration none kept: the frames are stresses in pascals (NPZ and CSV keep no "
-                     "raw values)")
+        lines.append("calibration none kept: the frames are stresses in pascals (NPZ, CSV and ROS 2 bags "
+                     "opened with a layout keep no raw values)")
     else:
         fields = calibration.fields()
         def shown(value):

@@ -28,7 +28,7 @@ from .recording import (
     raw_to_pascals,
 )
 
-__all__ = ["LayoutError", "SensorLayout", "load_layout", "save_layout", "RAW_UNITS"]
+__all__ = ["LayoutError", "SensorLayout", "layout_from_fields", "load_layout", "save_layout", "RAW_UNITS"]
 
 
 class LayoutError(ValueError):
@@ -107,10 +107,27 @@ def load_layout(path) -> SensorLayout:
         raise LayoutError(f"{path}: not JSON ({exc})") from None
     if not isinstance(spec, dict):
         raise LayoutError(f"{path}: expected a JSON object, got {type(spec).__name__}")
+    try:
+        return layout_from_fields(spec)
+    except ValueError as exc:
+        raise LayoutError(f"{path}: {exc}") from None
+
+
+def layout_from_fields(spec: dict) -> SensorLayout:
+    """A layout from the keys of a layout file (:func:`load_layout`), wherever they were read.
+
+    Also how a Lab Streaming Layer stream's ``<layout>`` description becomes a
+    layout (:mod:`tactile_viewer.sources.lsl`).
+
+    Raises
+    ------
+    ValueError
+        Naming the key that is missing or wrong (the caller names where the keys came from).
+    """
     counts = ("taxels",) if "taxels" in spec else ("nx", "ny")
     missing = [k for k in (*counts, "pitch", "thickness") if k not in spec]
     if missing:
-        raise LayoutError(f"{path}: missing {', '.join(repr(k) for k in missing)}")
+        raise ValueError(f"missing {', '.join(repr(k) for k in missing)}")
     try:
         if not all(isinstance(spec[k], int) and not isinstance(spec[k], bool) for k in counts):
             raise ValueError(f"{' and '.join(counts)} must be whole numbers, got "
@@ -123,8 +140,8 @@ def load_layout(path) -> SensorLayout:
                                 positions=spec.get("positions"), poisson_ratio=spec.get("poisson_ratio", 0.5),
                                 sensor_size=spec.get("sensor_size", 0.0), **{k: spec[k] for k in counts})
         return SensorLayout(grid, spec.get("units", "Pa"), spec.get("gain", 1.0), spec.get("offset", 0.0))
-    except (ValueError, TypeError) as exc:
-        raise LayoutError(f"{path}: {exc}") from None
+    except TypeError as exc:
+        raise ValueError(str(exc)) from None
 
 
 def save_layout(layout: SensorLayout, path) -> Path:

@@ -9,19 +9,26 @@ HDF5 in SWMR mode was tried too and rejected: on a full disk its writer
 crashed the process and its file showed frames that were never written (the
 figures are in ``docs/recordings.md``).
 
-A file holds
+The header names the profile ``ros2`` (so that ROS 2 tools such as ``rosbags``
+take the file) and the library ``tactile-viewer``; what makes a file a
+recording of ours is its metadata ``tactile-viewer.recording``
+(:func:`is_recording_of_ours`). A file holds
 - metadata ``tactile-viewer.recording``: ``version``, ``description``,
   ``taxels``, ``dtype`` of the raw values (``float32`` as a binary board sends
-  them, ``float64`` for text), the ``channel`` id of the frames;
+  them, ``float64`` for text), the ``channel`` id of the frames and (version 3)
+  the ``frame_id`` in every frame's header;
 - metadata ``tactile-viewer.geometry``: the fields of
   :func:`~tactile_viewer.io.recording.geometry_fields` (JSON values);
 - metadata ``tactile-viewer.calibration``: ``units``, ``gain``, ``offset``
   turning raw values into pascals (``gain * (raw - offset) * scale(units)``);
 - metadata ``tactile-viewer.tare``, zero or more: a baseline (pascals)
   subtracted from frame ``from_frame`` on, with the receive time it was taken;
-- one message per frame on channel ``/tactile/raw``: the raw values as
-  received, little-endian; ``log_time`` the receive time (UNIX nanoseconds),
-  ``sequence`` the frame's sequence number (modulo 2**32).
+- one message per frame on channel ``/tactile/raw``; ``log_time`` the receive
+  time (UNIX nanoseconds), ``sequence`` the frame's sequence number (modulo
+  2**32). From version 3 on a ROS 2 message (CDR, its ``ros2msg`` schema in the
+  file: :mod:`tactile_viewer.io.ros2_message`) with the receive time in its
+  header and the whole sequence number; before, the raw values alone,
+  little-endian, in the private encoding ``tactile-raw/<dtype>-le``.
 
 From version 2 on every metadata record of ours carries ``crc32``
 (:func:`metadata_checksum`), and each chunk is followed by a record
@@ -37,12 +44,16 @@ import zlib
 
 import numpy as np
 
-__all__ = ["SUFFIX", "VERSION", "VERSIONS", "TOPIC", "RAW_DTYPES", "MAGIC", "RECORD", "CHUNK_HEAD",
-           "MESSAGE_HEAD", "BLOCK", "metadata_checksum", "times_checksum"]
+__all__ = ["SUFFIX", "VERSION", "VERSIONS", "TOPIC", "PROFILE", "LIBRARY", "RAW_DTYPES", "MAGIC", "RECORD",
+           "CHUNK_HEAD", "MESSAGE_HEAD", "BLOCK", "metadata_checksum", "times_checksum",
+           "is_recording_of_ours"]
 
 SUFFIX = ".mcap"
-VERSION = "2"  # 2: a checksum in every metadata record of ours, and a record of each chunk
-VERSIONS = ("1", "2")
+# 2: a checksum in every metadata record of ours, and a record of each chunk; 3: frames are ROS 2 messages
+VERSION = "3"
+VERSIONS = ("1", "2", "3")
+PROFILE = "ros2"  # versions 1 and 2 named "tactile-viewer", which ROS 2 tools refuse
+LIBRARY = "tactile-viewer"
 TOPIC = "/tactile/raw"
 RAW_DTYPES = {"float32": "<f4", "float64": "<f8"}
 MAGIC = b"\x89MCAP0\r\n"
@@ -64,3 +75,29 @@ def metadata_checksum(fields: dict) -> str:
 def times_checksum(times) -> str:
     """CRC-32 of receive times (UNIX nanoseconds, little-endian u64), as 8 hex digits."""
     return f"{zlib.crc32(np.asarray(times, dtype='<u8').tobytes()):08x}"
+
+
+def is_recording_of_ours(path) -> bool:
+    """Whether the MCAP file at ``path`` is a recording this viewer wrote (any version).
+
+    Cheap (reads its first 4 KiB): its header names our library, or the metadata
+    ``tactile-viewer.recording`` that every version writes first follows it. A
+    ROS 2 bag of another program is neither, even when it holds our frame
+    messages. Raises OSError when the file cannot be read.
+    """
+    with open(path, "rb") as handle:
+        head = handle.read(4096)
+    if not head.startswith(MAGIC):
+        return False
+    if b"tactile-viewer.recording" in head:
+        return True
+    # the header record: opcode, length, then the profile and the library as length-prefixed strings
+    at = len(MAGIC) + RECORD.size
+    if len(head) < at + 4:
+        return False
+    (profile,) = struct.unpack_from("<I", head, at)
+    at += 4 + profile
+    if len(head) < at + 4:
+        return False
+    (library,) = struct.unpack_from("<I", head, at)
+    return head[at + 4:at + 4 + library] == LIBRARY.encode()

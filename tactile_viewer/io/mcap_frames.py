@@ -3,7 +3,9 @@
 :func:`~tactile_viewer.io.mcap_reader.open_recording` finds the chunks and
 their frames (an :class:`Index`); the frames' raw values stay in the file and
 are read, checked against their chunk's CRC and decoded when indexed, the few
-chunks read last kept decoded.
+chunks read last kept decoded. Every frame message of a recording has the same
+size and layout (:class:`~tactile_viewer.io.ros2_message.FrameMessage`), so a
+chunk's frames are read as one strided array, not one message at a time.
 """
 
 from __future__ import annotations
@@ -17,10 +19,9 @@ from pathlib import Path
 import numpy as np
 from mcap.opcode import Opcode
 
-from solver.arrays import read_only
-
 from .mcap_format import BLOCK, MESSAGE_HEAD
 from .recording import RecordingError, StressCalibration
+from .ros2_message import FrameMessage
 
 __all__ = ["FrameTable", "Chunk", "Index", "read_records"]
 
@@ -62,12 +63,13 @@ class FrameTable:
     ndim = 2
     dtype = np.dtype(float)
 
-    def __init__(self, index: Index, m: int, raw_dtype, calibration: StressCalibration, cache=None):
+    def __init__(self, index: Index, message: FrameMessage, calibration: StressCalibration, cache=None):
         self._index = index
-        self._m = m
-        self.raw_dtype = np.dtype(raw_dtype)
+        self._message = message
+        self._m = message.taxels
+        self.raw_dtype = message.dtype
         self.calibration = calibration
-        self._cache = cache if cache is not None else _ChunkCache(index, m, self.raw_dtype)
+        self._cache = cache if cache is not None else _ChunkCache(index, message)
         self._starts = np.array([chunk.first for chunk in index.chunks], dtype=np.int64)
 
     @property
@@ -79,7 +81,7 @@ class FrameTable:
 
     def with_calibration(self, calibration: StressCalibration) -> FrameTable:
         """The same frames under ``calibration`` (sharing the file and its cache)."""
-        return FrameTable(self._index, self._m, self.raw_dtype, calibration, self._cache)
+        return FrameTable(self._index, self._message, calibration, self._cache)
 
     def _rows(self, key):
         # frame indices of ``key`` (an int, a slice, indices) without an index array of the whole take
@@ -165,7 +167,10 @@ class FrameTable:
         return problems
 
     def sequence(self) -> np.ndarray:
-        """``(T,)`` sequence numbers as written (modulo 2**32; reads every chunk)."""
+        """``(T,)`` sequence numbers as written (versions 1 and 2 kept them modulo 2**32).
+
+        Reads every chunk.
+        """
         return np.concatenate([self._cache.sequence(k) for k in range(len(self._index.chunks))]
                               or [np.zeros(0, np.int64)])
 
@@ -173,8 +178,8 @@ class FrameTable:
 class _ChunkCache:
     """The few chunks read last, decoded (playback reads one chunk for about a second)."""
 
-    def __init__(self, index: Index, m: int, raw_dtype, size: int = 4):
-        self._index, self._m, self._raw_dtype, self._size = index, m, raw_dtype, size
+    def __init__(self, index: Index, message: FrameMessage, size: int = 4):
+        self._index, self._message, self._size = index, message, size
         self._decoded: OrderedDict = OrderedDict()
         self._lock = threading.Lock()
 
@@ -189,7 +194,7 @@ class _ChunkCache:
             if k in self._decoded:
                 self._decoded.move_to_end(k)
                 return self._decoded[k]
-        decoded = _decode_chunk(self._index.path, self._index.chunks[k], self._m, self._raw_dtype)
+        decoded = _decode_chunk(self._index.path, self._index.chunks[k], self._message)
         with self._lock:
             self._decoded[k] = decoded
             while len(self._decoded) > self._size:
@@ -210,18 +215,41 @@ def read_records(path: Path, chunk: Chunk) -> bytes:
     return records
 
 
-def _decode_chunk(path: Path, chunk: Chunk, m: int, raw_dtype) -> tuple:
+def _decode_chunk(path: Path, chunk: Chunk, message: FrameMessage) -> tuple:
+    """``(raw (n, m), sequence (n,))`` of a chunk's frames, read-only, checked against its CRC."""
     records = np.frombuffer(read_records(path, chunk), dtype=np.uint8)
-    size = MESSAGE_HEAD + m * raw_dtype.itemsize
+    size = MESSAGE_HEAD + message.size
     offsets = chunk.offsets
     if len(offsets) and (offsets.min() < 0 or offsets.max() + size > len(records)):
         raise RecordingError(f"{path}: a message index points outside its chunk at frame {chunk.first}")
-    heads = records[offsets[:, None] + np.arange(MESSAGE_HEAD)]
-    lengths = heads[:, 1:9].copy().view("<u8")[:, 0]
-    bad = np.flatnonzero((heads[:, 0] != Opcode.MESSAGE) | (lengths != size - 9))
+    rows = _message_rows(records, offsets, size)
+    # the record header (opcode, length) and every byte of the message that is the same in each
+    # frame (encapsulation, frame_id, value count, padding) say that it is a frame of this file
+    lengths = rows[:, 1:9].copy().view("<u8")[:, 0]
+    bad = (rows[:, 0] != Opcode.MESSAGE) | (lengths != size - 9)
+    if message.fixed.size:
+        bad |= np.any(rows[:, MESSAGE_HEAD + message.fixed_at] != message.fixed, axis=1)
+    bad = np.flatnonzero(bad)
     if bad.size:
-        raise RecordingError(f"{path}: frame {chunk.first + bad[0]} is not a frame of {m} "
-                             f"{raw_dtype.name} values")
-    raw = records[offsets[:, None] + MESSAGE_HEAD + np.arange(m * raw_dtype.itemsize)]
-    sequence = heads[:, 11:15].copy().view("<u4")[:, 0].astype(np.int64)
-    return read_only(raw.view(raw_dtype).reshape(len(offsets), m)), read_only(sequence)
+        raise RecordingError(f"{path}: frame {chunk.first + bad[0]} is not a frame of {message.taxels} "
+                             f"{message.dtype.name} values")
+    at = MESSAGE_HEAD + message.values_at
+    raw = np.ascontiguousarray(rows[:, at:at + message.taxels * message.dtype.itemsize]).view(message.dtype)
+    if message.sequence_at is None:  # versions 1 and 2: the record's own sequence, modulo 2**32
+        sequence = rows[:, 11:15].copy().view("<u4")[:, 0].astype(np.int64)
+    else:
+        at = MESSAGE_HEAD + message.sequence_at
+        sequence = rows[:, at:at + 8].copy().view("<u8")[:, 0].astype(np.int64)
+    raw.setflags(write=False)
+    sequence.setflags(write=False)
+    return raw, sequence
+
+
+def _message_rows(records: np.ndarray, offsets: np.ndarray, size: int) -> np.ndarray:
+    # (n, size) bytes of the messages at ``offsets``: a strided view when they follow one another
+    # at equal steps (every chunk this viewer writes), else gathered
+    count = len(offsets)
+    if count and np.all(np.diff(offsets) == size):
+        return np.lib.stride_tricks.as_strided(records[offsets[0]:], shape=(count, size), strides=(size, 1),
+                                               writeable=False)
+    return records[offsets[:, None] + np.arange(size)]

@@ -18,6 +18,7 @@ from .mcap_format import MAGIC, MESSAGE_HEAD, RAW_DTYPES, VERSIONS
 from .mcap_frames import Chunk, FrameTable, Index
 from .mcap_scan import Scan
 from .recording import MAX_TAXELS, Recording, RecordingError, StressCalibration, Tare, grid_from_fields
+from .ros2_message import FRAME_ID, FrameMessage
 
 __all__ = ["open_recording"]
 
@@ -90,11 +91,16 @@ def _opened(scan: Scan) -> Recording:
         grid = grid_from_fields(width=taxels, **geometry)
     except (TypeError, ValueError) as exc:
         raise RecordingError(f"{path}: impossible geometry: {exc}") from None
-    raw_dtype = np.dtype(RAW_DTYPES[dtype])
+    # version 3: a ROS 2 message per frame; before, the raw values alone
+    try:
+        message = (FrameMessage.legacy(taxels, dtype) if version in ("1", "2") else
+                   FrameMessage.ros2(taxels, dtype, info.get("frame_id", FRAME_ID)))
+    except ValueError as exc:
+        raise RecordingError(f"{path}: metadata 'tactile-viewer.recording': {exc}") from None
     tares = [meta for meta in ours if meta.name == "tactile-viewer.tare"]
     chunk_records = [meta for meta in good if meta.name == "tactile-viewer.chunk"]
     chunks, log_times, tares, damage, lost = _assemble(scan, chunk_records, tares,
-                                                       MESSAGE_HEAD + taxels * raw_dtype.itemsize, version)
+                                                       MESSAGE_HEAD + message.size, version)
     try:
         calibration = StressCalibration.from_fields(
             taxels, **_loads(metadata["tactile-viewer.calibration"], "calibration", path),
@@ -106,7 +112,7 @@ def _opened(scan: Scan) -> Recording:
                                                      if scan.cut and not damage else "")
                              + "".join(f"; {what}" for what in damage))
     index = Index(path, chunks, log_times, metadata, scan.cut, damage, scan.data_end)
-    frames = FrameTable(index, taxels, raw_dtype, calibration)
+    frames = FrameTable(index, message, calibration)
     times = log_times.astype(np.int64)
     t = (times - times[0]) * 1e-9
     try:

@@ -320,9 +320,9 @@ class Scan:
 
     def _indexed(self, found: _Found, size: int, version: str):
         # the chunk's message index, when it agrees with what vouches for it: (offsets, times) or None.
-        # Our chunks hold a frame message after another, after the channel record in the first one,
-        # so the offsets follow from the chunk's length; the times from our checksummed record of the
-        # chunk (version 2) or, failing that, from the chunk header's span
+        # Our chunks hold a frame message after another, after the schema (version 3) and channel
+        # records in the first one, so the offsets follow from the chunk's length; the times from our
+        # checksummed record of the chunk (from version 2 on) or, failing that, the chunk header's span
         if found.index is None:
             return None
         offsets, times = found.index
@@ -330,10 +330,8 @@ class Scan:
         prefix = found.length - count * size
         if prefix < 0 or np.any(offsets != prefix + size * np.arange(count)):
             return None
-        if prefix:
-            opcode, length = RECORD.unpack(self.read(found.data_offset, RECORD.size))
-            if opcode != Opcode.CHANNEL or RECORD.size + length != prefix:
-                return None
+        if prefix and not self._registrations(found.data_offset, prefix):
+            return None
         if found.record is not None:
             if count != found.record["frames"] or not found.times_recorded():
                 return None
@@ -341,3 +339,15 @@ class Scan:
                                             or np.any(np.diff(times.astype(np.int64)) < 0))):
             return None
         return offsets, times
+
+    def _registrations(self, position: int, length: int) -> bool:
+        # whether the ``length`` bytes at ``position`` are a schema record then a channel record, or a
+        # channel record alone (versions 1 and 2), and nothing else
+        end = position + length
+        for opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
+            if position + RECORD.size > end:  # a damaged length took it past them
+                break
+            found, size = RECORD.unpack(self.read(position, RECORD.size))
+            if found == opcode:
+                position += RECORD.size + size
+        return position == end

@@ -1,6 +1,8 @@
 """The writer of MCAP recordings: :class:`Recorder`, every frame a source produces, a chunk per second. No Qt.
 
-The format is :mod:`tactile_viewer.io.mcap_format`. Chunks are closed every
+The format is :mod:`tactile_viewer.io.mcap_format`; each frame is a ROS 2
+message (:mod:`tactile_viewer.io.ros2_message`), so ROS 2 tools and Foxglove
+read the file as it is written. Chunks are closed every
 ``flush_interval`` seconds of receive time (1 s), so a crash loses at most
 that much. Each chunk gets a CRC of its own and, after it, a checksummed
 record of it. Nothing is fsynced: a crash of the program loses nothing the
@@ -23,8 +25,19 @@ from mcap.writer import CompressionType, Writer
 
 from solver import SensorGrid
 
-from .mcap_format import RAW_DTYPES, RECORD, SUFFIX, TOPIC, VERSION, metadata_checksum, times_checksum
+from .mcap_format import (
+    LIBRARY,
+    PROFILE,
+    RAW_DTYPES,
+    RECORD,
+    SUFFIX,
+    TOPIC,
+    VERSION,
+    metadata_checksum,
+    times_checksum,
+)
 from .recording import StressCalibration, Tare, geometry_fields, json_ready
+from .ros2_message import FRAME_ID, MESSAGE_ENCODING, SCHEMA_ENCODING, SCHEMAS, FrameMessage
 
 __all__ = ["Recorder"]
 
@@ -38,6 +51,10 @@ def _not_through_a_link(path, flags):
 
 class Recorder:
     """Writes every frame it is given to an MCAP recording, a chunk per ``flush_interval``.
+
+    Each frame is a ROS 2 message of type ``tactile_viewer_msgs/msg/TactileFrame32``
+    (``...64`` for float64 values; :mod:`tactile_viewer.io.ros2_message`): its receive
+    time in the header, its sequence number and its raw values.
 
     Thread-safe: frames come from a reader thread, :meth:`close` from the GUI. The
     file is written on a thread of its own behind a queue of at most ``backlog``
@@ -88,6 +105,7 @@ class Recorder:
         self.path = path
         self.flush_interval = float(flush_interval)
         self.dtype = np.dtype(RAW_DTYPES[dtype])
+        self._message = FrameMessage.ros2(grid.size, dtype)
         self.description = description or "live recording"
         self.added = 0  # frames accepted, in the file's order (the index of the next one)
         self.dropped = 0  # frames that found the queue full: not recorded
@@ -116,13 +134,15 @@ class Recorder:
             # CRC lands in its end record
             writer = Writer(self._stream, compression=CompressionType.NONE, chunk_size=_CHUNK_BYTES,
                             enable_data_crcs=True)
-            writer.start(profile="tactile-viewer", library="tactile-viewer")
+            writer.start(profile=PROFILE, library=LIBRARY)
             self._writer = writer
             self._add_metadata("recording", {"version": VERSION, "description": self.description,
-                                             "taxels": str(grid.size), "dtype": dtype, "channel": "1"})
+                                             "taxels": str(grid.size), "dtype": dtype, "channel": "1",
+                                             "frame_id": FRAME_ID})
             self._add_metadata("geometry", _json_fields(geometry_fields(grid)))
             self._add_metadata("calibration", _json_fields(calibration.fields()))
-            self._channel = writer.register_channel(TOPIC, f"tactile-raw/{dtype}-le", schema_id=0,
+            schema = writer.register_schema(self._message.type_name, SCHEMA_ENCODING, SCHEMAS[dtype].encode())
+            self._channel = writer.register_channel(TOPIC, MESSAGE_ENCODING, schema_id=schema,
                                                     metadata={"taxels": str(grid.size)})
             for tare in calibration.tares:
                 self._write_tare(tare)
@@ -244,8 +264,8 @@ class Recorder:
 
     def _write_frame(self, seq: int, t: float, values) -> None:
         stamp = round((self._origin + t) * 1e9)
-        self._writer.add_message(self._channel, log_time=stamp, data=values.tobytes(), publish_time=stamp,
-                                 sequence=seq % 2**32)
+        self._writer.add_message(self._channel, log_time=stamp, data=self._message.encode(seq, stamp, values),
+                                 publish_time=stamp, sequence=seq % 2**32)
         self._chunk_times.append(stamp)
         if self._last_flush is None:
             self._last_flush = t

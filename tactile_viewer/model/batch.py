@@ -9,23 +9,25 @@ the command is ``tactile-batch`` (:mod:`tactile_viewer.cli.tactile_batch`).
   parameters; the solver is the one the viewer builds for them
   (:meth:`ViewerModel.build`). :func:`settings_from_view` reads them from a
   screenshot's sidecar.
-- **Planning**: each recording is opened once in the parent to count its frames;
-  its frames are cut into chunks (:func:`plan_chunks`) and each chunk is a
-  :class:`ChunkTask` naming the file by path (no frames are shipped). A task
-  opens the recording itself and solves its frames (:func:`solve_chunk`), and
-  never raises: a failure comes back as the outcome's ``error``.
+- **Planning**: each input (:mod:`tactile_viewer.model.batch_inputs`: recordings
+  and ROS 2 bags, and the files they become) is opened once in the parent to
+  count its frames; its frames are cut into chunks (:func:`plan_chunks`) and each
+  chunk is a :class:`ChunkTask` naming the input by path and how to open it (a
+  bag's layout, topic and field; no frames are shipped). A task opens the input
+  itself and solves its frames (:func:`solve_chunk`), and never raises: a failure
+  comes back as the outcome's ``error``.
+- **One decoding per process**: a bag opens whole (decoding every message), so
+  each process keeps the last two inputs it opened (:func:`opened_input`, keyed
+  by path, size, time and options); the engines hand a file's chunks out in
+  order, so a worker opens each input at most once (the outcome's
+  ``opened_by`` says which process opened it for that task).
 - **Equal to the viewer's export**: a task starts from a new solver state and
   first solves the frame before its chunk (:func:`solver_for`); its results come
   back without contact identities, and the parent follows the contacts over the
   file's frames in order with one :class:`solver.ContactTracker`, as
   :func:`~tactile_viewer.model.force_tables.reconstruct_frames` does
-  (:func:`assemble_table`).
-- **Outputs**: ``<out>/<input name>.forces.<npz|csv>`` (a folder's recordings keep
-  their sub-folders), written whole under a temporary name and renamed; beside it
-  ``<output>.batch.json`` names the input (path, size, modification time) and the
-  settings. An output whose JSON names the same input and settings is finished
-  and skipped on a rerun (:func:`is_finished`); the JSON is removed before an
-  output is replaced and written after it, so it never vouches for another file.
+  (:func:`assemble_table`); :func:`~tactile_viewer.model.batch_inputs.write_output`
+  writes it.
 """
 
 from __future__ import annotations
@@ -34,8 +36,8 @@ import copy
 import json
 import os
 import threading
+from collections import OrderedDict
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -47,27 +49,22 @@ from solver.kernels import KERNELS
 from solver.quality import CONFIGURATIONS
 
 from ..io.files import load
-from ..io.forces import ForceTable, save_forces
-from ..io.recording import SUFFIXES, RecordingError, written_whole
+from ..io.forces import ForceTable
+from ..io.recording import RecordingError
 from ..io.sidecar import SIDECAR_MARKER
+from .batch_inputs import BagOptions, BatchInput, input_stamp
 from .force_tables import force_table
 from .movie_settings import check_movie_parameters
 from .shear_parameters import MAX_SHEAR_RATIO
 from .viewer_model import ViewerModel
 
-__all__ = ["BatchSettings", "settings_from_preset", "settings_from_view", "PRESET_NAMES", "FORMATS",
-           "DEFAULT_CHUNK", "OUTPUT_SUFFIX", "RECORD_SUFFIX", "RECORD_MARKER", "BatchInput",
-           "find_recordings", "plan_chunks", "FilePlan", "ChunkTask", "ChunkOutcome", "FileOutcome",
-           "plan_file", "solver_for", "solve_chunk", "assemble_table", "is_finished", "write_output",
-           "record_path"]
+__all__ = ["BatchSettings", "settings_from_preset", "settings_from_view", "PRESET_NAMES", "DEFAULT_CHUNK",
+           "plan_chunks", "FilePlan", "ChunkTask", "ChunkOutcome", "FileOutcome", "plan_file", "opened_input",
+           "solver_for", "solve_chunk", "assemble_table"]
 
 PRESET_NAMES = tuple(c.name for c in CONFIGURATIONS)
-FORMATS = ("npz", "csv")
 DEFAULT_CHUNK = 250  # frames per task: 1.5 s on a 16x16 skin; enough tasks to keep every worker busy
-OUTPUT_SUFFIX = ".forces"  # <input name>.forces.npz
-RECORD_SUFFIX = ".batch.json"  # beside each output: its input and settings
-RECORD_MARKER = "tactile_batch"  # the key that marks the JSON as ours; its value is the version
-_RECORD_VERSION = 1
+_KEPT_INPUTS = 2  # opened inputs a process keeps: the file being solved and the one before (module notes)
 _SIDECAR_MAX_BYTES = 1 << 20
 
 
@@ -171,71 +168,7 @@ def settings_from_view(path, kernel: str | None = None) -> BatchSettings:
     return BatchSettings(kernel=kernel or info["kernel"], shear_ratio=ratio, shear_direction=direction)
 
 
-# -- what to read and where to write ------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class BatchInput:
-    """A recording to reconstruct (absolute ``path``) and the force file it becomes (``output``)."""
-
-    path: Path
-    output: Path
-
-
-def find_recordings(inputs, out_dir, fmt: str) -> list[BatchInput]:
-    """The recordings the INPUTs name, each with its output under ``out_dir``.
-
-    A file is taken as given; a folder gives every recording file in it and its
-    sub-folders (``.mcap``, ``.npz``, ``.csv``), hidden ones, force files
-    (``*.forces.npz``, ``*.forces.csv``) and anything under ``out_dir`` left out;
-    its outputs keep the sub-folders. A file named twice is taken once.
-
-    Raises
-    ------
-    ValueError
-        An INPUT that is missing or not a recording, an unknown ``fmt``, two
-        recordings that would write the same output, or nothing to read.
-    """
-    if fmt not in FORMATS:
-        raise ValueError(f"--format must be one of {FORMATS}, got {shown(fmt)}")
-    out_dir = Path(os.path.abspath(out_dir))
-    found: dict[Path, BatchInput] = {}
-    writers: dict[Path, Path] = {}
-    for given in map(Path, inputs):
-        if given.is_dir():
-            folder = Path(os.path.abspath(given))
-            paths = [p for p in sorted(folder.rglob("*")) if _recording_in_folder(p, folder, out_dir)]
-            pairs = [(p, p.relative_to(folder)) for p in paths]
-        elif given.is_file():
-            if given.suffix.lower() not in SUFFIXES:
-                raise ValueError(f"INPUT must be a recording ({', '.join(SUFFIXES)}) or a folder, "
-                                 f"got {str(given)!r}")
-            path = Path(os.path.abspath(given))
-            pairs = [(path, Path(path.name))]
-        else:
-            raise ValueError(f"INPUT must be a recording file or a folder, got {str(given)!r} "
-                             f"({'no such file or folder' if not os.path.lexists(given) else 'neither'})")
-        for path, relative in pairs:
-            output = out_dir / relative.with_name(f"{relative.name}{OUTPUT_SUFFIX}.{fmt}")
-            if path in found:
-                continue
-            if output in writers:
-                raise ValueError(f"INPUT: {writers[output]} and {path} would both be written to {output}: "
-                                 "give them in separate runs with different --out folders")
-            writers[output] = path
-            found[path] = BatchInput(path, output)
-    if not found:
-        raise ValueError(f"INPUT: no recording ({', '.join(SUFFIXES)}) in {', '.join(map(str, inputs))}")
-    return list(found.values())
-
-
-def _recording_in_folder(path: Path, folder: Path, out_dir: Path) -> bool:
-    relative = path.relative_to(folder)
-    if any(part.startswith(".") for part in relative.parts) or path.suffix.lower() not in SUFFIXES:
-        return False
-    if path.stem.endswith(OUTPUT_SUFFIX) or out_dir in path.parents:
-        return False  # force files, ours or the viewer's, are no recordings
-    return path.is_file()
+# -- planning ------------------------------------------------------------------------------------------
 
 
 def plan_chunks(count: int, chunk: int) -> list[tuple[int, int]]:
@@ -250,10 +183,12 @@ def plan_chunks(count: int, chunk: int) -> list[tuple[int, int]]:
 
 @dataclass(frozen=True)
 class ChunkTask:
-    """Frames ``start`` to ``stop`` (excluded) of the recording at ``path``, solved with ``settings``.
+    """Frames ``start`` to ``stop`` (excluded) of the input at ``path``, solved with ``settings``.
 
-    ``stamp`` is the file's ``(size, modification time in ns)`` when it was
-    planned: a file changed since is not solved.
+    ``stamp`` is the input's ``(size, modification time in ns)`` when it was
+    planned (:func:`~tactile_viewer.model.batch_inputs.input_stamp`): an input
+    changed since is not solved. ``bag``: how a ROS 2 bag is read, None for a
+    recording of this viewer.
     """
 
     path: str
@@ -261,15 +196,21 @@ class ChunkTask:
     stop: int
     settings: BatchSettings
     stamp: tuple
+    bag: BagOptions | None = None
 
 
 @dataclass(frozen=True)
 class ChunkOutcome:
-    """A task's results (one :class:`solver.Reconstruction` a frame, contacts unnumbered) or its error."""
+    """A task's results (one :class:`solver.Reconstruction` a frame, contacts unnumbered) or its error.
+
+    ``opened_by``: the id of the process that opened (decoded) the input for
+    this task, 0 when it was still open there from an earlier task.
+    """
 
     task: ChunkTask
     results: tuple = ()
     error: str = ""
+    opened_by: int = 0
 
 
 @dataclass
@@ -291,7 +232,7 @@ class FilePlan:
 
     def tasks(self) -> list[ChunkTask]:
         """One task per chunk."""
-        return [ChunkTask(str(self.input.path), start, stop, self.settings, self.stamp)
+        return [ChunkTask(str(self.input.path), start, stop, self.settings, self.stamp, self.input.bag)
                 for start, stop in self.chunks]
 
 
@@ -305,24 +246,21 @@ class FileOutcome:
     reason: str = ""
 
 
-def _stamp(path) -> tuple:
-    info = os.stat(path)
-    return info.st_size, info.st_mtime_ns
-
-
 def plan_file(batch_input: BatchInput, settings: BatchSettings, chunk: int) -> FilePlan:
-    """Open the recording once (its frame count, geometry and times) and cut its frames into chunks.
+    """Open the input once (its frame count, geometry and times) and cut its frames into chunks.
 
-    A recording that opens past damage (an MCAP's failed chunks) is solved as
-    the viewer reads it; ``damage`` names what was left out.
+    A recording that opens past damage (an MCAP's failed chunks, a bag's
+    messages that are no frames) is solved as the viewer reads it; ``damage``
+    names what was left out. The opened input is kept for the tasks this
+    process solves (:func:`opened_input`).
 
     Raises
     ------
     RecordingError
-        When the file cannot be read as a recording (the message names it).
+        When the input cannot be read as a recording (the message names it).
     """
-    stamp = _stamp(batch_input.path)
-    recording = load(batch_input.path)
+    stamp = input_stamp(batch_input.path)
+    recording, _ = opened_input(str(batch_input.path), stamp, batch_input.bag)
     return FilePlan(batch_input, recording.grid, np.array(recording.t), stamp,
                     plan_chunks(len(recording), chunk), settings, tuple(recording.damage))
 
@@ -365,24 +303,48 @@ def solver_for(settings: BatchSettings, grid: SensorGrid):
     return fresh
 
 
-@lru_cache(maxsize=2)
-def _recording(path: str, stamp: tuple):
-    # consecutive chunks of a file in one worker read it once (an NPZ is read whole)
-    return load(path)
+_opened: OrderedDict = OrderedDict()
+_opened_lock = threading.Lock()
+
+
+def opened_input(path: str, stamp: tuple, bag: BagOptions | None = None):
+    """The input at ``path`` opened as a recording, and whether this call opened it (else it was kept).
+
+    This process keeps the last :data:`_KEPT_INPUTS` inputs opened, keyed by
+    path, ``stamp`` and ``bag`` options: a bag opens whole, and a worker given
+    a file's chunks one after another decodes it once. One thread opens at a
+    time (a Dask worker's threads share the kept inputs).
+
+    Raises
+    ------
+    RecordingError
+        As :func:`tactile_viewer.io.files.load`.
+    """
+    key = (path, stamp, bag)
+    with _opened_lock:
+        if key in _opened:
+            _opened.move_to_end(key)
+            return _opened[key], False
+        recording = load(path, **({} if bag is None else bag.keywords()))
+        _opened[key] = recording
+        while len(_opened) > _KEPT_INPUTS:
+            _opened.popitem(last=False)
+        return recording, True
 
 
 def solve_chunk(task: ChunkTask) -> ChunkOutcome:
-    """Open the task's recording by path and solve its frames; never raises (an error is the outcome's).
+    """Open the task's input by path (or take it as kept) and solve its frames; never raises.
 
     Run where the engine runs it (a joblib process, a Dask worker): only the
-    path, the frame range and the settings travel there, the results back. The
+    path, the frame range, the settings and a bag's options travel there, the
+    results back; an error is the outcome's. The
     frame before the chunk is solved first, unreported (:func:`solver_for`).
     """
     frames = f"frames {task.start} to {task.stop - 1}"
     try:
-        if _stamp(task.path) != task.stamp:
+        if input_stamp(task.path) != task.stamp:
             raise RecordingError(f"{task.path}: the file changed since it was planned (size or time)")
-        recording = _recording(task.path, task.stamp)
+        recording, opened = opened_input(task.path, task.stamp, task.bag)
         if task.stop > len(recording):
             raise RecordingError(f"{task.path}: holds {len(recording)} frames, not {task.stop}")
         solver = solver_for(task.settings, recording.grid)
@@ -390,7 +352,7 @@ def solve_chunk(task: ChunkTask) -> ChunkOutcome:
         if task.start > 0:  # the frame before: the state a pass over the whole recording brings here
             solver.solve(recording.frames[task.start - 1], **given)
         results = tuple(solver.solve(recording.frames[k], **given) for k in range(task.start, task.stop))
-        return ChunkOutcome(task, results)
+        return ChunkOutcome(task, results, opened_by=os.getpid() if opened else 0)
     except Exception as exc:  # noqa: BLE001 (reported with the file; the other files go on)
         reason = str(exc) if isinstance(exc, RecordingError) else f"{type(exc).__name__}: {exc}"
         return ChunkOutcome(task, error=f"{frames}: {reason}")
@@ -414,45 +376,3 @@ def assemble_table(plan: FilePlan, results) -> ForceTable:
     frames = np.arange(plan.frames)
     return force_table(numbered, frames, plan.t[frames], plan.grid, mode=plan.settings.mode,
                        solver=_SolvedBy(plan.grid, plan.settings.kernel), source=str(plan.input.path))
-
-
-def record_path(output) -> Path:
-    """The JSON beside an output naming its input and settings: ``<output>.batch.json``."""
-    output = Path(output)
-    return output.with_name(output.name + RECORD_SUFFIX)
-
-
-def _record(batch_input: BatchInput, stamp: tuple, settings: BatchSettings) -> dict:
-    return {RECORD_MARKER: _RECORD_VERSION, "source": str(batch_input.path), "source_bytes": stamp[0],
-            "source_mtime_ns": stamp[1], "settings": settings.fields()}
-
-
-def is_finished(batch_input: BatchInput, settings: BatchSettings) -> bool:
-    """The output exists and its record names this input (path, size, time) and these settings."""
-    output, record = batch_input.output, record_path(batch_input.output)
-    try:
-        if not output.is_file() or record.stat().st_size > _SIDECAR_MAX_BYTES:
-            return False
-        written = json.loads(record.read_text(encoding="utf-8"))
-        stamp = _stamp(batch_input.path)
-    except (OSError, ValueError):
-        return False
-    if not isinstance(written, dict) or written.get("output_bytes") != output.stat().st_size:
-        return False
-    return {k: v for k, v in written.items() if k not in ("output_bytes", "frames")} == \
-        _record(batch_input, stamp, settings)
-
-
-def write_output(plan: FilePlan, table: ForceTable) -> Path:
-    """Write the table and then its record, each whole or not at all (module notes)."""
-    output = plan.input.output
-    record = record_path(output)
-    output.parent.mkdir(parents=True, exist_ok=True)
-    record.unlink(missing_ok=True)  # no record vouches for an output being replaced
-    save_forces(table, output, source=str(plan.input.path))
-    fields = _record(plan.input, plan.stamp, plan.settings) | {"frames": plan.frames,
-                                                                "output_bytes": output.stat().st_size}
-    text = json.dumps(fields, indent=2, allow_nan=False) + "\n"
-    with written_whole(record) as temporary:
-        temporary.write_text(text, encoding="utf-8")
-    return output

@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 
 from solver.checks import shown, whole_number
 
-from .batch import ChunkOutcome, FileOutcome, FilePlan, assemble_table, solve_chunk, write_output
+from .batch import ChunkOutcome, FileOutcome, FilePlan, assemble_table, solve_chunk
+from .batch_inputs import write_output
 
 __all__ = ["JoblibEngine", "DaskEngine", "BatchCollector", "run_batch", "check_scheduler", "DASK_SCHEMES",
            "CONNECT_TIMEOUT"]
@@ -218,9 +219,9 @@ class BatchCollector:
         self._closed.add(str(plan.input.path))
         try:
             write_output(plan, assemble_table(plan, results))
-        except OSError as exc:
+        except (OSError, ValueError) as exc:  # ValueError: a Foxglove file's recording unreadable since
             return FileOutcome(plan.input, "failed", plan.frames,
-                               f"cannot write {plan.input.output}: {exc.strerror or exc}")
+                               f"cannot write {plan.input.output}: {getattr(exc, 'strerror', None) or exc}")
         return FileOutcome(plan.input, "written", plan.frames)
 
 

@@ -15,7 +15,7 @@ __all__ = ["reconstruct_frames", "force_table", "contact_arrays"]
 
 
 def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frames=None, *,
-                       shear_ratio=None, shear_direction=None, progress=None) -> ForceTable:
+                       shear_ratio=None, shear_direction=None, progress=None, refused=None) -> ForceTable:
     """Solve the given frames (default: all) with automatic or given parameters.
 
     The contacts are followed over the frames in the order given
@@ -27,18 +27,31 @@ def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frame
     progress : callable, optional
         ``progress(done, total) -> bool``; returning False cancels
         (:class:`Cancelled` is raised).
+    refused : list, optional
+        Given, a frame that cannot be read or that the solver refuses is left out of the
+        table and appended to it as ``(frame, reason)``; default: the first one raises.
     """
     frames = np.arange(len(recording)) if frames is None else np.atleast_1d(np.asarray(frames, dtype=int))
     if frames.size and (frames.min() < 0 or frames.max() >= len(recording)):
         raise ValueError(f"frames must be in [0, {len(recording) - 1}], got {frames.tolist()}")
     results = []
     tracker = ContactTracker(recording.grid)  # the contacts numbered in the order the frames are solved
+    solved = []
     for i, k in enumerate(frames):
-        results.append(tracker.update(reconstructor.solve(recording.frames[k], shear_ratio=shear_ratio,
-                                                          shear_direction=shear_direction)))
+        try:
+            result = reconstructor.solve(recording.frames[k], shear_ratio=shear_ratio,
+                                         shear_direction=shear_direction)
+        except ValueError as exc:  # a damaged frame, or values the solver refuses (RecordingError is one)
+            if refused is None:
+                raise
+            refused.append((int(k), str(exc)))
+        else:
+            results.append(tracker.update(result))
+            solved.append(k)
         if progress is not None and progress(i + 1, frames.size) is False:
             raise Cancelled(f"cancelled after {i + 1} of {frames.size} frames")
     auto = shear_ratio is None and shear_direction is None
+    frames = np.array(solved, dtype=int)
     return force_table(results, frames, recording.t[frames], recording.grid, solver=reconstructor,
                        mode="auto" if auto else "manual", source=recording.description)
 

@@ -10,6 +10,7 @@ from PyQt6 import QtCore, QtWidgets
 from ..sources.device import announced_boards
 from ..sources.protocol import FORMATS
 from ..sources.serial_reader import MAX_BAUDRATE, check_baudrate
+from .form_rows import add_buttons, add_message, with_button
 from .preferences import Settings
 
 __all__ = ["Connection", "ConnectDialog", "settings"]
@@ -63,7 +64,7 @@ class ConnectDialog(QtWidgets.QDialog):
         self._fill_ports()
         self.port_box.activated.connect(self._port_chosen)
         self.port_box.lineEdit().setPlaceholderText("/dev/ttyACM0, loop://, socket://host:port")
-        form.addRow("port or URL", _with_button(self.port_box, "Refresh", self._refresh))
+        form.addRow("port or URL", with_button(self.port_box, "Refresh", self._refresh))
         self.baud_box = QtWidgets.QComboBox(editable=True)
         self.baud_box.addItems(BAUD_RATES)
         form.addRow("baud rate", self.baud_box)
@@ -71,7 +72,7 @@ class ConnectDialog(QtWidgets.QDialog):
         self.format_box.addItems(FORMATS)
         form.addRow("format", self.format_box)
         self.layout_edit = QtWidgets.QLineEdit()
-        form.addRow("sensor layout", _with_button(self.layout_edit, "Browse...", self._browse))
+        form.addRow("sensor layout", with_button(self.layout_edit, "Browse...", self._browse))
         for widget, tip in (
                 (self.port_box, "A serial port of this machine, a tactile-sim board running here (its "
                                 "layout and format come with it), or a pyserial URL (socket://host:port, "
@@ -82,14 +83,8 @@ class ConnectDialog(QtWidgets.QDialog):
                 (self.layout_edit, "The board's sensor layout file (JSON: grid or positions, pitch, "
                                    "elastomer thickness, Poisson ratio, calibration)")):
             widget.setToolTip(tip)
-        self.message = QtWidgets.QLabel("")
-        self.message.setStyleSheet("color: #b00020")
-        form.addRow(self.message)
-        buttons = QtWidgets.QDialogButtonBox(QtWidgets.QDialogButtonBox.StandardButton.Ok
-                                             | QtWidgets.QDialogButtonBox.StandardButton.Cancel)
-        buttons.accepted.connect(self._accept)
-        buttons.rejected.connect(self.reject)
-        form.addRow(buttons)
+        self.message = add_message(form)
+        add_buttons(form, self._accept, self.reject)
         self._restore()
 
     def _fill_ports(self):
@@ -162,12 +157,3 @@ class ConnectDialog(QtWidgets.QDialog):
                                layout=chosen.layout))
         self.accept()
 
-
-def _with_button(widget, label, slot) -> QtWidgets.QHBoxLayout:
-    """``widget`` stretched, with a push button ``label`` calling ``slot`` beside it."""
-    button = QtWidgets.QPushButton(label)
-    button.clicked.connect(slot)
-    row = QtWidgets.QHBoxLayout()
-    row.addWidget(widget, 1)
-    row.addWidget(button)
-    return row

@@ -34,6 +34,8 @@ from ..model.viewer_model import ViewerModel
 from ..model.worker import Cancelled
 from ..render import movie
 from ..render.scene import Scene
+from .form_rows import add_buttons
+from .foxglove_dialog import FoxgloveExportAction
 from .tasks import TaskRunner
 
 log = logging.getLogger(__name__)
@@ -61,12 +63,13 @@ class ExportActions:
         self.parent, self.model, self.scene, self.tasks = parent, model, scene, tasks
         self._error, self._notify = error, notify
         self.movies = MovieRunner(parent, model, scene, tasks, error=error, notify=notify)
+        self.foxglove = FoxgloveExportAction(parent, model, tasks, error=error, notify=notify)
 
     def add_actions(self, menu: QtWidgets.QMenu) -> list:
         """The export entries of the File menu; returned so the window can enable them.
 
-        In order: screenshot, forces of this frame, forces of the whole recording, movie (the
-        last two need a recording: a live source has no whole recording).
+        In order: screenshot, forces of this frame, forces of the whole recording, movie, Foxglove
+        (the last three need a recording: a live source has no whole recording).
         """
         return [
             menu.addAction("Export &screenshot...", self.screenshot_dialog),
@@ -74,6 +77,7 @@ class ExportActions:
             menu.addAction("Export forces of the whole &recording...",
                            lambda: self.forces_dialog(whole=True)),
             menu.addAction("Export &movie...", self.movie_dialog),
+            self.foxglove.add_action(menu),
         ]
 
     def screenshot_dialog(self):
@@ -453,11 +457,7 @@ def _reason(exc: BaseException) -> str:
 
 def _confirmed(dialog: QtWidgets.QDialog, form: QtWidgets.QFormLayout) -> bool:
     """Add OK and Cancel under ``form``, run ``dialog``: whether the user pressed OK."""
-    buttons = QtWidgets.QDialogButtonBox(QtWidgets.QDialogButtonBox.StandardButton.Ok
-                                         | QtWidgets.QDialogButtonBox.StandardButton.Cancel)
-    buttons.accepted.connect(dialog.accept)
-    buttons.rejected.connect(dialog.reject)
-    form.addRow(buttons)
+    add_buttons(form, dialog.accept, dialog.reject)
     return dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted
 
 

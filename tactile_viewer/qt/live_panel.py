@@ -19,10 +19,13 @@ from pathlib import Path
 from PyQt6 import QtCore, QtGui, QtWidgets
 
 from ..io.layout import LayoutError, SensorLayout, load_layout
+from ..model.force_publishing import ForcePublishing
 from ..model.viewer_model import ViewerModel
 from ..sources.live import LiveSource
+from ..sources.lsl_inlet import FoundStream, LslSource
 from ..sources.serial_reader import SerialReader
 from .connect_dialog import ConnectDialog
+from .lsl_connect_dialog import LslConnectDialog
 
 __all__ = ["LivePanel", "TARE_FRAMES", "SILENCE_S"]
 
@@ -103,20 +106,36 @@ class LivePanel(QtWidgets.QFrame):
         policy = QtWidgets.QSizePolicy.Policy
         self.banner.setSizePolicy(policy.Ignored, policy.Preferred)
         self.banner.hide()
-        self.actions: dict[str, QtGui.QAction] = {}
+        self.actions: dict[str, QtGui.QAction] = {}  # those that need a connection
+        self.publish_actions: dict[str, QtGui.QAction] = {}  # publishing is chosen at any time
         self._timer = QtCore.QTimer(self, interval=250)
         self._timer.timeout.connect(self.follow)
         model.recording_changed.connect(self._on_source)
+        self.publishing = ForcePublishing(model)  # Live > Publish over LSL
+        self.publishing.changed.connect(self.follow)
         self.hide()
 
     def add_actions(self, menu: QtWidgets.QMenu):
-        """Fill the Live menu: connect, disconnect, tare, record, stop recording."""
+        """Fill the Live menu: connect a board or an LSL stream, disconnect, tare, record, publish."""
         menu.addAction("&Connect...", self.connect_dialog)
+        menu.addAction("Connect to an &LSL stream...", self.lsl_connect_dialog)
         for name, label, slot in (("disconnect", "&Disconnect", self.disconnect_live),
                                   ("tare", f"&Tare (average {TARE_FRAMES} frames)", self.tare),
                                   ("record", "&Record...", self.record_dialog),
                                   ("stop_recording", "&Stop recording", self.stop_recording)):
             self.actions[name] = menu.addAction(label, slot)
+        menu.addSeparator()
+        tips = {"publish": "Publish the node forces of every solved live frame as the LSL stream "
+                           f"{self.publishing.name!r} of type TactileForce (newtons)",
+                "publish_stress": "Also publish the calibrated stress as type Tactile (pascals), beside "
+                                  "the forces"}
+        for name, label in (("publish", "&Publish over LSL"), ("publish_stress", "Publish the stress &too")):
+            action = menu.addAction(label)
+            action.setCheckable(True)
+            action.setToolTip(tips[name])
+            action.toggled.connect(self._publishing_toggled)
+            self.publish_actions[name] = action
+        menu.setToolTipsVisible(True)
         self._enable()
 
     @property
@@ -149,6 +168,50 @@ class LivePanel(QtWidgets.QFrame):
             self._error("Cannot connect", f"{url}: {exc}")
             return False
         return self._install(reader)
+
+    def lsl_connect_dialog(self):
+        dialog = LslConnectDialog(self.window())
+        dialog.search()  # what is on the network now, without a click
+        if dialog.exec() == QtWidgets.QDialog.DialogCode.Accepted:
+            chosen = dialog.connection()
+            self.connect_lsl(chosen.stream, chosen.layout or None)
+
+    def connect_lsl(self, stream: FoundStream, layout=None) -> bool:
+        """Show frames from an LSL stream; ``layout``: a SensorLayout, its JSON path, or None (the stream's).
+
+        Errors (bad layout, a channel count that is not the layout's, a stream gone) are shown and
+        change nothing.
+        """
+        try:
+            named = "" if layout is None or isinstance(layout, SensorLayout) else Path(layout).name
+            if layout is not None and not isinstance(layout, SensorLayout):
+                layout = load_layout(layout)
+            reader = LslSource(stream, layout)
+            self._layout_name = named
+            reader.start()
+        except (LayoutError, ValueError, OSError, RuntimeError) as exc:  # RuntimeError: pylsl's own
+            self._error("Cannot connect", f"{stream.url}: {exc}")
+            return False
+        return self._install(reader)
+
+    def _publishing_toggled(self, _checked: bool):
+        actions = self.publish_actions
+        self.set_publishing(actions["publish"].isChecked(), stress=actions["publish_stress"].isChecked())
+
+    def set_publishing(self, on: bool, *, stress: bool = False) -> bool:
+        """Publish the forces of every solved live frame over LSL (and the stress); False when it failed."""
+        try:
+            if on:
+                self.publishing.start(stress=stress)
+            else:
+                self.publishing.stop()
+        except (RuntimeError, ValueError) as exc:  # liblsl could not make an outlet
+            self._error("Cannot publish over LSL", str(exc))
+            if "publish" in self.publish_actions:
+                with QtCore.QSignalBlocker(self.publish_actions["publish"]):
+                    self.publish_actions["publish"].setChecked(False)
+            return False
+        return True
 
     def disconnect_live(self):
         """Stop reading (and recording); the last frame stays on screen."""
@@ -269,6 +332,8 @@ class LivePanel(QtWidgets.QFrame):
             parts.append(f"{reader.failures} chunks failed: {reader.error}")
         if reader.calibration.taring:
             parts.append("taring")
+        if self.publishing.status():
+            parts.append(self.publishing.status())
         if recorder is not None:
             self.recording_indicator.show()
             self.recording_indicator.setText(

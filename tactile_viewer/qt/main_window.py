@@ -19,13 +19,14 @@ os.environ.setdefault("QT_API", "pyqt6")
 from PyQt6 import QtCore, QtGui, QtWidgets  # noqa: E402
 from pyvistaqt import QtInteractor  # noqa: E402
 
-from ..io.files import load
-from ..io.recording import SUFFIXES, Recording, RecordingError
+from ..io.files import is_recording_path
+from ..io.recording import Recording, RecordingError
 from ..model.captions import recording_warnings, window_title
 from ..model.solver_build import SolverBuild
 from ..model.viewer_model import ViewerModel
 from ..render.scene import Scene
 from ..sources.source import RecordingSource, Source
+from .bag_dialog import ask_recording_path, load_asking
 from .contacts_panel import ContactsPanel
 from .display_panel import DisplayPanel
 from .export_dialogs import ExportActions
@@ -35,7 +36,6 @@ from .parameters_panel import ParametersPanel
 from .playback_panel import PlaybackPanel
 from .preferences import (
     RecentFiles,
-    last_folder,
     remember_folder,
     save_view,
     save_window_state,
@@ -240,7 +240,7 @@ class MainWindow(QtWidgets.QMainWindow):
         self.auto_action.setEnabled(on)
         for action in self._exports:
             action.setEnabled(on)
-        for action in self._exports[2:4]:  # whole recording, movie: a live source has no "whole recording"
+        for action in self._exports[2:]:  # whole recording, movie, Foxglove: a live source has no recording
             action.setEnabled(on and not live)
         raw = on and self.model.retarable  # a recording that keeps raw values (never a live source)
         for action in self.tare_actions.values():
@@ -249,23 +249,25 @@ class MainWindow(QtWidgets.QMainWindow):
     # -- sources ------------------------------------------------------------------------
 
     def open_dialog(self):
-        path, _ = QtWidgets.QFileDialog.getOpenFileName(
-            self, "Open recording", str(last_folder()), "Recordings (*.mcap *.npz *.csv);;All files (*)")
+        path = ask_recording_path(self)
         if path:
             self.open(path)
 
-    def open(self, path) -> bool:
-        """Load a recording; on failure show the error and keep what was shown.
+    def open(self, path, **bag) -> bool:
+        """Load a recording or a ROS 2 bag (``bag``: its ``layout``, ``topic``, ``field``; a dialog
+        asks for what is missing); on failure show the error and keep what was shown.
 
         A recording that opens goes first in File > Open recent and its folder
         is where the next open dialog starts; one that is gone leaves the list.
         """
         try:
-            recording = load(path)
+            recording = load_asking(self, path, **bag)
         except RecordingError as exc:
             if not Path(path).exists():
                 RecentFiles().remove(path)
             self._error("Cannot open recording", str(exc))
+            return False
+        if recording is None:  # the bag's dialog was cancelled
             return False
         RecentFiles().add(path)
         remember_folder(path)
@@ -275,12 +277,10 @@ class MainWindow(QtWidgets.QMainWindow):
 
     @staticmethod
     def dropped_recording(mime: QtCore.QMimeData) -> Path | None:
-        """The one local recording file (by its suffix) in a drag's data, else None."""
+        """The one local recording file (by its suffix) or ROS 2 bag in a drag's data, else None."""
         urls = mime.urls() if mime.hasUrls() else []
         paths = [Path(u.toLocalFile()) for u in urls if u.isLocalFile()]
-        if len(paths) == 1 and paths[0].suffix.lower() in SUFFIXES:
-            return paths[0]
-        return None
+        return paths[0] if len(paths) == 1 and is_recording_path(paths[0]) else None
 
     def dragEnterEvent(self, event):
         if self.dropped_recording(event.mimeData()) is not None:

@@ -92,6 +92,11 @@ class Source:
         does). From the thread that produced the frame.
     state_changed : Signal
         Emitted when :attr:`state` changes.
+    frames_produced : Signal
+        Emitted with the list of frames just produced, every one in order
+        (none skipped, as the recorder gets them), from the thread that
+        produced them, after the recorder has them: what a consumer that must
+        see each frame (``tactile-stream``) follows.
     message : Signal
         News for people, emitted as ``(level, title, text)`` with level
         ``"info"``, ``"warning"`` or ``"error"``: a recording saved, a tare
@@ -108,6 +113,7 @@ class Source:
         self.grid = grid
         self.frame_arrived = Signal()
         self.state_changed = Signal()
+        self.frames_produced = Signal()
         self.message = Signal()
         self.recorder: Recorder | None = None
         self.published = 0  # frames produced so far (each counted once it went to the recorder)
@@ -225,6 +231,7 @@ class Source:
             self._to_recorder(lambda recorder: self._record(recorder, seq, frame.t, values))  # noqa: B023 (called now)
             # counted once handed to the recorder: a stop_recording that follows the count keeps it
             self.published += 1
+        self.frames_produced.emit(frames)
         with self._lock:
             self._latest = frames[-1]
             notify = not self._notified

@@ -60,6 +60,23 @@ def test_a_folder_is_written_then_skipped_on_a_rerun(data, tmp_path, capsys):
     assert str(load_forces(out / "first.npz.forces.npz")["kernel"]) == "point"
 
 
+def test_foxglove_files_carry_every_frame_of_each_recording(data, tmp_path, capsys):
+    from tests.tactile_viewer.io.test_foxglove_mcap import read_back
+
+    out = tmp_path / "out"
+    assert main([str(data), "--out", str(out), "--workers", "1", "--format", "foxglove"]) == 0
+    assert capsys.readouterr().out.splitlines() == [
+        f"wrote {out / 'day2' / 'second.csv.forces.mcap'} (6 frames of {data / 'day2' / 'second.csv'})",
+        f"wrote {out / 'first.npz.forces.mcap'} (10 frames of {data / 'first.npz'})"]
+    back = read_back(out / "first.npz.forces.mcap")
+    counts = {}
+    for topic, messages in back["messages"].items():
+        counts[back["schemas"][topic].name] = counts.get(back["schemas"][topic].name, 0) + len(messages)
+    assert counts == {"foxglove.Grid": 20, "foxglove.SceneUpdate": 10, "tactile_viewer.ContactTotals": 10}
+    cells = [np.frombuffer(p.data, "<f4") for p in back["decoded"]["/tactile/stress"]]
+    np.testing.assert_array_equal(cells, np.asarray(load(data / "first.npz").frames).astype("<f4"))
+
+
 def test_a_damaged_file_is_named_and_the_others_are_written(data, tmp_path, capsys):
     (data / "broken.npz").write_bytes(b"PK\x03\x04 cut short")
     frames = np.array(load(data / "first.npz").frames)
@@ -151,6 +168,75 @@ def test_an_unreachable_scheduler_is_named(data, tmp_path, capsys, monkeypatch):
                                               "answered within 0.5 s")
 
 
+def test_bags_and_recordings_in_one_folder(data, tmp_path, capsys):
+    from tests.tactile_viewer.written_bags import frames_bag, layout_file, skin_frames
+
+    layout, _ = layout_file(tmp_path)  # a 3 x 2 skin: gain 2 (raw - 0.5) kPa
+    frames_bag(data / "take1", skin_frames(9), storage="sqlite3")
+    frames_bag(data / "wrong_skin", skin_frames(4, taxels=7))
+    out = tmp_path / "out"
+    run = [str(data), "--out", str(out), "--layout", str(layout), "--workers", "1", "--chunk", "4"]
+    assert main(run) == 1
+    captured = capsys.readouterr()
+    assert captured.out.splitlines() == [
+        f"wrote {out / 'day2' / 'second.csv.forces.npz'} (6 frames of {data / 'day2' / 'second.csv'})",
+        f"wrote {out / 'first.npz.forces.npz'} (10 frames of {data / 'first.npz'})",
+        f"wrote {out / 'take1.forces.npz'} (9 frames of {data / 'take1'})"]
+    assert (f"tactile-batch: failed: {data / 'wrong_skin'}: {data / 'wrong_skin'}: topic '/skin/pressure' field "
+            "'data': no message can be a frame: 4 of 4 messages left out: 7 values, not the layout's 6"
+            ) in captured.err.splitlines()
+    assert SUMMARY.match(captured.err.splitlines()[-1]).groups()[:4] == ("3", "0", "1", "25")
+    written = load_forces(out / "take1.forces.npz")
+    assert written["forces"].shape == (9, 6, 3) and str(written["source"]) == str(data / "take1")
+    # a rerun skips what is finished; other bag options are another output for the bags only
+    (data / "wrong_skin").rename(tmp_path / "wrong_skin")
+    assert main(run) == 0
+    assert SUMMARY.match(capsys.readouterr().err.splitlines()[-1]).groups()[:3] == ("0", "3", "0")
+    assert main([*run, "--topic", "/skin/pressure", "--field", "data"]) == 0
+    captured = capsys.readouterr()
+    assert f"wrote {out / 'take1.forces.npz'} (9 frames of {data / 'take1'})" in captured.out.splitlines()
+    assert SUMMARY.match(captured.err.splitlines()[-1]).groups()[:3] == ("1", "2", "0")
+
+
+def test_a_bag_for_foxglove(tmp_path, capsys):
+    from tests.tactile_viewer.io.test_foxglove_mcap import read_back
+    from tests.tactile_viewer.written_bags import frames_bag, layout_file, skin_frames
+
+    layout_path, layout = layout_file(tmp_path)
+    raw = skin_frames(5, seed=8)  # fixed seed
+    bag = frames_bag(tmp_path / "take1", raw)[0]
+    out = tmp_path / "out"
+    assert main([str(bag / "metadata.yaml"), "--out", str(out), "--layout", str(layout_path), "--workers", "1",
+                 "--format", "foxglove"]) == 0
+    assert capsys.readouterr().out == f"wrote {out / 'take1.forces.mcap'} (5 frames of {bag})\n"
+    back = read_back(out / "take1.forces.mcap")
+    cells = [np.frombuffer(p.data, "<f4") for p in back["decoded"]["/tactile/stress"]]
+    np.testing.assert_array_equal(cells, layout.to_pascals(raw.astype(np.float64)).astype("<f4"))
+    assert len(back["decoded"]["/tactile/forces"]) == 5
+
+
+def test_bag_options_are_refused_or_noted(data, tmp_path, capsys):
+    from tests.tactile_viewer.written_bags import frames_bag, layout_file, skin_frames
+
+    frames_bag(tmp_path / "take1", skin_frames(3))
+    assert main([str(tmp_path / "take1"), "--out", str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err == (f"tactile-batch: --layout is needed: INPUT holds 1 ROS 2 bag "
+                                       f"({tmp_path / 'take1'}), whose values become stresses through the skin's "
+                                       "sensor layout file\n")
+    assert main([str(data), "--out", str(tmp_path / "out"), "--topic", "/skin"]) == 2
+    assert capsys.readouterr().err == ("tactile-batch: --topic and --field choose what a ROS 2 bag is read from: "
+                                       "give --layout too (got --topic /skin, --field None)\n")
+    assert main([str(data), "--out", str(tmp_path / "out"), "--layout", str(tmp_path / "none.json")]) == 2
+    assert capsys.readouterr().err.startswith(f"tactile-batch: --layout: {tmp_path / 'none.json'}")
+    assert not (tmp_path / "out").exists()
+    # recordings of ours carry their layout: a layout given for none is said and the run goes on
+    layout, _ = layout_file(tmp_path)
+    assert main([str(data / "first.npz"), "--out", str(tmp_path / "out"), "--layout", str(layout),
+                 "--workers", "1"]) == 0
+    assert ("tactile-batch: note: --layout, --topic and --field are unused: no input is a ROS 2 bag (recordings "
+            "of this viewer carry their own layout)") in capsys.readouterr().err.splitlines()
+
+
 class Terminal:
     """A stream that says it is a terminal and keeps what was written."""
 
@@ -185,7 +271,8 @@ def test_the_progress_line_is_rewritten_in_place_at_most_four_times_a_second():
 
 
 def test_the_summary_counts_files_and_frames():
-    from tactile_viewer.model.batch import BatchInput, FileOutcome
+    from tactile_viewer.model.batch import FileOutcome
+    from tactile_viewer.model.batch_inputs import BatchInput
 
     one = BatchInput(Path("a.npz"), Path("out/a.npz.forces.npz"))
     outcomes = [FileOutcome(one, "written", 300), FileOutcome(one, "skipped"), FileOutcome(one, "failed", 50, "x")]

@@ -9,6 +9,9 @@ import time
 
 import numpy as np
 import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.highlevel import AnyReader
 
 from tactile_viewer.io.files import load
 from tactile_viewer.io.recording import RecordingError
@@ -117,6 +120,18 @@ def test_a_stop_leaves_a_complete_file_and_says_what_was_recorded(board, tmp_pat
     recording = load(path)
     assert not recording.truncated and len(recording) == recorded > 200
     assert recording.grid.shape == (16, 16) and recording.frames.raw_dtype == np.float32
+    if stop == "SIGTERM":  # once: the file tactile-record wrote, as ROS 2's own readers decode it
+        raw = recording.frames.raw(slice(None))
+        with AnyReader([path]) as reader:
+            decoded = [reader.deserialize(data, connection.msgtype) for connection, _, data in reader.messages()]
+        np.testing.assert_array_equal([frame.values for frame in decoded], raw)
+        np.testing.assert_array_equal([frame.sequence for frame in decoded], recording.sequence())
+        stamps = np.array([frame.header.stamp.sec + frame.header.stamp.nanosec * 1e-9 for frame in decoded])
+        np.testing.assert_allclose(stamps - recording.received, recording.t, atol=2e-6)
+        with open(path, "rb") as stream:
+            frames = [frame for *_, frame in make_reader(stream, decoder_factories=[DecoderFactory()])
+                      .iter_decoded_messages()]
+        np.testing.assert_array_equal(np.array([frame.values for frame in frames]), raw)
 
 
 @pytest.mark.parametrize(("arguments", "code", "message"), [
@@ -127,7 +142,9 @@ def test_a_stop_leaves_a_complete_file_and_says_what_was_recorded(board, tmp_pat
     (["{link}", "--layout", "{layout}", "--out", "{tmp}/no/such/folder/a.mcap"], 1,
      "cannot record: .*No such file or directory"),
     (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.mcap", "--duration", "0"], 2,
-     "--duration must be > 0 seconds, got 0.0"),
+     "--duration must be a finite number of seconds > 0, got 0.0"),
+    (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.mcap", "--duration", "nan"], 2,
+     "--duration must be a finite number of seconds > 0, got nan"),
     (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.mcap", "--baudrate", "4294967296"], 2,
      "baud rate must be a whole number from 1 to 2147483647, got 4294967296"),
 ])

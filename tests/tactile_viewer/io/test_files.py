@@ -89,6 +89,7 @@ def test_save_rejects_an_unknown_extension(recording, tmp_path):
 
 def test_files_that_are_not_recordings_say_what_they_are(tmp_path):
     from tactile_viewer.io.forces import save_forces
+    from tactile_viewer.io.foxglove_mcap import write_foxglove
     from tactile_viewer.model.force_tables import reconstruct_frames
     from tactile_viewer.model.viewer_model import ViewerModel
 
@@ -98,7 +99,9 @@ def test_files_that_are_not_recordings_say_what_they_are(tmp_path):
     table = reconstruct_frames(sample, ViewerModel.build(sample.grid, "point"), [0])
     for suffix in (".npz", ".csv"):
         save_forces(table, tmp_path / f"forces{suffix}")
-    cases = {"empty.csv": r"empty: a CSV recording has '# key=value' header lines \(nx, ny, pitch, thickness\)",
+    write_foxglove(tmp_path / "forces.mcap", table, sample.frames)
+    cases = {"forces.mcap": r"an export of reconstructed forces for Foxglove .* not a recording: open it in Foxglove",
+             "empty.csv": r"empty: a CSV recording has '# key=value' header lines \(nx, ny, pitch, thickness\)",
              "notes.npz": r"not an NPZ archive \(an NPZ is a zip of \.npy arrays; this file starts with b'hello",
              "forces.npz": r"a force export of this viewer \(forces per node, not the sensor stresses",
              "forces.csv": r"a force export of this viewer \(forces per node, not the sensor stresses"}

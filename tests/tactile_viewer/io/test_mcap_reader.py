@@ -3,13 +3,15 @@ byte, foreign files, declared sizes, damage anywhere (chunks, their indexes, met
 read past, version 1 files."""
 
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
 from mcap.writer import CompressionType, Writer
 
 from tactile_viewer.io.files import load
-from tactile_viewer.io.mcap_format import CHUNK_HEAD, MAGIC, RECORD
+from tactile_viewer.io.mcap_format import CHUNK_HEAD, MAGIC, RECORD, metadata_checksum
+from tactile_viewer.io.mcap_reader import open_recording
 from tactile_viewer.io.mcap_writer import Recorder
 from tactile_viewer.io.recording import RecordingError, Tare
 from tests.tactile_viewer.io.test_mcap_writer import record
@@ -108,7 +110,7 @@ def test_an_mcap_file_of_another_program(tmp_path):
         writer.add_message(writer.register_channel("/joints", "json", 0), log_time=1, data=b"{}", publish_time=1)
         writer.finish()
     with pytest.raises(RecordingError, match="missing metadata 'tactile-viewer.recording'"):
-        load(path)
+        open_recording(path)  # load gives it to the ROS 2 bag reader (io/ros2_bag.py)
 
 
 def test_a_huge_metadata_record_is_refused_before_reading_it(tmp_path):
@@ -328,6 +330,83 @@ def test_an_unknown_version_is_refused(tmp_path):
         writer.add_message(writer.register_channel("/tactile/raw", "x", 0), log_time=1, data=bytes(48),
                            publish_time=1)
         writer.finish()
-    with pytest.raises(RecordingError, match=r"recording version '9' is not read by this viewer \(it reads 1, 2\)"):
+    with pytest.raises(RecordingError, match=r"recording version '9' is not read by this viewer \(it reads 1, 2, 3\)"):
         load(path)
 
+
+
+# -- recordings of version 2, before frames were ROS 2 messages (issue 32, item 1) -------------------
+
+# Written by the Recorder of commit 70bfe6e (frames in the private encoding tactile-raw/<dtype>-le, no
+# schema) and kept as they were: 30 frames of a 3x2 skin (nu 0.45, taxels 1 mm), 0.1 s apart from UNIX
+# time 1.7e9, in chunks of 5 or 6, sequence 1000 on; raw values version2_expected.npz["raw"] in kPa with
+# gain 2 and offset 0.25, a tare of 10 Pa from the start and one of 30 Pa from frame 20
+DATA = Path(__file__).parent / "data"
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_a_version_2_recording_still_opens_with_the_same_values(dtype):
+    path = DATA / f"version2_{dtype}.mcap"
+    raw = np.load(DATA / "version2_expected.npz")["raw"].astype(dtype)
+    loaded = load(path)
+    np.testing.assert_array_equal(loaded.frames.raw(slice(None)), raw)
+    expected = 2.0 * (raw.astype(float) - 0.25) * 1e3
+    expected[:20] -= 10.0  # each tare's baseline replaces the one before
+    expected[20:] -= 30.0
+    np.testing.assert_allclose(loaded.frames[:], expected, rtol=1e-12)
+    np.testing.assert_allclose(loaded.t, np.arange(30) / 10, atol=1e-6)
+    np.testing.assert_array_equal(loaded.sequence(), np.arange(30) + 1000)
+    assert loaded.received == pytest.approx(1.7e9) and loaded.description == f"version 2 {dtype}"
+    assert loaded.grid.shape == (2, 3) and loaded.grid.poisson_ratio == 0.45 and loaded.grid.sensor_size == 1e-3
+    assert [(tare.from_frame, tare.t) for tare in loaded.calibration.tares] == [(0, 0.0), (20, 1.95)]
+    assert loaded.damage == () and not loaded.truncated and loaded.frames.verify() == []
+
+
+def test_a_version_2_recording_cut_at_any_byte_opens_with_every_complete_chunk(tmp_path):
+    data = (DATA / "version2_float32.mcap").read_bytes()
+    raw = np.load(DATA / "version2_expected.npz")["raw"].astype(np.float32)
+    cut_path = tmp_path / "cut.mcap"
+    opened = set()
+    for cut in range(len(data) - 1, 8, -11):
+        cut_path.write_bytes(data[:cut])
+        try:
+            loaded = load(cut_path)
+        except RecordingError as error:
+            assert "no frames" in str(error) or "missing metadata" in str(error)
+            continue
+        opened.add(len(loaded))
+        np.testing.assert_array_equal(loaded.frames.raw(slice(None)), raw[:len(loaded)])
+        np.testing.assert_array_equal(loaded.sequence(), np.arange(len(loaded)) + 1000)
+    assert len(opened) >= 6  # every chunk's end was met
+
+
+def test_a_flipped_length_of_the_schema_record_loses_its_chunk_and_says_so(tmp_path):
+    # the first chunk holds the schema and channel records before its frames; before the length
+    # was checked, a length past the chunk's end read past the file
+    path = tmp_path / "schema.mcap"
+    _raw, expected = tared_recording(path)
+    first, position = load(path).frames._index.chunks[0], chunk_positions(path)[0]
+    assert path.read_bytes()[first.data_offset] == 0x03  # the schema record opens the first chunk's records
+    flipped(path, first.data_offset + 1 + 6, 0x10)  # a high byte of its length
+    loaded = load(path)
+    np.testing.assert_allclose(loaded.frames[:], expected[6:])
+    assert loaded.damage == ("frames 0 to 5 as recorded (6 frames, 0.600 to 0.100 s before the first frame kept) "
+                             f"are lost: their chunk at byte {position} is damaged",)
+
+
+def test_a_frame_id_that_no_ros_2_header_can_hold_is_refused(tmp_path):
+    # version 3 frames are laid out around their header's frame_id: one that cannot be there is damage
+    path = tmp_path / "frame_id.mcap"
+    with open(path, "wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="ros2", library="tactile-viewer")
+        fields = {"recording": {"version": "3", "description": "", "taxels": "6", "dtype": "float32",
+                                "channel": "1", "frame_id": "skin\u00e9"},
+                  "geometry": {"nx": "3", "ny": "2", "pitch": "0.002", "thickness": "0.0015"},
+                  "calibration": {"units": '"Pa"', "gain": "1", "offset": "0"}}
+        for name, values in fields.items():
+            writer.add_metadata(f"tactile-viewer.{name}", dict(values, crc32=metadata_checksum(values)))
+        writer.finish()
+    with pytest.raises(RecordingError, match=r"frame_id\.mcap: metadata 'tactile-viewer.recording': frame_id must "
+                                             r"be printable ASCII of at most 255 characters, got 'skin\u00e9'"):
+        load(path)

@@ -7,12 +7,17 @@ import threading
 
 import numpy as np
 import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.highlevel import AnyReader
 
 from solver import SensorGrid
 from tactile_viewer.io import mcap_writer as container
 from tactile_viewer.io.files import load
+from tactile_viewer.io.mcap_format import TOPIC
 from tactile_viewer.io.mcap_writer import Recorder
 from tactile_viewer.io.recording import RecordingError, StressCalibration, Tare
+from tactile_viewer.io.ros2_message import FRAME_ID, MESSAGE_TYPES
 from tactile_viewer.sources.source import Source, SourceFrame
 from tests.tactile_viewer.skins import NU, TAXEL, frames_for, grid32, grid_with_material
 
@@ -76,9 +81,10 @@ def test_binary_frames_are_stored_as_float32(tmp_path):
     loaded = load(tmp_path / "f32.mcap")
     assert loaded.frames.raw_dtype == np.float32
     np.testing.assert_array_equal(loaded.frames[:], stress)
-    # 6 values of 4 instead of 8 bytes, plus 31 bytes of message header and 16 of index per frame
+    # 6 values of 4 instead of 8 bytes per frame, and no 4 bytes of CDR padding to align float64
+    # values after their 4-byte count (the header, sequence and index are the same)
     saved = (tmp_path / "f64.mcap").stat().st_size - (tmp_path / "f32.mcap").stat().st_size
-    assert saved == 40 * 6 * 4
+    assert saved == 40 * (6 * 4 + 4)
 
 
 
@@ -310,3 +316,87 @@ def test_a_full_queue_drops_frames_counts_them_and_the_source_says_so(tmp_path, 
 def test_a_backlog_under_one_frame_is_refused(tmp_path):
     with pytest.raises(ValueError, match=r"backlog must be at least one frame \(24 bytes\), got 10"):
         Recorder(tmp_path / "x.mcap", grid32(), backlog=10)
+
+
+# -- what ROS 2 tools read (issue 32, item 1) ---------------------------------------------------------
+
+ORIGIN = 1_700_000_000.25  # UNIX seconds of receive time 0
+
+
+def ros2_take(path, dtype):
+    """25 frames 10 ms apart in chunks of 5, their sequence numbers crossing 2**32, a tare after 12.
+
+    Returns the raw values and sequence numbers given to the recorder.
+    """
+    raw = (frames_for(25, seed=18) / 1e3).astype(dtype)  # fixed seed; kPa as a board sends them
+    sequence = 2**32 - 10 + np.arange(25)
+    calibration = StressCalibration("kPa", 2.0, 0.25)
+    recorder = Recorder(path, grid32(), calibration=calibration, dtype=dtype, flush_interval=0.04,
+                        clock_origin=ORIGIN)
+    for k in range(25):
+        recorder.add(int(sequence[k]), k / 100, raw[k])
+        if k == 12:
+            recorder.tare(Tare(0, np.full(6, 5.0), t=0.12, frames=10))
+    recorder.close()
+    return raw, sequence
+
+
+def expected_stamps(stamps):
+    # receive times 10 ms apart from ORIGIN, to the rounding of a float's seconds (under 1 us here)
+    np.testing.assert_allclose(np.asarray(stamps, dtype=np.int64) - int(ORIGIN * 1e9),
+                               np.arange(25) * 10**7, atol=1e3)
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_rosbags_decodes_every_frame_of_a_recording(tmp_path, dtype):
+    path = tmp_path / "take.mcap"
+    raw, sequence = ros2_take(path, dtype)
+    stamps, values, numbers = [], [], []
+    with AnyReader([path]) as reader:  # a bare .mcap, no ROS installed: the schema comes from the file
+        [connection] = reader.connections
+        assert (connection.topic, connection.msgtype) == (TOPIC, MESSAGE_TYPES[dtype])
+        for connection, log_time, data in reader.messages():
+            frame = reader.deserialize(data, connection.msgtype)
+            assert frame.header.frame_id == FRAME_ID
+            assert frame.header.stamp.sec * 10**9 + frame.header.stamp.nanosec == log_time
+            assert frame.values.dtype == dtype
+            stamps.append(log_time)
+            values.append(frame.values)
+            numbers.append(frame.sequence)
+    np.testing.assert_array_equal(values, raw)
+    np.testing.assert_array_equal(numbers, sequence)  # whole, not modulo 2**32
+    expected_stamps(stamps)
+    ours = load(path)  # and our reader agrees with it
+    np.testing.assert_array_equal(ours.frames.raw(slice(None)), raw)
+    np.testing.assert_array_equal(ours.sequence(), sequence)
+    np.testing.assert_allclose(ours.t, (np.array(stamps) - stamps[0]) * 1e-9)
+    assert ours.received == pytest.approx(ORIGIN)
+    assert [tare.from_frame for tare in ours.calibration.tares] == [13]
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_mcap_ros2_decodes_every_frame_of_a_recording(tmp_path, dtype):
+    # Foxglove's own decoder for ROS 2 messages in MCAP, as its app uses
+    path = tmp_path / "take.mcap"
+    raw, sequence = ros2_take(path, dtype)
+    stamps, values, numbers = [], [], []
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        assert reader.get_header().profile == "ros2"
+        for schema, channel, message, frame in reader.iter_decoded_messages():
+            assert (schema.name, schema.encoding) == (MESSAGE_TYPES[dtype], "ros2msg")
+            assert (channel.topic, channel.message_encoding) == (TOPIC, "cdr")
+            assert frame.header.stamp.sec * 10**9 + frame.header.stamp.nanosec == message.log_time
+            assert frame.header.frame_id == FRAME_ID and message.sequence == frame.sequence % 2**32
+            stamps.append(message.log_time)
+            values.append(frame.values)
+            numbers.append(frame.sequence)
+        summary = reader.get_summary()
+    np.testing.assert_array_equal(np.array(values, dtype=dtype), raw)
+    np.testing.assert_array_equal(numbers, sequence)
+    expected_stamps(stamps)
+    assert summary.statistics.message_count == 25 and summary.statistics.channel_message_counts == {1: 25}
+    # the layout and calibration stay where they were: metadata of the file
+    names = [index.name for index in summary.metadata_indexes]
+    assert names[:3] == [f"tactile-viewer.{name}" for name in ("recording", "geometry", "calibration")]
+    assert names.count("tactile-viewer.tare") == 1

@@ -15,19 +15,16 @@ from tactile_viewer.io.forces import load_forces, save_forces
 from tactile_viewer.io.mcap_writer import Recorder
 from tactile_viewer.io.recording import Recording, RecordingError
 from tactile_viewer.io.sidecar import write_sidecar
-from tactile_viewer.model import batch
+from tactile_viewer.model import batch, batch_inputs
 from tactile_viewer.model.batch import (
-    BatchInput,
     BatchSettings,
-    find_recordings,
-    is_finished,
     plan_chunks,
     plan_file,
-    record_path,
     settings_from_preset,
     settings_from_view,
 )
 from tactile_viewer.model.batch_engines import DaskEngine, JoblibEngine, check_scheduler, run_batch
+from tactile_viewer.model.batch_inputs import BatchInput, find_recordings, is_finished, record_path
 from tactile_viewer.model.force_tables import reconstruct_frames
 from tactile_viewer.model.viewer_model import ViewerModel
 
@@ -232,13 +229,13 @@ def test_folders_give_their_recordings_and_outputs_keep_the_subfolders(tmp_path)
     with pytest.raises(ValueError, match=r"^INPUT must be a recording file or a folder, got '.*nope.npz' "
                                          r"\(no such file or folder\)$"):
         find_recordings([tmp_path / "nope.npz"], tmp_path / "out", "npz")
-    with pytest.raises(ValueError, match=r"^INPUT must be a recording \(.mcap, .npz, .csv\) or a folder, "
-                                         r"got '.*notes.txt'$"):
+    with pytest.raises(ValueError, match=r"^INPUT must be a recording \(.mcap, .npz, .csv\), a ROS 2 bag \(a "
+                                         r"folder with metadata.yaml, a .db3\) or a folder, got '.*notes.txt'$"):
         find_recordings([data / "notes.txt"], tmp_path / "out", "npz")
-    with pytest.raises(ValueError, match=r"^INPUT: no recording \(.mcap, .npz, .csv\) in .*other$"):
+    with pytest.raises(ValueError, match=r"^INPUT: no recording \(.mcap, .npz, .csv\) or ROS 2 bag in .*other$"):
         (tmp_path / "other" / "a.npz").unlink()
         find_recordings([tmp_path / "other"], tmp_path / "out", "npz")
-    with pytest.raises(ValueError, match=r"^--format must be one of \('npz', 'csv'\), got 'h5'$"):
+    with pytest.raises(ValueError, match=r"^--format must be one of \('npz', 'csv', 'foxglove'\), got 'h5'$"):
         find_recordings([data], tmp_path / "out", "h5")
 
 
@@ -267,9 +264,9 @@ def test_a_write_that_fails_leaves_no_output_and_no_record(tmp_path, monkeypatch
     recording = load(SAMPLES / "two_contacts.npz")
     save(Recording(recording.grid, recording.frames[:4], recording.t[:4]), path)
 
-    def full_disk(table, output, *, source=""):
+    def full_disk(table, output, *, source="", **bag):
         raise OSError(28, "No space left on device")
-    monkeypatch.setattr(batch, "save_forces", full_disk)
+    monkeypatch.setattr(batch_inputs, "save_force_file", full_disk)
     outcome = solve_files([path], tmp_path / "out", chunk=2)[path]
     assert (outcome.status, outcome.reason) == ("failed", f"cannot write {tmp_path / 'out' / 'short.npz.forces.npz'}"
                                                           ": No space left on device")

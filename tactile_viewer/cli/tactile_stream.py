@@ -1,0 +1,355 @@
+"""tactile-stream: reconstruct every frame of a live board and publish the forces over LSL, without a display.
+
+``tactile-stream SOURCE [--layout LAYOUT.json] [--format text|binary] [--duration S] [--record OUT.mcap]
+[--forces OUT.forces.npz] [--shear-ratio R --shear-direction DEG] [--preset NAME] [--kernel K]
+[--name NAME] [--stress] [--no-lsl] [--queue FRAMES]``
+
+SOURCE is a serial port (``/dev/ttyACM0``), any pyserial URL (``socket://host:port``,
+``loop://``) or ``lsl:NAME`` (an LSL stream of one channel per taxel). Every frame is
+solved (automatic parameters by default, each fit starting from the frame before)
+and its node forces published as an LSL stream of type ``TactileForce`` stamped
+with the frame's receive time on LSL's clock. ``--record`` writes the raw frames
+as ``tactile-record`` does (crash-safe MCAP); ``--forces`` writes the forces of
+every frame published when the stream stops (the viewer's force export).
+
+Once a second, and at the end: frames in, solves per second, frames published and
+skipped, the queue, the latency from receive to publish (median and 99th
+percentile), the solve time and the CPU used. A solver slower than the board
+never builds a silent backlog: at most ``--queue`` frames wait, a frame arriving
+at a full queue skips the oldest, and every skipped frame is counted and said.
+No Qt.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import signal
+import sys
+import threading
+import time
+from dataclasses import replace
+from pathlib import Path
+
+from solver.kernels import KERNELS
+
+from ..io.forces import save_forces
+from ..io.layout import LayoutError, load_layout
+from ..model.batch import PRESET_NAMES, settings_from_preset
+from ..model.captions import KERNEL_HELP
+from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceLog, ForceStream
+from ..model.movie_settings import check_movie_parameters
+from ..sources.lsl_inlet import URL_PREFIX
+from .board_options import add_board_arguments, check_duration, seconds_left
+
+__all__ = ["main", "open_source", "status_line", "final_lines"]
+
+PROG = "tactile-stream"
+LSL_WAIT_S = 3.0  # how long a lsl:NAME source is looked for on the network
+# Python's GIL switch interval while streaming (its default is 0.005 s). The reader and the solver
+# share the GIL; at the default, the reader's thousand wake-ups a second each force the solver to
+# hand it over and wait to get it back. Given parameters, 1000 frames/s in, 4 to 5 s runs on the
+# 2-core machine at load 2 to 3: 90 to 380 solves/s at 0.005 s, 700 to 780 at 0.02 s, 900 at
+# 0.05 s. The solver releases the GIL in its compiled and BLAS calls many times a frame, so the
+# reader still gets it within a fraction of a millisecond (no frame lost at the board at 0.05 s).
+SWITCH_INTERVAL_S = 0.05
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    parser.add_argument("source", metavar="SOURCE",
+                        help="the board: a device path (/dev/ttyACM0), a pyserial URL (socket://host:port), "
+                             "or lsl:NAME, an LSL stream with one channel per taxel")
+    parser.add_argument("--layout", metavar="LAYOUT.json",
+                        help="the sensor layout: geometry and the calibration of the raw values (needed for "
+                             "a board; an LSL stream may carry its own in its description)")
+    add_board_arguments(parser, format_help="the board's frame format (default binary; an LSL stream "
+                                                    "has none)")
+    parser.add_argument("--record", metavar="OUT.mcap",
+                        help="also record every raw frame, as tactile-record does (crash-safe)")
+    parser.add_argument("--forces", metavar="OUT.forces.npz",
+                        help="also write the forces of every frame published (.npz or .csv, the viewer's "
+                             "force export) when the stream stops; they are kept in memory until then "
+                             "(a 16x16 skin at 1 kHz: 11 MB a second)")
+    parser.add_argument("--overwrite", action="store_true", help="replace the --record or --forces file")
+    parser.add_argument("--shear-ratio", type=float, metavar="R",
+                        help="a given shear ratio for every frame (with --shear-direction; default: found "
+                             "for each frame)")
+    parser.add_argument("--shear-direction", type=float, metavar="DEG",
+                        help="a given shear direction, degrees from +x (with --shear-ratio)")
+    parser.add_argument("--preset", metavar="NAME", choices=PRESET_NAMES,
+                        help="a quality setting, by name: " + ", ".join(map(repr, PRESET_NAMES))
+                        + " (default: the standard solve)")
+    parser.add_argument("--kernel", choices=KERNELS,
+                        help=f"the stress kernel (default: the preset's, else {KERNELS[0]}). "
+                             + KERNEL_HELP.replace("\n", " "))
+    parser.add_argument("--name", default="tactile-viewer",
+                        help="the LSL stream's name (default tactile-viewer; its type is TactileForce)")
+    parser.add_argument("--stress", action="store_true",
+                        help="also publish the calibrated stress (LSL type Tactile, pascals)")
+    parser.add_argument("--no-lsl", action="store_true", help="publish nothing (solve, count, record)")
+    parser.add_argument("--queue", type=int, default=DEFAULT_QUEUE_FRAMES, metavar="FRAMES",
+                        help=f"frames that may wait for the solver (default {DEFAULT_QUEUE_FRAMES}); a frame "
+                             "arriving at a full queue skips the oldest")
+    return parser
+
+
+def _check(parser, args):
+    """The settings the options ask for; a bad option ends the command (exit status 2)."""
+    check_duration(parser, args)
+    if args.queue < 1:
+        parser.error(f"--queue must be a whole number of frames >= 1, got {args.queue}")
+    if not args.name.strip():
+        parser.error(f"--name must name the LSL stream, got {args.name!r}")
+    if args.no_lsl and args.stress:
+        parser.error("--stress publishes over LSL: it cannot go with --no-lsl")
+    if not args.source.startswith(URL_PREFIX) and args.layout is None:
+        parser.error(f"--layout is needed for a board (only an LSL stream may carry its own), got "
+                     f"{args.source} without one")
+    if args.source.startswith(URL_PREFIX) and not args.source[len(URL_PREFIX):].strip():
+        parser.error(f"an LSL source is lsl:NAME with the stream's name, got {args.source!r}")
+    if args.forces is not None and Path(args.forces).suffix.lower() not in (".npz", ".csv"):
+        parser.error(f"--forces must end in .npz or .csv, got {args.forces!r}")
+    if args.record is not None and Path(args.record).suffix.lower() != ".mcap":
+        parser.error(f"--record must end in .mcap, got {args.record!r}")
+    for option in ("record", "forces"):
+        path = getattr(args, option)
+        if path is not None and os.path.lexists(path) and not args.overwrite:  # a dangling link too
+            parser.error(f"--{option} {path} exists: not replacing it (--overwrite replaces it)")
+    try:
+        ratio, direction = check_movie_parameters(args.shear_ratio, args.shear_direction, degrees=True,
+                                                  names=("--shear-ratio", "--shear-direction"))
+        settings = replace(settings_from_preset(args.preset, args.kernel), shear_ratio=ratio,
+                           shear_direction=direction)
+    except ValueError as exc:
+        parser.error(str(exc))
+    return settings
+
+
+def open_source(spec: str, layout, *, fmt: str = "binary", baudrate: int = 115200, wait: float | None = None):
+    """The live source SPEC names: ``lsl:NAME`` an LSL stream (layout None: its description's), else a board.
+
+    ``wait`` is how long an LSL stream is looked for (default :data:`LSL_WAIT_S` seconds).
+
+    Raises
+    ------
+    ValueError
+        For a bad baud rate or layout, or an LSL stream that is missing or does not fit.
+    """
+    if spec.startswith(URL_PREFIX):
+        from ..sources.lsl import FORCE_TYPE
+        from ..sources.lsl_inlet import LslSource, find_streams
+
+        name = spec[len(URL_PREFIX):]
+        wait = LSL_WAIT_S if wait is None else wait
+        # our own output may share the name: a stream of forces is never an input
+        found = [s for s in find_streams(name=name, timeout=wait) if s.type != FORCE_TYPE]
+        if not found:
+            raise ValueError(f"no LSL stream named {name!r} (other than a {FORCE_TYPE} stream) answered "
+                             f"within {wait:g} s")
+        found.sort(key=lambda s: s.type != "Tactile")  # the conventional type first
+        return LslSource(found[0], layout)
+    from ..sources.serial_reader import SerialReader
+
+    return SerialReader(spec, layout, fmt=fmt, baudrate=baudrate)
+
+
+def status_line(elapsed: float, figures, source) -> str:
+    """The line printed once a second: the interval's figures and the source's counts."""
+    stats = source.stats.snapshot(source.now())
+    text = (f"{elapsed:7.1f} s  in {stats.rate:6.1f}/s  solved {figures.solve_rate:6.1f}/s  published "
+            f"{figures.published}  skipped {figures.skipped}  queue {figures.waiting}  latency "
+            f"{_ms(figures.latency_median)} / {_ms(figures.latency_p99)} ms (median / p99)  solve "
+            f"{_ms(figures.solve_time)} ms  CPU {figures.cpu:.0f}%  lost {stats.lost}  rejected "
+            f"{sum(source.rejected().values())}  {source.state}")
+    if source.error:
+        text += f" ({source.error})"
+    if figures.skipped:
+        text += f"  FALLING BEHIND: {figures.skipped} frames skipped"
+    if figures.failed:
+        text += f"  {figures.failed} failed"
+    return text
+
+
+def final_lines(totals, source, cpus: int) -> list[str]:
+    """What is printed when the stream stops: the whole run's figures."""
+    stats = source.stats
+    lines = [f"stopped after {totals.elapsed:.1f} s: {totals.received} frames received, {totals.published} "
+             f"solved and published, {totals.skipped} skipped, {totals.failed} failed; latency median "
+             f"{_ms(totals.latency_median)} ms, p99 {_ms(totals.latency_p99)} ms; "
+             f"{totals.solve_rate:.1f} solves/s; CPU {totals.cpu:.0f}% (of {100 * cpus}%); lost "
+             f"{stats.lost}, rejected {sum(source.rejected().values())}"]
+    if totals.skipped:
+        lines.append(f"{PROG}: the solver did not keep up: {totals.skipped} of {totals.received} frames were "
+                     "skipped (not solved, not published; a recording keeps them). Given parameters "
+                     "(--shear-ratio, --shear-direction) or a faster --preset solve faster.")
+    return lines
+
+
+def _ms(seconds: float) -> str:
+    return "-" if math.isnan(seconds) else f"{seconds * 1e3:.2f}"
+
+
+def _cpus() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+def main(argv=None) -> int:
+    """Run ``tactile-stream``.
+
+    Returns
+    -------
+    int
+        0 after a clean stop, 1 when the board could not be opened or a recording or
+        force file failed, 2 for bad options.
+    """
+    parser = _parser()
+    args = parser.parse_args(argv)
+    settings = _check(parser, args)
+    layout = None
+    if args.layout is not None:
+        try:
+            layout = load_layout(args.layout)
+        except (OSError, LayoutError) as exc:
+            print(f"{PROG}: {exc}", file=sys.stderr)
+            return 2
+    stop = threading.Event()
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda *_: stop.set())
+    try:
+        source = open_source(args.source, layout, fmt=args.format, baudrate=args.baudrate)
+    except (OSError, ValueError, RuntimeError) as exc:  # RuntimeError: any of pylsl's errors
+        print(f"{PROG}: {exc}", file=sys.stderr)
+        return 2 if not args.source.startswith(URL_PREFIX) else 1
+    failed = threading.Event()
+
+    def tell(level, title, text):
+        print(f"{level}: {title}: {text}", file=sys.stderr, flush=True)
+        if level == "error":
+            failed.set()
+    source.message.connect(tell)
+    grid = source.grid
+    solver = settings.build(grid)
+    _warm(solver, grid)
+    outlet = log = None
+    if not args.no_lsl:
+        from ..sources.lsl import ForceOutlet
+
+        try:
+            outlet = ForceOutlet(grid, name=args.name, source_id=f"{PROG} {args.source}", stress=args.stress)
+        except (OSError, RuntimeError) as exc:  # liblsl could not make the outlet (RuntimeError: pylsl's)
+            print(f"{PROG}: cannot publish over LSL: {exc}", file=sys.stderr)
+            return 1
+    if args.forces is not None:
+        log = ForceLog(grid, kernel=solver.kernel, mode=settings.mode, source=args.source)
+    switch_interval = sys.getswitchinterval()
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
+    try:
+        return _stream(args, source, solver, settings, outlet, log, stop, failed)
+    finally:
+        sys.setswitchinterval(switch_interval)
+        if outlet is not None:
+            outlet.close()
+
+
+def _stream(args, source, solver, settings, outlet, log, stop, failed) -> int:
+    stream = ForceStream(source, solver, _publisher(source, outlet, log, stress=args.stress),
+                         shear_ratio=settings.shear_ratio, shear_direction=settings.shear_direction,
+                         queue_frames=args.queue)
+    stream.start()  # before the board: its first frame is followed too
+    try:
+        source.start()
+    except (OSError, ValueError, RuntimeError) as exc:
+        stream.stop()
+        print(f"{PROG}: cannot open {args.source}: {exc}", file=sys.stderr)
+        return 1
+    recorder = None
+    if args.record is not None:
+        try:
+            recorder = source.start_recording(args.record)  # after start: the file's clock is the reader's
+        except (OSError, ValueError) as exc:
+            source.stop()
+            stream.stop()
+            print(f"{PROG}: cannot record: {exc}", file=sys.stderr)
+            return 1
+    where = "nothing (--no-lsl)" if outlet is None else f"LSL stream {args.name!r} (type TactileForce)"
+    print(f"streaming forces of {args.source} to {where}"
+          + (f", recording to {args.record}" if recorder else "") + "; Ctrl+C stops", flush=True)
+    start = time.monotonic()
+    said_failure = False
+    try:
+        while not stop.wait(min(1.0, seconds_left(start, args.duration))):
+            elapsed = time.monotonic() - start
+            print(status_line(elapsed, stream.figures(), source), flush=True)
+            if stream.last_error and not said_failure:  # the first; the count goes on in the lines
+                print(f"{PROG}: a frame failed: {stream.last_error}", file=sys.stderr, flush=True)
+                said_failure = True
+            if recorder is not None and source.recorder is None:  # a write error or a reconnection
+                failed.set()
+                break
+            if args.duration is not None and elapsed >= args.duration:
+                break
+    finally:
+        source.stop()  # the reader first (and the recording with it): the queue then only empties
+        stream.stop()
+        totals = stream.totals()
+    for line in final_lines(totals, source, _cpus()):
+        print(line, flush=True)
+    if stream.last_error:
+        print(f"{PROG}: the last frame that failed: {stream.last_error}", file=sys.stderr, flush=True)
+    if recorder is not None:
+        unwritten = recorder.added - recorder.written + recorder.dropped
+        print(f"recorded {recorder.written} frames to {args.record}"
+              + (f"; {unwritten} received but not written" if unwritten else ""), flush=True)
+    if log is not None and not _write_forces(log, args.forces):
+        failed.set()
+    return 1 if failed.is_set() else 0
+
+
+def _publisher(source, outlet, log, *, stress: bool):
+    """``publish(frame, result)``: the forces to the LSL outlet (stamped on LSL's clock) and the log."""
+    from ..sources.lsl import clock_offset
+
+    offset = None
+
+    def publish(frame, result):
+        nonlocal offset
+        if outlet is not None:
+            if offset is None:  # at the first frame: the reader's clock starts when the board is opened
+                offset = clock_offset(source.now)
+            outlet.push(result.forces, stamp=frame.t + offset, stress=frame.stress if stress else None)
+        if log is not None:
+            log.add(frame, result)
+    return publish
+
+
+def _warm(solver, grid) -> None:
+    # the numba core compiled (or loaded from its cache) and this skin's matrices touched before the first
+    # frame: a first solve of a second would skip the frames of that second
+    import numpy as np
+
+    from solver.warmup import warm_up
+
+    warm_up()
+    x, y = grid.positions.T
+    solver.solve(1e3 * np.exp(-((x - x.mean()) ** 2 + (y - y.mean()) ** 2) / (2 * grid.pitch ** 2)))
+
+
+def _write_forces(log: ForceLog, path: str) -> bool:
+    try:
+        table = log.table()
+    except ValueError as exc:
+        print(f"{PROG}: --forces {path} not written: {exc}", file=sys.stderr, flush=True)
+        return False
+    try:
+        save_forces(table, path)
+    except OSError as exc:
+        print(f"{PROG}: --forces {path}: cannot write: {exc.strerror or exc}", file=sys.stderr, flush=True)
+        return False
+    print(f"wrote the forces of {len(log)} frames to {path}", flush=True)
+    return True
+
+
+if __name__ == "__main__":
+    sys.exit(main())

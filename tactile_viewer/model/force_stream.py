@@ -1,0 +1,334 @@
+"""Forces at sensor rate: every frame of a live source solved and published, in order. No Qt.
+
+:class:`ForceStream` follows a source's ``frames_produced`` (every frame, in
+order, on the reader's thread) into a bounded queue, and one solver thread
+takes them oldest first: it solves each with one solver (whose automatic fit
+starts from the frame it solved before) and hands the frame and its
+:class:`solver.Reconstruction` to ``publish`` (an LSL outlet, a force log).
+
+The reader never waits for the solver: it only appends to the queue, so the
+board is read and recorded at its own pace whatever the solver does. When the
+solver cannot keep up, the queue fills; a frame arriving at a full queue
+pushes out the oldest waiting one, which is *skipped*: never solved nor
+published, and counted (:attr:`StreamFigures.skipped`). The queue's bound is
+the most latency a slow solver can add (``queue_frames`` over the board's
+rate), and nothing is ever held back silently.
+
+Latency is the time from a frame's receive stamp (the reader's clock, set
+when its bytes were read) to the moment ``publish`` returned.
+:meth:`ForceStream.figures` gives it, with the counts, solves per second and
+the process's CPU use, for the interval since its last call and for the whole
+run (percentiles of the whole run from a histogram with 1.2% wide bins, so a
+run of hours keeps a fixed memory).
+
+:class:`ForceLog` keeps the forces of the frames published and turns them into
+the viewer's force table (:class:`~tactile_viewer.io.forces.ForceTable`, File >
+Export forces), its contacts followed over the frames published.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+import numpy as np
+
+from solver import ContactTracker, SensorGrid
+from solver.checks import whole_number
+from solver.threads import one_blas_thread
+
+from ..io.forces import ForceTable
+from ..sources.source import Source, SourceFrame
+from .force_tables import contact_arrays
+
+__all__ = ["StreamFigures", "ForceStream", "ForceLog", "DEFAULT_QUEUE_FRAMES"]
+
+# Frames that may wait for the solver: 0.2 s of a 1 kHz board. A hiccup of the machine (another
+# process, a garbage collection) shorter than that is caught up without a skip; a solver slower
+# than the board skips frames within that much latency instead of falling ever further behind.
+DEFAULT_QUEUE_FRAMES = 200
+
+# latency histogram: log-spaced bins from 1 us to 100 s, 1.2% wide (1600 over 8 decades)
+_EDGES = np.logspace(-6, 2, 1601)
+
+
+@dataclass(frozen=True)
+class StreamFigures:
+    """What a :class:`ForceStream` did over an interval (or the whole run).
+
+    Attributes
+    ----------
+    elapsed : float
+        Seconds the figures cover.
+    received : int
+        Frames the source produced (each went into the queue).
+    solved : int
+        Frames solved (a solve that raised is not counted here but in ``failed``).
+    published : int
+        Frames whose forces ``publish`` took.
+    skipped : int
+        Frames pushed out of the full queue, oldest first: never solved.
+    failed : int
+        Frames whose solve or publish raised (counted, :attr:`ForceStream.last_error` says why).
+    waiting : int
+        Frames in the queue at the end of the interval.
+    solve_rate : float
+        Frames solved per second over the interval.
+    solve_time : float
+        Median seconds of one solve over the interval (nan when none, and for the whole run).
+    latency_median, latency_p99 : float
+        Seconds from a frame's receive stamp to its publication: the median and
+        99th percentile over the interval (nan when nothing was published).
+    cpu : float
+        The process's CPU time over the interval in percent of one core (200
+        is two cores busy).
+    """
+
+    elapsed: float
+    received: int
+    solved: int
+    published: int
+    skipped: int
+    failed: int
+    waiting: int
+    solve_rate: float
+    solve_time: float
+    latency_median: float
+    latency_p99: float
+    cpu: float
+
+
+class ForceStream:
+    """Solve and publish every frame of a live source, on a thread of its own (module notes).
+
+    Parameters
+    ----------
+    source : Source
+        Where frames come from (its ``frames_produced``); started and stopped by its owner.
+    solver : solver.Reconstructor
+        Solves each frame (``solver.solve(stress, shear_ratio=..., shear_direction=...)``); only
+        this stream's thread uses it.
+    publish : callable
+        ``publish(frame, result)`` with the :class:`~tactile_viewer.sources.source.SourceFrame`
+        and its :class:`solver.Reconstruction`, on the stream's thread, in frame order.
+    shear_ratio, shear_direction : float or None, optional
+        Given parameters (``mu``, ``theta`` in radians) for every frame; both None (default):
+        found for each frame.
+    queue_frames : int, optional
+        Frames that may wait for the solver (default :data:`DEFAULT_QUEUE_FRAMES`); a frame
+        arriving at a full queue skips the oldest.
+    clock : callable, optional
+        Seconds on the clock of the frames' receive stamps (default ``source.now``).
+
+    Raises
+    ------
+    ValueError
+        For ``queue_frames`` not a whole number >= 1, or a clock neither given nor the source's.
+    """
+
+    def __init__(self, source: Source, solver, publish, *, shear_ratio: float | None = None,
+                 shear_direction: float | None = None, queue_frames: int = DEFAULT_QUEUE_FRAMES,
+                 clock=None):
+        self.queue_frames = whole_number("queue_frames", queue_frames, low=1)
+        clock = clock if clock is not None else getattr(source, "now", None)
+        if not callable(clock):
+            raise ValueError(f"clock must be given for a source without a now() clock, got {source!r}")
+        self.source, self.solver, self.publish, self.clock = source, solver, publish, clock
+        self.parameters = {"shear_ratio": shear_ratio, "shear_direction": shear_direction}
+        self.last_error = ""  # why the last failed frame failed ("" when none did)
+        self._queue: deque = deque()
+        self._ready = threading.Condition()
+        self._stopping = False
+        self._thread: threading.Thread | None = None
+        self._counts = dict.fromkeys(("received", "solved", "published", "skipped", "failed"), 0)
+        self._latencies: list[float] = []  # this interval's
+        self._solve_times: list[float] = []  # this interval's
+        self._histogram = np.zeros(len(_EDGES) + 1, np.int64)  # the whole run's latencies
+        self._run_start = self._interval = self._mark()
+
+    # -- control (the owner's thread) ----------------------------------------------------------------
+
+    def start(self) -> None:
+        """Follow the source's frames and start solving them."""
+        with self._ready:
+            self._run_start = self._interval = self._mark()
+        self._thread = threading.Thread(target=self._run, name="force stream", daemon=True)
+        self._thread.start()
+        self.source.frames_produced.connect(self._take)
+
+    def stop(self, *, timeout: float = 5.0) -> None:
+        """Stop following the source; the frames already queued are solved and published first.
+
+        Waits at most ``timeout`` seconds for them (what is still queued then is skipped and counted).
+        """
+        with contextlib.suppress(ValueError):  # stopped before, or never started
+            self.source.frames_produced.disconnect(self._take)
+        with self._ready:
+            self._stopping = True
+            self._ready.notify()
+        if self._thread is not None:
+            self._thread.join(timeout)
+        with self._ready:
+            self._counts["skipped"] += len(self._queue)
+            self._queue.clear()
+
+    # -- the reader's side: never waits for the solver ------------------------------------------------
+
+    def _take(self, frames: list[SourceFrame]) -> None:
+        with self._ready:
+            for frame in frames:
+                if len(self._queue) >= self.queue_frames:
+                    self._queue.popleft()  # the oldest waiting: the newest are what a robot acts on
+                    self._counts["skipped"] += 1
+                self._queue.append(frame)
+            self._counts["received"] += len(frames)
+            self._ready.notify()
+
+    # -- the solver's thread --------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        with one_blas_thread():  # a frame's products are small: one BLAS thread (solver.threads)
+            while True:
+                with self._ready:
+                    while not self._queue and not self._stopping:
+                        self._ready.wait()
+                    if not self._queue:
+                        return
+                    frame = self._queue.popleft()
+                self._solve(frame)
+
+    def _solve(self, frame: SourceFrame) -> None:
+        started = time.perf_counter()
+        try:
+            result = self.solver.solve(frame.stress, **self.parameters)
+            solved = time.perf_counter()
+            self.publish(frame, result)
+        except Exception as exc:  # noqa: BLE001 (one bad frame must not end the stream: counted, said)
+            with self._ready:
+                self._counts["failed"] += 1
+                self.last_error = f"frame {frame.index}: {type(exc).__name__}: {exc}"
+            return
+        latency = self.clock() - frame.t
+        with self._ready:
+            self._counts["solved"] += 1
+            self._counts["published"] += 1
+            self._solve_times.append(solved - started)
+            self._latencies.append(latency)
+            self._histogram[np.searchsorted(_EDGES, latency)] += 1
+
+    # -- figures (any thread) -------------------------------------------------------------------------
+
+    def figures(self) -> StreamFigures:
+        """The figures since the last call (or the start), and a new interval begins."""
+        with self._ready:
+            mark = self._mark()
+            start, self._interval = self._interval, mark
+            latencies, self._latencies = self._latencies, []
+            solve_times, self._solve_times = self._solve_times, []
+            waiting = len(self._queue)
+        median, p99 = np.percentile(latencies, [50, 99]) if latencies else (math.nan, math.nan)
+        return _figures(start, mark, waiting, float(np.median(solve_times)) if solve_times else math.nan,
+                        float(median), float(p99))
+
+    def totals(self) -> StreamFigures:
+        """The figures of the whole run so far (latency percentiles to the histogram's 1.2%)."""
+        with self._ready:
+            mark = self._mark()
+            histogram = self._histogram.copy()
+            waiting = len(self._queue)
+        median, p99 = _histogram_percentiles(histogram, (50, 99))
+        return _figures(self._run_start, mark, waiting, math.nan, median, p99)
+
+    def _mark(self) -> tuple:
+        # (wall seconds, process CPU seconds, counts) at one instant; counts read under the lock
+        return time.monotonic(), time.process_time(), dict(self._counts)
+
+
+def _figures(start: tuple, end: tuple, waiting: int, solve_time: float, median: float,
+             p99: float) -> StreamFigures:
+    elapsed = end[0] - start[0]
+    counts = {key: end[2][key] - start[2][key] for key in end[2]}
+    rate = counts["solved"] / elapsed if elapsed > 0 else 0.0
+    cpu = 100.0 * (end[1] - start[1]) / elapsed if elapsed > 0 else 0.0
+    return StreamFigures(elapsed, waiting=waiting, solve_rate=rate, solve_time=solve_time,
+                         latency_median=median, latency_p99=p99, cpu=cpu, **counts)
+
+
+def _histogram_percentiles(histogram: np.ndarray, percents) -> tuple:
+    total = int(histogram.sum())
+    if not total:
+        return tuple(math.nan for _ in percents)
+    cumulative = np.cumsum(histogram)
+    # a bin's geometric middle; the first and last bins (under 1 us, over 100 s) their edge
+    middles = np.concatenate(([_EDGES[0]], np.sqrt(_EDGES[:-1] * _EDGES[1:]), [_EDGES[-1]]))
+    return tuple(float(middles[np.searchsorted(cumulative, math.ceil(p / 100 * total))]) for p in percents)
+
+
+class ForceLog:
+    """The forces of the frames a stream published, as the viewer's force table (module notes).
+
+    Keeps 12 bytes per node and frame (float32 forces) and each frame's contacts,
+    followed with a :class:`solver.ContactTracker` as they come: a 16x16 skin at
+    1 kHz takes 11 MB a second of memory.
+
+    Parameters
+    ----------
+    grid : SensorGrid
+        The skin solved.
+    kernel : str
+        The solver's kernel (recorded in the table).
+    mode : {"auto", "manual"}
+        Whether the parameters were found for each frame or given.
+    source : str
+        What the frames came from (recorded in the table).
+    """
+
+    def __init__(self, grid: SensorGrid, *, kernel: str, mode: str, source: str = ""):
+        self.grid, self.kernel, self.mode, self.source = grid, kernel, mode, source
+        self._tracker = ContactTracker(grid)
+        self._forces: list[np.ndarray] = []
+        # (frame index, t, shear ratio, shear direction, efficiency, residual, condition) per frame
+        self._rows: list[tuple] = []
+        self._contacts: list[tuple] = []
+        self._last_index: int | None = None
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def add(self, frame: SourceFrame, result) -> None:
+        """Keep one published frame (frames in the order published)."""
+        index = len(self._rows) if frame.index is None else frame.index
+        # frames skipped between two published ones count as frames their contacts were unseen
+        step = max(1, index - self._last_index) if self._last_index is not None else 1
+        numbered = self._tracker.update(result, step)
+        self._last_index = index
+        self._forces.append(np.asarray(result.forces, np.float32))
+        self._rows.append((index, frame.t, result.shear_ratio, result.shear_direction, result.efficiency,
+                           result.residual, result.condition))
+        self._contacts.append(numbered.contacts)
+
+    def table(self) -> ForceTable:
+        """The force table of every frame kept (forces in newtons; ``frames`` the frames' sequence numbers).
+
+        Raises
+        ------
+        ValueError
+            When no frame was kept.
+        """
+        if not self._rows:
+            raise ValueError("no frame was published: there are no forces to write")
+        rows = np.array(self._rows, dtype=float)
+        identity, force, centre = contact_arrays([SimpleNamespace(contacts=c) for c in self._contacts])
+        grid = self.grid
+        return ForceTable(forces=np.array(self._forces), frames=rows[:, 0].astype(np.int64), t=rows[:, 1],
+                          shear_ratio=rows[:, 2], shear_direction=rows[:, 3], efficiency=rows[:, 4],
+                          residual=rows[:, 5], condition=rows[:, 6], positions=grid.positions,
+                          shape=tuple(grid.shape), pitch=grid.pitch, thickness=grid.thickness,
+                          kernel=self.kernel, mode=self.mode, source=self.source,
+                          poisson_ratio=grid.poisson_ratio, sensor_size=grid.sensor_size,
+                          contact_identity=identity, contact_force=force, contact_centre=centre)

@@ -1,0 +1,257 @@
+"""tactile-stream (tactile_viewer/cli/tactile_stream.py): a simulated board on a pseudo-terminal solved frame by frame,
+its forces read back by a plain pylsl inlet, its raw frames recorded, its skips counted, its errors named."""
+
+import os
+import re
+import signal
+import threading
+import time
+import tty
+import uuid
+
+import numpy as np
+import pylsl
+import pytest
+
+from solver import SensorGrid
+from tactile_viewer.cli import tactile_stream
+from tactile_viewer.cli.tactile_sim import Board
+from tactile_viewer.io.files import load
+from tactile_viewer.io.forces import load_forces
+from tactile_viewer.io.layout import SensorLayout, save_layout
+from tactile_viewer.model.batch import settings_from_preset
+
+GRID = SensorGrid.regular(8, 8, 2e-3, 2e-3)
+FRAMES = 240  # frames the board sends
+RATE = 200.0  # frames per second
+WAIT_S = 20.0  # bounded waits for the command and the network
+
+
+@pytest.fixture
+def layout(tmp_path):
+    path = tmp_path / "layout.json"
+    save_layout(SensorLayout(GRID, "kPa"), path)
+    return path
+
+
+@pytest.fixture
+def handlers():
+    """main() installs SIGINT and SIGTERM handlers in this process: they are put back after."""
+    saved = {number: signal.getsignal(number) for number in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    for number, handler in saved.items():
+        signal.signal(number, handler)
+
+
+class PtyBoard:
+    """The simulated board (tactile-sim's Board, circle scene) behind a pseudo-terminal, as tactile-sim serves it.
+
+    On a thread: waits until the command's LSL stream is on the network (the command opens the board
+    right after), with ``inlet`` reads it with a plain pylsl inlet, sends its frames (all at once with
+    ``burst``, else at RATE), and stops the command with SIGINT once the inlet has every sample (or
+    ``stop_after`` seconds after sending).
+    """
+
+    def __init__(self, name, *, burst=False, inlet=True, stop_after=None):
+        self.name, self.burst, self.with_inlet, self.stop_after = name, burst, inlet, stop_after
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)  # bytes pass as they are
+        self.url = os.ttyname(self.slave)
+        self.sent: list[np.ndarray] = []  # kPa, as sent
+        self.samples, self.stamps = [], []
+        self.error = None
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        try:
+            self._serve()
+        except BaseException as exc:  # noqa: BLE001 (said by the test)
+            self.error = exc
+        finally:
+            os.kill(os.getpid(), signal.SIGINT)  # the command's stop, as Ctrl+C
+            os.close(self.master)
+            os.close(self.slave)
+
+    def _serve(self):
+        found = pylsl.resolve_byprop("name", self.name, minimum=1, timeout=WAIT_S)
+        assert found and found[0].type() == "TactileForce"
+        inlet = None
+        if self.with_inlet:
+            inlet = pylsl.StreamInlet(found[0], max_buflen=60)
+            inlet.open_stream(timeout=WAIT_S)
+        time.sleep(0.5)  # the port is open and what it held before is drained (the reader's backlog drop)
+        with Board(SensorLayout(GRID, "kPa"), rate=RATE, noise=0.01, seed=11) as board:
+            chunks = []
+            for _ in range(FRAMES):
+                chunk = board.next_bytes()  # a binary frame: header, float32 values, CRC-16
+                self.sent.append(np.frombuffer(chunk[-2 - 4 * GRID.size:-2], "<f4").copy())
+                chunks.append(chunk)
+        if self.burst:
+            self._write(b"".join(chunks))
+        else:
+            start = time.perf_counter()
+            for seq, chunk in enumerate(chunks):
+                self._write(chunk)
+                time.sleep(max(0.0, seq / RATE - (time.perf_counter() - start)))
+        deadline = time.monotonic() + (self.stop_after if self.stop_after is not None else WAIT_S)
+        while inlet is not None and len(self.samples) < FRAMES and time.monotonic() < deadline:
+            samples, stamps = inlet.pull_chunk(timeout=0.2)
+            self.samples += samples
+            self.stamps += stamps
+        if self.stop_after is not None:
+            time.sleep(max(0.0, deadline - time.monotonic()))
+
+    def _write(self, data):
+        view = memoryview(data)
+        while view:
+            view = view[os.write(self.master, view):]
+
+
+def run(arguments, capsys):
+    code = tactile_stream.main([str(a) for a in arguments])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def unique_name():
+    return f"tactile-stream-test-{uuid.uuid4().hex[:12]}"
+
+
+def test_every_frame_is_solved_published_and_recorded(layout, tmp_path, capsys, handlers):
+    name = unique_name()
+    board = PtyBoard(name)
+    record, forces = tmp_path / "take.mcap", tmp_path / "take.forces.npz"
+    code, out, err = run([board.url, "--layout", layout, "--name", name, "--record", record, "--forces", forces],
+                         capsys)
+    board.thread.join(WAIT_S)
+    assert board.error is None, board.error
+    assert code == 0, err
+    last = [line for line in out.splitlines() if line.startswith("stopped after")][-1]
+    assert f"{FRAMES} frames received, {FRAMES} solved and published, 0 skipped, 0 failed" in last
+    assert "lost 0, rejected 0" in last
+    # the plain pylsl inlet: every frame, 3 channels a node, in newtons, equal to the solver's own forces
+    recording = load(record)
+    assert len(recording) == FRAMES and not recording.truncated
+    np.testing.assert_array_equal(recording.frames.raw(FRAMES - 1), board.sent[-1])
+    assert len(board.samples) == FRAMES
+    received = np.array(board.samples).reshape(FRAMES, GRID.size, 3)
+    solver = settings_from_preset(None).build(GRID)
+    expected = np.array([solver.solve(recording.frames[k]).forces for k in range(FRAMES)])
+    peak = np.abs(expected).max()
+    np.testing.assert_allclose(received, expected, rtol=0, atol=1e-5 * peak)  # float32 on the wire
+    assert np.all(np.diff(board.stamps) >= 0)  # receive times (shared by frames read together) on LSL's clock
+    assert abs(board.stamps[-1] - pylsl.local_clock()) < WAIT_S
+    table = load_forces(forces)
+    assert table["frames"].tolist() == list(range(FRAMES))
+    np.testing.assert_allclose(table["forces"], received, rtol=0, atol=1e-5 * peak)
+
+
+def test_a_burst_the_solver_cannot_follow_is_skipped_oldest_first_and_counted(layout, capsys, handlers):
+    name = unique_name()
+    board = PtyBoard(name, burst=True, inlet=False, stop_after=1.0)
+    # a queue of 2 frames and 240 frames arriving at once: the solver cannot take them as they come
+    code, out, err = run([board.url, "--layout", layout, "--name", name, "--queue", "2"], capsys)
+    board.thread.join(WAIT_S)
+    assert board.error is None, board.error
+    assert code == 0, err
+    last = [line for line in out.splitlines() if line.startswith("stopped after")][-1]
+    received, published, skipped = (int(last.split(word)[0].split()[-1]) for word in
+                                    (" frames received", " solved and published", " skipped"))
+    assert received == FRAMES and skipped > 0 and published + skipped == FRAMES
+    assert f"the solver did not keep up: {skipped} of {FRAMES} frames were skipped" in out
+    assert "FALLING BEHIND" in out
+
+
+@pytest.mark.parametrize(("arguments", "message"), [
+    (["socket://127.0.0.1:9"], "--layout is needed for a board"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--duration", "0"],
+     "--duration must be a finite number of seconds > 0, got 0.0"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--queue", "0"],
+     "--queue must be a whole number of frames >= 1, got 0"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--no-lsl", "--stress"], "--stress publishes over LSL"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces", "{tmp}/f.txt"],
+     "--forces must end in .npz or .csv, got '.*f.txt'"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--record", "{tmp}/r.npz"],
+     "--record must end in .mcap, got '.*r.npz'"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--shear-ratio", "0.3"],
+     "--shear-ratio and --shear-direction must be given together"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--shear-ratio", "-1", "--shear-direction", "0"],
+     "--shear-ratio must be"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--preset", "fastest"], "invalid choice: 'fastest'"),
+    (["lsl:", "--layout", "{layout}"], "an LSL source is lsl:NAME with the stream's name, got 'lsl:'"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--name", " "], "--name must name the LSL stream, got ' '"),
+])
+def test_bad_options_end_with_status_2_and_say_why(layout, tmp_path, capsys, arguments, message):
+    filled = [a.format(layout=layout, tmp=tmp_path) for a in arguments]
+    with pytest.raises(SystemExit) as ended:
+        tactile_stream.main(filled)
+    assert ended.value.code == 2
+    _, err = capsys.readouterr()
+    assert re.search(message, err), err
+
+
+@pytest.mark.parametrize("option", ["--record", "--forces"])
+def test_an_existing_output_is_not_replaced_without_overwrite(layout, tmp_path, capsys, option):
+    path = tmp_path / ("exists.mcap" if option == "--record" else "exists.forces.npz")
+    path.write_bytes(b"kept")
+    with pytest.raises(SystemExit) as ended:
+        tactile_stream.main(["socket://127.0.0.1:9", "--layout", str(layout), option, str(path)])
+    assert ended.value.code == 2
+    assert f"{option} {path} exists: not replacing it (--overwrite replaces it)" in capsys.readouterr().err
+    assert path.read_bytes() == b"kept"
+
+
+def test_a_layout_that_cannot_be_read_is_named(tmp_path, capsys):
+    code, _, err = run(["socket://127.0.0.1:9", "--layout", tmp_path / "missing.json"], capsys)
+    assert code == 2 and "missing.json" in err
+
+
+def test_a_board_that_cannot_be_opened_is_named(layout, capsys, handlers):
+    code, _, err = run(["socket://127.0.0.1:9", "--layout", layout, "--no-lsl"], capsys)
+    assert code == 1 and "cannot open socket://127.0.0.1:9" in err
+
+
+def test_an_lsl_stream_that_is_not_there_is_named(layout, capsys, handlers, monkeypatch):
+    monkeypatch.setattr(tactile_stream, "LSL_WAIT_S", 0.3)
+    name = unique_name()
+    code, _, err = run([f"lsl:{name}", "--layout", layout], capsys)
+    assert code == 1 and f"no LSL stream named {name!r}" in err
+
+
+def test_an_lsl_stream_of_stress_in_becomes_an_lsl_stream_of_forces_out(layout, capsys, handlers):
+    name_in, name_out = unique_name(), unique_name()
+    rng = np.random.default_rng(5)  # fixed seed: the values sent
+    sent = (rng.random((60, GRID.size)) * 2.0).astype(np.float32)  # kPa, as the layout says
+    outlet = pylsl.StreamOutlet(pylsl.StreamInfo(name_in, "Tactile", GRID.size, 100, pylsl.cf_float32, name_in))
+    received, problems = [], []
+
+    def feed():
+        try:
+            found = pylsl.resolve_byprop("name", name_out, minimum=1, timeout=WAIT_S)
+            inlet = pylsl.StreamInlet(found[0], max_buflen=60)
+            inlet.open_stream(timeout=WAIT_S)
+            time.sleep(0.3)
+            for row in sent:
+                outlet.push_sample(row)
+                time.sleep(0.005)
+            deadline = time.monotonic() + WAIT_S
+            while len(received) < len(sent) and time.monotonic() < deadline:
+                received.extend(inlet.pull_chunk(timeout=0.2)[0])
+        except BaseException as exc:  # noqa: BLE001 (said by the test)
+            problems.append(exc)
+        finally:
+            os.kill(os.getpid(), signal.SIGINT)
+    feeder = threading.Thread(target=feed, daemon=True)
+    feeder.start()
+    code, out, err = run([f"lsl:{name_in}", "--layout", layout, "--name", name_out,
+                          "--shear-ratio", "0.2", "--shear-direction", "45"], capsys)
+    feeder.join(WAIT_S)
+    assert not problems, problems
+    assert code == 0, err
+    assert "60 frames received, 60 solved and published, 0 skipped" in out
+    solver = settings_from_preset(None).build(GRID)
+    expected = [solver.solve(1e3 * row.astype(float), shear_ratio=0.2, shear_direction=np.radians(45)).forces
+                for row in sent]
+    np.testing.assert_allclose(np.array(received).reshape(60, GRID.size, 3), expected, rtol=0,
+                               atol=1e-5 * np.abs(expected).max())
