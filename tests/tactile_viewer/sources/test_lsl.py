@@ -210,4 +210,6 @@ def test_clock_offset_maps_a_receive_clock_onto_lsls():
     origin = time.perf_counter()
     offset = clock_offset(lambda: time.perf_counter() - origin)
     # a reading of the receive clock plus the offset is LSL's clock at that instant (both monotonic)
-    assert abs((time.perf_counter() - origin) + offset - pylsl.local_clock()) < 0.01
+    # (the closest of five tries: a thread switch between the two readings on a busy machine widens one)
+    misses = [abs((time.perf_counter() - origin) + offset - pylsl.local_clock()) for _ in range(5)]
+    assert min(misses) < 0.001
