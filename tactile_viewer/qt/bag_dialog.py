@@ -21,7 +21,7 @@ from ..io.files import load
 from ..io.layout import LayoutError, load_layout
 from ..io.recording import Recording, RecordingError
 from ..io.ros2_bag import array_topics, bag_location, is_ros2_bag
-from .form_rows import add_buttons, add_message, with_button
+from .form_rows import add_buttons, add_message, layout_file_row
 from .preferences import Settings, last_folder
 
 __all__ = ["BagDialog", "load_asking", "ask_recording_path", "RECORDING_FILTER", "settings"]
@@ -112,7 +112,7 @@ class BagDialog(QtWidgets.QDialog):
         self.layout_edit.setToolTip("The skin's sensor layout file (JSON: grid or positions, pitch, "
                                     "elastomer thickness, Poisson ratio, and the units, gain and offset of "
                                     "the values), the one a live board of this skin uses")
-        form.addRow("sensor layout", with_button(self.layout_edit, "Browse...", self._browse))
+        form.addRow("sensor layout", layout_file_row(self, self.layout_edit))
         self.message = add_message(form)
         self.buttons = add_buttons(form, self._accept, self.reject,
                                    accept_button=QtWidgets.QDialogButtonBox.StandardButton.Open)
@@ -137,11 +137,6 @@ class BagDialog(QtWidgets.QDialog):
             longest = max(range(len(self.fields)), key=lambda i: self.fields[i].values or 0)
             self.field_box.setCurrentIndex(longest)
 
-    def _browse(self):
-        path, _ = QtWidgets.QFileDialog.getOpenFileName(self, "Sensor layout", self.layout_edit.text(),
-                                                        "Sensor layout (*.json);;All files (*)")
-        if path:
-            self.layout_edit.setText(path)
 
     def choice(self) -> dict:
         """``layout``, ``topic``, ``field`` as :func:`tactile_viewer.io.files.load` takes them.

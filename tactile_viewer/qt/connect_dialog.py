@@ -10,7 +10,7 @@ from PyQt6 import QtCore, QtWidgets
 from ..sources.device import announced_boards
 from ..sources.protocol import FORMATS
 from ..sources.serial_reader import MAX_BAUDRATE, check_baudrate
-from .form_rows import add_buttons, add_message, with_button
+from .form_rows import add_buttons, add_message, layout_file_row, with_button
 from .preferences import Settings
 
 __all__ = ["Connection", "ConnectDialog", "settings"]
@@ -72,7 +72,7 @@ class ConnectDialog(QtWidgets.QDialog):
         self.format_box.addItems(FORMATS)
         form.addRow("format", self.format_box)
         self.layout_edit = QtWidgets.QLineEdit()
-        form.addRow("sensor layout", with_button(self.layout_edit, "Browse...", self._browse))
+        form.addRow("sensor layout", layout_file_row(self, self.layout_edit))
         for widget, tip in (
                 (self.port_box, "A serial port of this machine, a tactile-sim board running here (its "
                                 "layout and format come with it), or a pyserial URL (socket://host:port, "
@@ -112,11 +112,6 @@ class ConnectDialog(QtWidgets.QDialog):
         self._fill_ports()
         self.port_box.setEditText(text)
 
-    def _browse(self):
-        path, _ = QtWidgets.QFileDialog.getOpenFileName(self, "Sensor layout", self.layout_edit.text(),
-                                                        "Sensor layout (*.json);;All files (*)")
-        if path:
-            self.layout_edit.setText(path)
 
     def _restore(self):
         store = settings()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from PyQt6 import QtWidgets
 
-__all__ = ["with_button", "add_message", "add_buttons"]
+__all__ = ["with_button", "layout_file_row", "add_message", "add_buttons"]
 
 _ERROR_COLOUR = "color: #b00020"
 
@@ -17,6 +17,21 @@ def with_button(widget, label, slot) -> QtWidgets.QHBoxLayout:
     row.addWidget(widget, 1)
     row.addWidget(button)
     return row
+
+
+def layout_file_row(parent, line_edit: QtWidgets.QLineEdit, *, chosen=None) -> QtWidgets.QHBoxLayout:
+    """``line_edit`` for a sensor layout file's path, with a *Browse...* button that picks one.
+
+    ``chosen()``, when given, is called after a file was picked.
+    """
+    def browse():
+        path, _ = QtWidgets.QFileDialog.getOpenFileName(parent, "Sensor layout", line_edit.text(),
+                                                        "Sensor layout (*.json);;All files (*)")
+        if path:
+            line_edit.setText(path)
+            if chosen is not None:
+                chosen()
+    return with_button(line_edit, "Browse...", browse)
 
 
 def add_message(form: QtWidgets.QFormLayout, *, error: bool = True) -> QtWidgets.QLabel:

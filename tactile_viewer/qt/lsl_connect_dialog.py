@@ -8,7 +8,7 @@ from pathlib import Path
 from PyQt6 import QtCore, QtWidgets
 
 from ..sources.lsl_inlet import FoundStream, find_streams
-from .form_rows import add_buttons, add_message, with_button
+from .form_rows import add_buttons, add_message, layout_file_row, with_button
 from .preferences import Settings
 from .tasks import Task
 
@@ -59,7 +59,7 @@ class LslConnectDialog(QtWidgets.QDialog):
         self.from_description.setChecked(True)
         form.addRow("sensor layout", self.from_description)
         self.layout_edit = QtWidgets.QLineEdit()
-        row = with_button(self.layout_edit, "Browse...", self._browse)
+        row = layout_file_row(self, self.layout_edit, chosen=lambda: self.from_file.setChecked(True))
         row.insertWidget(0, self.from_file)
         form.addRow("", row)
         self.layout_edit.textEdited.connect(lambda _text: self.from_file.setChecked(True))
@@ -110,12 +110,6 @@ class LslConnectDialog(QtWidgets.QDialog):
         self.message.setStyleSheet("color: #b00020")
         self.message.setText(text)
 
-    def _browse(self):
-        path, _ = QtWidgets.QFileDialog.getOpenFileName(self, "Sensor layout", self.layout_edit.text(),
-                                                        "Sensor layout (*.json);;All files (*)")
-        if path:
-            self.layout_edit.setText(path)
-            self.from_file.setChecked(True)
 
     def _restore(self):
         store = settings()
