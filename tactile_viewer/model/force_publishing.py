@@ -111,13 +111,14 @@ class ForcePublishing:
         source = self._live_source()
         if source is None:
             return None
+        # named after the board and its size: a consumer recovers across a restart of the window
+        # only onto the same board's stream of the same shape (another board, even of the same
+        # shape, gets an outlet of its own)
+        source_id = f"{self.name}:{source.url}:{source.grid.size}"
         outlet = self.outlet
-        if outlet is not None and outlet.grid.key == source.grid.key:
+        if outlet is not None and outlet.grid.key == source.grid.key and outlet.source_id == source_id:
             return outlet
         self._close()
-        # named after the board and its size: a consumer recovers across a restart of the window
-        # only onto the same board's stream of the same shape
-        source_id = f"{self.name}:{source.url}:{source.grid.size}"
         self.outlet = ForceOutlet(source.grid, name=self.name, source_id=source_id, stress=self.stress)
         self._offset = clock_offset(source.now)
         self.changed.emit()

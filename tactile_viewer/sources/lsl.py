@@ -238,6 +238,7 @@ class ForceOutlet:
 
         self.grid = grid
         self.name = name
+        self.source_id = source_id
         m = grid.size
         layout = SensorLayout(grid)  # values in pascals already: unit gain, no offset
         info = pylsl.StreamInfo(name, FORCE_TYPE, 3 * m, rate, pylsl.cf_float32, source_id or "")

@@ -97,6 +97,26 @@ def test_every_solved_live_frame_goes_out_stamped_with_its_receive_time(live):
     assert "LSL: 2 frames published" in publishing.status() and "TactileForce + Tactile" in publishing.status()
 
 
+def test_another_board_of_the_same_shape_gets_an_outlet_named_after_it(live, reconstructor):
+    board, model, publishing = live
+    publishing.start()
+    receive(board, model, press())
+    first = publishing.outlet
+    assert first.source_id == f"{publishing.name}:{model.source.url}:{GRID.size}"
+    name = f"board-{uuid.uuid4().hex[:10]}"
+    info = pylsl.StreamInfo(name, "Tactile", GRID.size, 0, pylsl.cf_float32, "")
+    describe_layout(info.desc(), SensorLayout(GRID))
+    other = pylsl.StreamOutlet(info)
+    source = LslSource(find_streams(name=name, timeout=0.5)[0])
+    source.start()
+    wait_until(other.have_consumers, "the second board to connect")
+    model.set_source(source, reconstructor)
+    receive(other, model, press())
+    assert publishing.outlet is not first and first.closed
+    assert publishing.outlet.source_id == f"{publishing.name}:lsl:{name}:{GRID.size}"
+    assert publishing.published == 2
+
+
 def test_stopping_withdraws_the_streams(live):
     _board, _model, publishing = live
     publishing.start()
