@@ -8,11 +8,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import signal
+import sys
+import threading
 import time
 
 from ..sources.protocol import FORMATS
 
-__all__ = ["add_board_arguments", "check_duration", "seconds_left"]
+__all__ = ["add_board_arguments", "check_duration", "seconds_left", "stop_on_signals", "print_messages"]
 
 
 def add_board_arguments(parser: argparse.ArgumentParser, *, format_help: str = "the board's frame format "
@@ -37,3 +40,24 @@ def seconds_left(start: float, duration: float | None) -> float:
     if duration is None:
         return 1.0
     return max(0.0, duration - (time.monotonic() - start))
+
+
+def stop_on_signals() -> threading.Event:
+    """An event that Ctrl+C (SIGINT) and SIGTERM set: the command's loop ends cleanly on it."""
+    stop = threading.Event()
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda *_: stop.set())
+    return stop
+
+
+def print_messages(source) -> threading.Event:
+    """Print a source's messages on stderr as ``level: title: text``; the event returned is set by
+    the first error (the command then exits 1)."""
+    failed = threading.Event()
+
+    def tell(level, title, text):
+        print(f"{level}: {title}: {text}", file=sys.stderr, flush=True)
+        if level == "error":
+            failed.set()
+    source.message.connect(tell)
+    return failed

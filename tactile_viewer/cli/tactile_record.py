@@ -13,15 +13,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
 
 from ..io.layout import LayoutError, load_layout
 from ..sources.serial_reader import SerialReader
-from .board_options import add_board_arguments, check_duration, seconds_left
+from .board_options import add_board_arguments, check_duration, print_messages, seconds_left, stop_on_signals
 
 __all__ = ["main"]
 
@@ -46,21 +44,13 @@ def main(argv=None) -> int:
         print(f"tactile-record: {args.out} exists: not replacing a recording (--overwrite replaces it)",
               file=sys.stderr)
         return 2
-    stop = threading.Event()
-    for number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(number, lambda *_: stop.set())
+    stop = stop_on_signals()
     try:
         reader = SerialReader(args.url, layout, fmt=args.format, baudrate=args.baudrate)
     except ValueError as exc:
         print(f"tactile-record: {exc}", file=sys.stderr)
         return 2
-    failed = threading.Event()
-
-    def tell(level, title, text):
-        print(f"{level}: {title}: {text}", file=sys.stderr, flush=True)
-        if level == "error":
-            failed.set()
-    reader.message.connect(tell)
+    failed = print_messages(reader)
     try:
         reader.start()
     except (OSError, ValueError) as exc:

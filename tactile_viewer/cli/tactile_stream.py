@@ -25,9 +25,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import signal
 import sys
-import threading
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -41,7 +39,7 @@ from ..model.captions import KERNEL_HELP
 from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceLog, ForceStream
 from ..model.movie_settings import check_movie_parameters
 from ..sources.lsl_inlet import URL_PREFIX
-from .board_options import add_board_arguments, check_duration, seconds_left
+from .board_options import add_board_arguments, check_duration, print_messages, seconds_left, stop_on_signals
 
 __all__ = ["main", "open_source", "status_line", "final_lines"]
 
@@ -214,21 +212,13 @@ def main(argv=None) -> int:
         except (OSError, LayoutError) as exc:
             print(f"{PROG}: {exc}", file=sys.stderr)
             return 2
-    stop = threading.Event()
-    for number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(number, lambda *_: stop.set())
+    stop = stop_on_signals()
     try:
         source = open_source(args.source, layout, fmt=args.format, baudrate=args.baudrate)
     except (OSError, ValueError, RuntimeError) as exc:  # RuntimeError: any of pylsl's errors
         print(f"{PROG}: {exc}", file=sys.stderr)
         return 2 if not args.source.startswith(URL_PREFIX) else 1
-    failed = threading.Event()
-
-    def tell(level, title, text):
-        print(f"{level}: {title}: {text}", file=sys.stderr, flush=True)
-        if level == "error":
-            failed.set()
-    source.message.connect(tell)
+    failed = print_messages(source)
     grid = source.grid
     solver = settings.build(grid)
     _warm(solver, grid)

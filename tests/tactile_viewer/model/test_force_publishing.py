@@ -42,6 +42,18 @@ def inlet_on(name, stream_type, ready):
     return inlet
 
 
+def connected_board():
+    """A plain outlet of GRID's stresses in pascals (its layout described) and a started LslSource on it."""
+    name = f"board-{uuid.uuid4().hex[:10]}"  # no test ever sees another's stream
+    info = pylsl.StreamInfo(name, "Tactile", GRID.size, 0, pylsl.cf_float32, "")
+    describe_layout(info.desc(), SensorLayout(GRID))
+    board = pylsl.StreamOutlet(info)
+    source = LslSource(find_streams(name=name, timeout=0.5)[0])
+    source.start()
+    wait_until(board.have_consumers, "the source to connect")
+    return name, board, source
+
+
 @pytest.fixture(scope="module")
 def reconstructor():
     return ViewerModel.build(GRID, "layer")
@@ -50,13 +62,7 @@ def reconstructor():
 @pytest.fixture
 def live(reconstructor):
     """A model showing an LslSource that reads a plain outlet of GRID's stresses in pascals."""
-    name = f"board-{uuid.uuid4().hex[:10]}"  # no test ever sees another's stream
-    info = pylsl.StreamInfo(name, "Tactile", GRID.size, 0, pylsl.cf_float32, "")
-    describe_layout(info.desc(), SensorLayout(GRID))
-    board = pylsl.StreamOutlet(info)
-    source = LslSource(find_streams(name=name, timeout=0.5)[0])
-    source.start()
-    wait_until(board.have_consumers, "the source to connect")
+    _name, board, source = connected_board()
     model = ViewerModel()
     model.set_source(source, reconstructor)
     publishing = ForcePublishing(model, name=f"forces-{uuid.uuid4().hex[:10]}")
@@ -103,13 +109,7 @@ def test_another_board_of_the_same_shape_gets_an_outlet_named_after_it(live, rec
     receive(board, model, press())
     first = publishing.outlet
     assert first.source_id == f"{publishing.name}:{model.source.url}:{GRID.size}"
-    name = f"board-{uuid.uuid4().hex[:10]}"
-    info = pylsl.StreamInfo(name, "Tactile", GRID.size, 0, pylsl.cf_float32, "")
-    describe_layout(info.desc(), SensorLayout(GRID))
-    other = pylsl.StreamOutlet(info)
-    source = LslSource(find_streams(name=name, timeout=0.5)[0])
-    source.start()
-    wait_until(other.have_consumers, "the second board to connect")
+    name, other, source = connected_board()
     model.set_source(source, reconstructor)
     receive(other, model, press())
     assert publishing.outlet is not first and first.closed
