@@ -1,10 +1,14 @@
 """Forces at sensor rate: every frame of a live source solved and published, in order. No Qt.
 
 :class:`ForceStream` follows a source's ``frames_produced`` (every frame, in
-order, on the reader's thread) into a bounded queue, and one solver thread
-takes them oldest first: it solves each with one solver (whose automatic fit
-starts from the frame it solved before) and hands the frame and its
-:class:`solver.Reconstruction` to ``publish`` (an LSL outlet, a force log).
+order, on the reader's thread) into a bounded queue, and its solver threads
+take them oldest first: each solves a frame with the stream's solver (whose
+automatic fit starts from the frame solved last, by any of them) and hands the
+frame and its :class:`solver.Reconstruction` to ``publish`` (an LSL outlet, a
+force log). With several threads, frames are solved side by side, out of
+order, on as many cores; ``publish`` still takes them one at a time, in frame
+order (a thread whose frame was solved before the one taken ahead of it waits
+for that one's turn).
 
 The reader never waits for the solver: it only appends to the queue, so the
 board is read and recorded at its own pace whatever the solver does. When the
@@ -111,30 +115,37 @@ class ForceStream:
     source : Source
         Where frames come from (its ``frames_produced``); started and stopped by its owner.
     solver : solver.Reconstructor
-        Solves each frame (``solver.solve(stress, shear_ratio=..., shear_direction=...)``); only
-        this stream's thread uses it.
+        Solves each frame (``solver.solve(stress, shear_ratio=..., shear_direction=...)``), on
+        this stream's threads (a solver's solves may run side by side: it keeps no per-call state).
     publish : callable
         ``publish(frame, result)`` with the :class:`~tactile_viewer.sources.source.SourceFrame`
-        and its :class:`solver.Reconstruction`, on the stream's thread, in frame order.
+        and its :class:`solver.Reconstruction`, on one of the stream's threads, one call at a
+        time, in frame order.
     shear_ratio, shear_direction : float or None, optional
         Given parameters (``mu``, ``theta`` in radians) for every frame; both None (default):
         found for each frame.
     queue_frames : int, optional
         Frames that may wait for the solver (default :data:`DEFAULT_QUEUE_FRAMES`); a frame
         arriving at a full queue skips the oldest.
+    solvers : int, optional
+        Threads solving frames side by side (default 1). The solver's compiled and BLAS work
+        releases Python's GIL, so two threads on two cores solve up to about twice as many
+        frames a second (measured in ``docs/interop.md``).
     clock : callable, optional
         Seconds on the clock of the frames' receive stamps (default ``source.now``).
 
     Raises
     ------
     ValueError
-        For ``queue_frames`` not a whole number >= 1, or a clock neither given nor the source's.
+        For ``queue_frames`` or ``solvers`` not a whole number >= 1, or a clock neither given
+        nor the source's.
     """
 
     def __init__(self, source: Source, solver, publish, *, shear_ratio: float | None = None,
                  shear_direction: float | None = None, queue_frames: int = DEFAULT_QUEUE_FRAMES,
-                 clock=None):
+                 solvers: int = 1, clock=None):
         self.queue_frames = whole_number("queue_frames", queue_frames, low=1)
+        self.solvers = whole_number("solvers", solvers, low=1)
         clock = clock if clock is not None else getattr(source, "now", None)
         if not callable(clock):
             raise ValueError(f"clock must be given for a source without a now() clock, got {source!r}")
@@ -142,9 +153,13 @@ class ForceStream:
         self.parameters = {"shear_ratio": shear_ratio, "shear_direction": shear_direction}
         self.last_error = ""  # why the last failed frame failed ("" when none did)
         self._queue: deque = deque()
-        self._ready = threading.Condition()
+        self._lock = threading.Lock()
+        self._ready = threading.Condition(self._lock)      # a frame queued, or stopping
+        self._in_order = threading.Condition(self._lock)   # a frame's turn to be published passed
+        self._taken = 0                                    # frames taken from the queue so far
+        self._turn = 0                                     # the frame (in order taken) published next
         self._stopping = False
-        self._thread: threading.Thread | None = None
+        self._threads: list[threading.Thread] = []
         self._counts = dict.fromkeys(("received", "solved", "published", "skipped", "failed"), 0)
         self._latencies: list[float] = []  # this interval's
         self._solve_times: list[float] = []  # this interval's
@@ -157,8 +172,10 @@ class ForceStream:
         """Follow the source's frames and start solving them."""
         with self._ready:
             self._run_start = self._interval = self._mark()
-        self._thread = threading.Thread(target=self._run, name="force stream", daemon=True)
-        self._thread.start()
+        self._threads = [threading.Thread(target=self._run, name=f"force stream {k + 1}", daemon=True)
+                         for k in range(self.solvers)]
+        for thread in self._threads:
+            thread.start()
         self.source.frames_produced.connect(self._take)
 
     def stop(self, *, timeout: float = 5.0) -> None:
@@ -170,9 +187,10 @@ class ForceStream:
             self.source.frames_produced.disconnect(self._take)
         with self._ready:
             self._stopping = True
-            self._ready.notify()
-        if self._thread is not None:
-            self._thread.join(timeout)
+            self._ready.notify_all()
+        deadline = time.monotonic() + timeout
+        for thread in self._threads:
+            thread.join(max(0.0, deadline - time.monotonic()))
         with self._ready:
             self._counts["skipped"] += len(self._queue)
             self._queue.clear()
@@ -187,7 +205,7 @@ class ForceStream:
                     self._counts["skipped"] += 1
                 self._queue.append(frame)
             self._counts["received"] += len(frames)
-            self._ready.notify()
+            self._ready.notify(len(frames))
 
     # -- the solver's thread --------------------------------------------------------------------------
 
@@ -200,21 +218,34 @@ class ForceStream:
                     if not self._queue:
                         return
                     frame = self._queue.popleft()
-                self._solve(frame)
+                    turn = self._taken
+                    self._taken += 1
+                self._solve(frame, turn)
 
-    def _solve(self, frame: SourceFrame) -> None:
+    def _solve(self, frame: SourceFrame, turn: int) -> None:
         started = time.perf_counter()
+        error = None
         try:
             result = self.solver.solve(frame.stress, **self.parameters)
-            solved = time.perf_counter()
-            self.publish(frame, result)
         except Exception as exc:  # noqa: BLE001 (one bad frame must not end the stream: counted, said)
-            with self._ready:
-                self._counts["failed"] += 1
-                self.last_error = f"frame {frame.index}: {type(exc).__name__}: {exc}"
-            return
+            error = exc
+        solved = time.perf_counter()
+        with self._in_order:
+            while self._turn != turn:  # the frames taken before this one are published first
+                self._in_order.wait()
+        try:
+            if error is None:
+                self.publish(frame, result)
+        except Exception as exc:  # noqa: BLE001 (as above)
+            error = exc
         latency = self.clock() - frame.t
-        with self._ready:
+        with self._in_order:
+            self._turn += 1
+            self._in_order.notify_all()
+            if error is not None:
+                self._counts["failed"] += 1
+                self.last_error = f"frame {frame.index}: {type(error).__name__}: {error}"
+                return
             self._counts["solved"] += 1
             self._counts["published"] += 1
             self._solve_times.append(solved - started)

@@ -169,6 +169,8 @@ def test_a_burst_the_solver_cannot_follow_is_skipped_oldest_first_and_counted(la
      "--duration must be a finite number of seconds > 0, got 0.0"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--queue", "0"],
      "--queue must be a whole number of frames >= 1, got 0"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--solvers", "0"],
+     "--solvers must be a whole number of threads >= 1, got 0"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--no-lsl", "--stress"], "--stress publishes over LSL"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces", "{tmp}/f.txt"],
      "--forces must end in .npz or .csv, got '.*f.txt'"),

@@ -187,9 +187,72 @@ def test_figures_cover_the_interval_since_the_last_call(frames):
     assert empty.published == 0 and math.isnan(empty.latency_median) and math.isnan(empty.solve_time)
 
 
+class SideBySide:
+    """Solves normal-only; the first two solves return only once both are running (so they ran at
+    once), and each even frame takes longer than the odd one after it (so frames finish out of order)."""
+
+    def __init__(self, fail=None):
+        self.both_running = threading.Barrier(2, timeout=WAIT_S)
+        self.calls, self.lock, self.fail = 0, threading.Lock(), fail
+        self.alone = Reconstructor(GRID)
+
+    def solve(self, stress, **_):
+        with self.lock:
+            self.calls += 1
+            first_two = self.calls <= 2
+        if first_two:
+            self.both_running.wait()  # raises BrokenBarrierError when the solves do not overlap
+        index = int(round(stress[0]))  # the test's frames carry their index in the first taxel
+        threading.Event().wait(0.02 if index % 2 == 0 else 0.0)
+        if index == self.fail:
+            raise ValueError(f"frame {index} is bad")
+        return self.alone.solve_normal(stress)
+
+
+def numbered(frames):
+    # the frames with their index in the first taxel (read back by SideBySide)
+    out = []
+    for frame in frames:
+        stress = np.array(frame.stress)
+        stress[0] = frame.index
+        out.append(replace(frame, stress=stress))
+    return out
+
+
+def test_several_solver_threads_solve_side_by_side_and_publish_in_frame_order(frames):
+    board, published, solver = FakeBoard(), Published(), SideBySide()
+    stream = ForceStream(board, solver, published, solvers=2)
+    stream.start()
+    sent = numbered(frames)
+    for k in range(0, len(sent), 2):
+        board.send(sent[k:k + 2])
+    published.wait(len(sent))
+    stream.stop()
+    assert not solver.both_running.broken  # the first two frames were solved at the same time
+    assert [f.index for f in published.frames] == list(range(len(sent)))
+    for frame, result in zip(sent, published.results, strict=True):
+        np.testing.assert_array_equal(result.forces, solver.alone.solve_normal(frame.stress).forces)
+    totals = stream.totals()
+    assert (totals.received, totals.solved, totals.published, totals.skipped, totals.failed) == (12, 12, 12, 0, 0)
+
+
+def test_a_failed_frame_among_several_solver_threads_keeps_the_others_in_order(frames):
+    board, published, solver = FakeBoard(), Published(), SideBySide(fail=4)
+    stream = ForceStream(board, solver, published, solvers=3)
+    stream.start()
+    board.send(numbered(frames))
+    published.wait(len(frames) - 1)
+    stream.stop()
+    assert [f.index for f in published.frames] == [k for k in range(len(frames)) if k != 4]
+    totals = stream.totals()
+    assert (totals.published, totals.failed) == (11, 1)
+    assert stream.last_error == "frame 4: ValueError: frame 4 is bad"
+
+
 @pytest.mark.parametrize(("options", "message"), [
     ({"queue_frames": 0}, "queue_frames must be a whole number >= 1, got 0"),
     ({"queue_frames": 2.5}, "queue_frames must be a whole number >= 1, got 2.5"),
+    ({"solvers": 0}, "solvers must be a whole number >= 1, got 0"),
 ])
 def test_bad_options_are_named(options, message):
     with pytest.raises(ValueError, match=message):
