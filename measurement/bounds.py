@@ -37,7 +37,7 @@ from solver.kernels import stress_matrix, subcell_offsets
 
 from .tables import Column, format_table, value
 
-__all__ = ["ShearBound", "shear_bounds", "miss_probability", "decision_bound",
+__all__ = ["ShearBound", "shear_bounds", "contact_bounds", "miss_probability", "decision_bound",
            "format_decision_bound"]
 
 _SAMPLES = 8        # profile samples per sub-cell along each axis when integrating the true load
@@ -169,37 +169,79 @@ def shear_bounds(frames, *, subdivision: int = 1) -> list[ShearBound]:
         grid = frame.grid
         if grid.key not in matrices:
             matrices[grid.key] = stress_matrix(grid, "layer", subdivision=subdivision)
-        out.append(_bound(frame, matrices[grid.key], subdivision))
+        out.extend(_bounds(frame, matrices[grid.key], subdivision, [frame.forces[:, 2].sum()]))
     return out
 
 
-def _bound(frame, matrix, subdivision):
-    grid, contact = frame.grid, frame.contacts[0]
+def contact_bounds(frame, *, subdivision: int = 1) -> list[ShearBound]:
+    """The bound of the shear of each contact of a frame of several, all of them estimated at once.
+
+    Every contact's profile and every other contact's shear are nuisances:
+    what of a contact's shear signature they can also explain is lost. Where
+    the contacts' stresses overlap (a pitch or two apart) this bound is wider
+    than that of the contact alone (:func:`shear_bounds` of a frame of it only),
+    which takes its neighbours as known; far apart the two agree.
+
+    Parameters
+    ----------
+    frame : solver.loads.SimulatedFrame
+        A frame of one or more contacts, with its noise (relative to the peak
+        clean stress of the whole frame, as :func:`solver.loads.simulate` adds it).
+    subdivision : int, optional
+        As for :func:`shear_bounds`. Default 1.
+
+    Returns
+    -------
+    list of ShearBound
+        One per contact, in the order of ``frame.contacts``; its information
+        is that of the contact's shear with every other unknown profiled out.
+    """
+    subdivision = whole_number("subdivision", subdivision, low=1)
+    if not frame.contacts:
+        raise ValueError("frame must hold at least one contact, got none")
+    if not frame.noise > 0:
+        raise ValueError(f"frame must have noise > 0 (the bound scales with it), got {frame.noise!r}")
+    grid = frame.grid
+    # each contact's load on the skin as the simulator puts it there alone (the frame holds the sum)
+    totals = ([frame.forces[:, 2].sum()] if len(frame.contacts) == 1 else
+              [loads.simulate(grid, contact).forces[:, 2].sum() for contact in frame.contacts])
+    return _bounds(frame, stress_matrix(grid, "layer", subdivision=subdivision), subdivision, totals)
+
+
+def _bounds(frame, matrix, subdivision, totals):
+    grid = frame.grid
     m, cells = grid.size, subdivision * subdivision
     width = grid.pitch / subdivision
     # sub-cell centres in the matrix's column order (q * m + j)
     offsets = subcell_offsets(grid.pitch, subdivision)
     x = (grid.positions[None, :, 0] + offsets[:, 0, None]).ravel()
     y = (grid.positions[None, :, 1] + offsets[:, 1, None]).ravel()
-    profile = loads.cell_forces(contact, x, y, width, _SAMPLES)
-    # the load on the skin as the simulator put it there (a contact over the edge loses the rest)
-    profile *= frame.forces[:, 2].sum() / profile.sum()
-    loaded = profile > 0
-    shear = contact.shear_ratio * np.array([math.cos(contact.shear_direction),
-                                            math.sin(contact.shear_direction)])
     fx, fy, fz = (matrix[:, c * m * cells:(c + 1) * m * cells] for c in range(3))
-    # stress = (Cz + s_x Cx + s_y Cy) p: derivatives in the free profile forces and in the shear
-    nuisance = fz[:, loaded] + shear[0] * fx[:, loaded] + shear[1] * fy[:, loaded]
-    signature = np.column_stack([fx @ profile, fy @ profile])
-    # Information of the shear with the profile profiled out: the part of its signature no change
-    # of the profile explains (the Schur complement, through an orthonormal basis of the profile's
-    # columns rather than the inverse of an ill-conditioned Gram matrix).
-    basis, singular, _ = np.linalg.svd(nuisance, full_matrices=False)
-    basis = basis[:, singular > singular[0] * 1e-12]
-    unexplained = signature - basis @ (basis.T @ signature)
+    shears, profiles, nuisances, signatures = [], [], [], []
+    for contact, total in zip(frame.contacts, totals, strict=True):
+        profile = loads.cell_forces(contact, x, y, width, _SAMPLES)
+        # the load on the skin as the simulator put it there (a contact over the edge loses the rest)
+        profile *= total / profile.sum()
+        loaded = profile > 0
+        shear = contact.shear_ratio * np.array([math.cos(contact.shear_direction),
+                                                math.sin(contact.shear_direction)])
+        # stress = (Cz + s_x Cx + s_y Cy) p: derivatives in the free profile forces and in the shear
+        nuisances.append(fz[:, loaded] + shear[0] * fx[:, loaded] + shear[1] * fy[:, loaded])
+        signatures.append(np.column_stack([fx @ profile, fy @ profile]))
+        shears.append(shear)
+        profiles.append(profile)
     sigma = frame.noise * np.abs(frame.clean_stress).max()
-    information = unexplained.T @ unexplained / sigma**2
-    return ShearBound(information, shear, profile)
+    out = []
+    for k in range(len(frame.contacts)):
+        # Information of contact k's shear with every profile and the other shears profiled out: the
+        # part of its signature none of them explains (the Schur complement, through an orthonormal
+        # basis of their columns rather than the inverse of an ill-conditioned Gram matrix).
+        others = np.column_stack(nuisances + [s for j, s in enumerate(signatures) if j != k])
+        basis, singular, _ = np.linalg.svd(others, full_matrices=False)
+        basis = basis[:, singular > singular[0] * 1e-12]
+        unexplained = signatures[k] - basis @ (basis.T @ signatures[k])
+        out.append(ShearBound(unexplained.T @ unexplained / sigma**2, shears[k], profiles[k]))
+    return out
 
 
 def miss_probability(information, shear, *, false_rate: float) -> float:

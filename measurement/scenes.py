@@ -21,7 +21,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -30,7 +30,7 @@ from solver import Reconstructor, loads
 from solver.checks import one_of, real_number
 from solver.geometry import SensorGrid
 
-from .bounds import shear_bounds
+from .bounds import contact_bounds
 from .tables import Column, format_table, value
 
 __all__ = ["ContactScene", "KINDS", "TUNING_SEED", "VALIDATION_SEED", "scene_cases", "evaluate", "summarize",
@@ -193,8 +193,9 @@ def evaluate(scenes, make_solver=None, *, solve=None, bounds: bool = True) -> li
     solve : callable, optional
         ``(solver, stress) -> Reconstruction``; default ``solver.solve(stress)``.
     bounds : bool, optional
-        Also give each contact's figures at its Cramér-Rao bound (contact
-        alone, same sensor noise): the miss probability of the Wald test
+        Also give each contact's figures at its Cramér-Rao bound (all the
+        frame's contacts estimated at once: :func:`measurement.bounds.contact_bounds`):
+        the miss probability of the Wald test
         (false rate 3 of 20) and an unbiased estimate's median errors.
         Default True.
 
@@ -247,18 +248,16 @@ def evaluate(scenes, make_solver=None, *, solve=None, bounds: bool = True) -> li
 
 
 def _at_bound(scene):
-    # each contact at its Cramer-Rao bound (the contact alone, the same sensor noise): the Wald
-    # test's miss probability (nan without shear) and an unbiased estimate's median tangential
-    # and direction errors (measurement.bounds.ShearBound.ideal_errors)
+    # each contact at its Cramer-Rao bound (every contact's profile and the other contacts' shears
+    # estimated from the same data: measurement.bounds.contact_bounds): the Wald test's miss
+    # probability (nan without shear) and an unbiased estimate's median tangential and direction
+    # errors (measurement.bounds.ShearBound.ideal_errors)
     frame = scene.frame
     if not frame.noise > 0:
         return [(0.0 if c.shear_ratio > 0 else math.nan, 0.0, 0.0 if c.shear_ratio > 0 else math.nan)
                 for c in frame.contacts]
-    sigma = frame.noise * np.abs(frame.clean_stress).max()
     out = []
-    for contact in frame.contacts:
-        alone = loads.simulate(frame.grid, contact)
-        bound = shear_bounds([replace(alone, noise=sigma / np.abs(alone.clean_stress).max())])[0]
+    for contact, bound in zip(frame.contacts, contact_bounds(frame), strict=True):
         miss = bound.miss(false_rate=_FALSE_RATE) if contact.shear_ratio > 0 else math.nan
         out.append((miss, *bound.ideal_errors()))
     return out
@@ -271,9 +270,10 @@ def summarize(rows) -> dict:
     0.2); ``false`` counts shear-free contacts given shear, ``missed`` contacts
     of true ratio >= 0.2 given none; ``bound_missed`` is the expected count the
     Wald test at the bound misses, ``bound_tangential`` and ``bound_direction``
-    the medians of an unbiased estimate at the bound (each contact alone:
-    what the data allow); ``pinch_tangential`` the median over the
-    pinches' contacts and ``pinch_zero`` how many of them got no shear.
+    the medians of an unbiased estimate at the bound (every contact's
+    profile and the other shears estimated with it: what the data allow);
+    ``pinch_tangential`` the median over the pinches' contacts and
+    ``pinch_zero`` how many of them got no shear.
     """
     free = [r for r in rows if r["true_ratio"] == 0]
     sheared = [r for r in rows if r["true_ratio"] >= 0.2]

@@ -6,9 +6,10 @@
 
 SOURCE is a serial port (``/dev/ttyACM0``), any pyserial URL (``socket://host:port``,
 ``loop://``) or ``lsl:NAME`` (an LSL stream of one channel per taxel). Every frame is
-solved (automatic parameters by default, each fit starting from the frame before)
-and its node forces published as an LSL stream of type ``TactileForce`` stamped
-with the frame's receive time on LSL's clock. ``--record`` writes the raw frames
+solved (automatic parameters by default, each fit starting from the frame solved
+last; ``--solvers`` threads side by side) and its node forces published, in frame
+order, as an LSL stream of type ``TactileForce`` stamped with the frame's receive
+time on LSL's clock. ``--record`` writes the raw frames
 as ``tactile-record`` does (crash-safe MCAP); ``--forces`` writes the forces of
 every frame published when the stream stops (the viewer's force export).
 
@@ -52,9 +53,10 @@ LSL_WAIT_S = 3.0  # how long a lsl:NAME source is looked for on the network
 # 0.05 s. The solver releases the GIL in its compiled and BLAS calls many times a frame, so the
 # reader still gets it within a fraction of a millisecond (no frame lost at the board at 0.05 s).
 SWITCH_INTERVAL_S = 0.05
-# Most solver threads by default. Two on the 2-core machine, 1 kHz board, 20 s runs: automatic
-# 276 -> 342 solves/s, given parameters 481 -> 543, normal only 1013 -> 1011 (0 skipped); a third
-# thread added nothing (305 against 313, automatic): the solves' Python shares one GIL.
+# Most solver threads by default. Two on the 2-core machine, 1 kHz board, 20 s runs alternating
+# one and two threads: automatic 1.29 to 1.34 times the solves/s, given parameters 1.02 to 1.08,
+# normal only none skipped; a third thread added nothing (305 against 313 solves/s, automatic):
+# the solves' Python shares one GIL (docs/interop.md).
 MOST_SOLVERS = 2
 
 

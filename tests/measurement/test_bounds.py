@@ -1,4 +1,5 @@
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -7,6 +8,7 @@ from scipy.stats import chi2
 
 from measurement.bounds import (
     ShearBound,
+    contact_bounds,
     decision_bound,
     format_decision_bound,
     miss_probability,
@@ -92,6 +94,65 @@ def test_the_bound_is_the_shear_block_of_the_inverse_information_of_every_parame
     np.testing.assert_allclose(np.linalg.inv(bound.information), covariance, rtol=1e-6)
 
 
+def _pair(gap_pitches, *, n=12, thickness_ratio=1.0):
+    # two sheared Hertz contacts of radius 1.6 pitches, gap_pitches apart edge to edge along x
+    grid = SensorGrid.regular(n, n, PITCH, thickness_ratio * PITCH)
+    half = (1.6 * 2 + gap_pitches) * PITCH / 2
+    contacts = [loads.hertz((-half, 0.1 * PITCH), 1.6 * PITCH, 1.0, shear_ratio=0.2, shear_direction=0.4),
+                loads.hertz((half, -0.1 * PITCH), 1.6 * PITCH, 0.8, shear_ratio=0.3, shear_direction=2.5)]
+    return loads.simulate(grid, contacts, noise=0.01, rng=2)
+
+
+def _alone(frame, contact):
+    # the contact on its own frame with the same absolute sensor noise
+    alone = loads.simulate(frame.grid, contact)
+    sigma = frame.noise * np.abs(frame.clean_stress).max()
+    return shear_bounds([replace(alone, noise=sigma / np.abs(alone.clean_stress).max())])[0]
+
+
+def test_the_joint_bound_is_the_shear_block_of_the_inverse_information_of_every_contacts_parameters():
+    # Exact: the information of every contact's loaded profile forces and every shear together,
+    # inverted; each contact's block of the covariance is its bound's
+    frame = _pair(1.0)
+    bounds = contact_bounds(frame)
+    m = frame.grid.size
+    matrix = stress_matrix(frame.grid, "layer")
+    fx, fy, fz = matrix[:, :m], matrix[:, m:2 * m], matrix[:, 2 * m:]
+    nuisance, signature = [], []
+    for bound in bounds:
+        sx, sy = bound.shear
+        loaded = bound.profile > 0
+        nuisance.append(fz[:, loaded] + sx * fx[:, loaded] + sy * fy[:, loaded])
+        signature += [fx @ bound.profile, fy @ bound.profile]
+    jacobian = np.column_stack(nuisance + signature)
+    sigma = frame.noise * np.abs(frame.clean_stress).max()
+    covariance = np.linalg.inv(jacobian.T @ jacobian / sigma**2)[-4:, -4:]
+    for k, bound in enumerate(bounds):
+        np.testing.assert_allclose(np.linalg.inv(bound.information), covariance[2 * k:2 * k + 2, 2 * k:2 * k + 2],
+                                   rtol=1e-6)
+    # each contact's own profile: what the simulator puts on the skin for it alone
+    for bound, contact in zip(bounds, frame.contacts, strict=True):
+        assert bound.profile.sum() == pytest.approx(loads.simulate(frame.grid, contact).forces[:, 2].sum())
+
+
+def test_a_close_neighbour_widens_the_bound_and_a_far_one_does_not():
+    # a pitch apart the neighbour's unknown load explains part of the shear's signature; five and a
+    # half thicknesses apart (about 7 pitches edge to edge at h = pitch) it explains none
+    close, far = _pair(1.0), _pair(7.0, n=16)
+    for frame, widened in ((close, True), (far, False)):
+        for bound, contact in zip(contact_bounds(frame), frame.contacts, strict=True):
+            alone = _alone(frame, contact)
+            lost = alone.information - bound.information  # information the neighbour takes: PSD
+            assert np.linalg.eigvalsh(lost).min() >= -1e-9 * np.abs(alone.information).max()
+            if widened:
+                assert bound.ratio_sd > 1.05 * alone.ratio_sd
+            else:
+                assert bound.ratio_sd == pytest.approx(alone.ratio_sd, rel=0.01)
+    one = _frame(1.0)
+    np.testing.assert_allclose(contact_bounds(one)[0].information, shear_bounds([one])[0].information,
+                               rtol=1e-12)
+
+
 def test_the_sub_cell_profile_is_the_load_on_the_kernels_sub_cells():
     # The bound's own model on its true profile and shear gives the simulator's stress (integrated
     # apart, on a finer lattice); the profile's centroid is the contact's centre along x and y.
@@ -159,6 +220,12 @@ def test_bad_input_is_refused_with_the_rule_and_the_value():
         shear_bounds([_frame(1.0, noise=0.0)])
     with pytest.raises(ValueError, match="subdivision"):
         shear_bounds([frame], subdivision=0)
+    with pytest.raises(ValueError, match=r"frame must have noise > 0 \(the bound scales with it\), got 0.0"):
+        contact_bounds(_frame(1.0, noise=0.0))
+    with pytest.raises(ValueError, match="frame must hold at least one contact, got none"):
+        contact_bounds(replace(two, contacts=()))
+    with pytest.raises(ValueError, match="subdivision must be"):
+        contact_bounds(two, subdivision=0)
     for rate in (0.0, 1.0, math.nan):
         with pytest.raises(ValueError, match=rf"false_rate must be in \(0, 1\), got {rate!r}"):
             miss_probability(np.eye(2), [0.1, 0.0], false_rate=rate)
