@@ -1,8 +1,8 @@
 """tactile-stream: reconstruct every frame of a live board and publish the forces over LSL, without a display.
 
 ``tactile-stream SOURCE [--layout LAYOUT.json] [--format text|binary] [--duration S] [--record OUT.mcap]
-[--forces OUT.forces.npz] [--shear-ratio R --shear-direction DEG] [--preset NAME] [--kernel K]
-[--name NAME] [--stress] [--no-lsl] [--queue FRAMES] [--solvers N]``
+[--forces OUT.forces.npz [--forces-memory GB]] [--shear-ratio R --shear-direction DEG] [--preset NAME]
+[--kernel K] [--name NAME] [--stress] [--no-lsl] [--queue FRAMES] [--solvers N]``
 
 SOURCE is a serial port (``/dev/ttyACM0``), any pyserial URL (``socket://host:port``,
 ``loop://``) or ``lsl:NAME`` (an LSL stream of one channel per taxel). Every frame is
@@ -37,7 +37,7 @@ from ..io.forces import save_forces
 from ..io.layout import LayoutError, load_layout
 from ..model.batch import PRESET_NAMES, settings_from_preset
 from ..model.captions import KERNEL_HELP
-from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceLog, ForceStream
+from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceLog, ForceStream, default_max_bytes
 from ..model.movie_settings import check_movie_parameters
 from ..sources.lsl_inlet import URL_PREFIX
 from .board_options import add_board_arguments, check_duration, print_messages, seconds_left, stop_on_signals
@@ -75,7 +75,11 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--forces", metavar="OUT.forces.npz",
                         help="also write the forces of every frame published (.npz or .csv, the viewer's "
                              "force export) when the stream stops; they are kept in memory until then "
-                             "(a 16x16 skin at 1 kHz: 11 MB a second)")
+                             "(a 16x16 skin at 1 kHz: 3.8 MB a second), up to --forces-memory")
+    parser.add_argument("--forces-memory", type=float, default=None, metavar="GB",
+                        help="the most memory --forces may hold, gigabytes (default a quarter of this "
+                             f"machine's, here {default_max_bytes() / 1e9:.1f}); frames published after "
+                             "that are counted and left out of the file")
     parser.add_argument("--overwrite", action="store_true", help="replace the --record or --forces file")
     parser.add_argument("--shear-ratio", type=float, metavar="R",
                         help="a given shear ratio for every frame (with --shear-direction; default: found "
@@ -115,6 +119,8 @@ def _check(parser, args):
         parser.error(f"--queue must be a whole number of frames >= 1, got {args.queue}")
     if args.solvers < 1:
         parser.error(f"--solvers must be a whole number of threads >= 1, got {args.solvers}")
+    if args.forces_memory is not None and not (math.isfinite(args.forces_memory) and args.forces_memory > 0):
+        parser.error(f"--forces-memory must be a finite number of gigabytes > 0, got {args.forces_memory}")
     if not args.name.strip():
         parser.error(f"--name must name the LSL stream, got {args.name!r}")
     if args.no_lsl and args.stress:
@@ -216,8 +222,9 @@ def main(argv=None) -> int:
     Returns
     -------
     int
-        0 after a clean stop, 1 when the board could not be opened or a recording or
-        force file failed, 2 for bad options.
+        0 after a clean stop, 1 when the board could not be opened, a recording or
+        force file failed, or the force file could not hold every frame published
+        (``--forces-memory``), 2 for bad options.
     """
     parser = _parser()
     args = parser.parse_args(argv)
@@ -249,7 +256,8 @@ def main(argv=None) -> int:
             print(f"{PROG}: cannot publish over LSL: {exc}", file=sys.stderr)
             return 1
     if args.forces is not None:
-        log = ForceLog(grid, kernel=solver.kernel, mode=settings.mode, source=args.source)
+        memory = None if args.forces_memory is None else max(1, int(args.forces_memory * 1e9))
+        log = ForceLog(grid, kernel=solver.kernel, mode=settings.mode, source=args.source, max_bytes=memory)
     switch_interval = sys.getswitchinterval()
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     try:
@@ -285,11 +293,17 @@ def _stream(args, source, solver, settings, outlet, log, stop, failed) -> int:
     print(f"streaming forces of {args.source} to {where} ({threads})"
           + (f", recording to {args.record}" if recorder else "") + "; Ctrl+C stops", flush=True)
     start = time.monotonic()
-    said_failure = False
+    said_failure = said_full = False
     try:
         while not stop.wait(min(1.0, seconds_left(start, args.duration))):
             elapsed = time.monotonic() - start
             print(status_line(elapsed, stream.figures(), source), flush=True)
+            if log is not None and log.left_out and not said_full:
+                print(f"{PROG}: --forces {args.forces} is full: it keeps the first {len(log)} frames "
+                      f"({log.max_bytes / 1e9:.3g} GB, --forces-memory); the frames after them are published "
+                      "but not kept. For a take this long, record it (--record) and run tactile-batch on "
+                      "the recording.", file=sys.stderr, flush=True)
+                said_full = True
             if stream.last_error and not said_failure:  # the first; the count goes on in the lines
                 print(f"{PROG}: a frame failed: {stream.last_error}", file=sys.stderr, flush=True)
                 said_failure = True
@@ -356,6 +370,11 @@ def _write_forces(log: ForceLog, path: str) -> bool:
         print(f"{PROG}: --forces {path}: cannot write: {exc.strerror or exc}", file=sys.stderr, flush=True)
         return False
     print(f"wrote the forces of {len(log)} frames to {path}", flush=True)
+    if log.left_out:
+        print(f"{PROG}: --forces {path} holds the first {len(log)} frames published; the {log.left_out} "
+              f"published after them were left out (--forces-memory {log.max_bytes / 1e9:.3g} GB)",
+              file=sys.stderr, flush=True)
+        return False
     return True
 
 

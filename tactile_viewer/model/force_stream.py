@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import threading
 import time
 from collections import deque
@@ -50,12 +51,29 @@ from ..io.forces import ForceTable
 from ..sources.source import Source, SourceFrame
 from .force_tables import contact_arrays
 
-__all__ = ["StreamFigures", "ForceStream", "ForceLog", "DEFAULT_QUEUE_FRAMES"]
+__all__ = ["StreamFigures", "ForceStream", "ForceLog", "DEFAULT_QUEUE_FRAMES", "default_max_bytes"]
 
 # Frames that may wait for the solver: 0.2 s of a 1 kHz board. A hiccup of the machine (another
 # process, a garbage collection) shorter than that is caught up without a skip; a solver slower
 # than the board skips frames within that much latency instead of falling ever further behind.
 DEFAULT_QUEUE_FRAMES = 200
+
+# A kept frame's memory besides its forces: its row and its contacts (measured with tracemalloc on a
+# 16x16 skin with two contacts: 3.8 kB a frame, 3 kB of it the forces).
+FRAME_OVERHEAD_BYTES = 1024
+# The share of the machine's memory a force log may take by default: the rest is the solver's, the
+# recorder's and every other program's.
+FORCE_LOG_SHARE = 0.25
+
+
+def default_max_bytes() -> int:
+    """A force log's default memory: :data:`FORCE_LOG_SHARE` of the machine's (4 GiB where unknown)."""
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):  # no sysconf (Windows), or the name unknown
+        return 4 << 30
+    return max(1, int(FORCE_LOG_SHARE * total))
+
 
 # latency histogram: log-spaced bins from 1 us to 100 s, 1.2% wide (1600 over 8 decades)
 _EDGES = np.logspace(-6, 2, 1601)
@@ -304,8 +322,10 @@ class ForceLog:
     """The forces of the frames a stream published, as the viewer's force table (module notes).
 
     Keeps 12 bytes per node and frame (float32 forces) and each frame's contacts,
-    followed with a :class:`solver.ContactTracker` as they come: a 16x16 skin at
-    1 kHz takes 11 MB a second of memory.
+    followed with a :class:`solver.ContactTracker` as they come: a 16x16 skin
+    takes about 3.8 kB a frame (3.8 MB a second at 1 kHz, 14 GB an hour). So it
+    keeps frames up to ``max_bytes`` only: the frames published after that are
+    counted (:attr:`left_out`), not kept, and the process is not run out of memory.
 
     Parameters
     ----------
@@ -317,10 +337,23 @@ class ForceLog:
         Whether the parameters were found for each frame or given.
     source : str
         What the frames came from (recorded in the table).
+    max_bytes : int or None
+        The most memory the kept frames may take (estimated); None (default):
+        :func:`default_max_bytes`.
+
+    Raises
+    ------
+    ValueError
+        For ``max_bytes`` not a whole number >= 1.
     """
 
-    def __init__(self, grid: SensorGrid, *, kernel: str, mode: str, source: str = ""):
+    def __init__(self, grid: SensorGrid, *, kernel: str, mode: str, source: str = "",
+                 max_bytes: int | None = None):
         self.grid, self.kernel, self.mode, self.source = grid, kernel, mode, source
+        self.max_bytes = (default_max_bytes() if max_bytes is None
+                          else whole_number("max_bytes", max_bytes, low=1))
+        self.left_out = 0  # frames published after the kept ones filled max_bytes
+        self._bytes = 0
         self._tracker = ContactTracker(grid)
         self._forces: list[np.ndarray] = []
         # (frame index, t, shear ratio, shear direction, efficiency, residual, condition) per frame
@@ -332,7 +365,12 @@ class ForceLog:
         return len(self._rows)
 
     def add(self, frame: SourceFrame, result) -> None:
-        """Keep one published frame (frames in the order published)."""
+        """Keep one published frame (frames in the order published), or count it as left out when full."""
+        size = 12 * self.grid.size + FRAME_OVERHEAD_BYTES
+        if self.left_out or self._bytes + size > self.max_bytes:
+            self.left_out += 1
+            return
+        self._bytes += size
         index = len(self._rows) if frame.index is None else frame.index
         # frames skipped between two published ones count as frames their contacts were unseen
         step = max(1, index - self._last_index) if self._last_index is not None else 1

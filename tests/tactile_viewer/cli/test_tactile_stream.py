@@ -20,6 +20,7 @@ from tactile_viewer.io.files import load
 from tactile_viewer.io.forces import load_forces
 from tactile_viewer.io.layout import SensorLayout, save_layout
 from tactile_viewer.model.batch import settings_from_preset
+from tactile_viewer.model.force_stream import FRAME_OVERHEAD_BYTES
 
 GRID = SensorGrid.regular(8, 8, 2e-3, 2e-3)
 FRAMES = 240  # frames the board sends
@@ -163,6 +164,25 @@ def test_a_burst_the_solver_cannot_follow_is_skipped_oldest_first_and_counted(la
     assert "FALLING BEHIND" in out
 
 
+def test_forces_beyond_their_memory_are_left_out_counted_and_said(layout, tmp_path, capsys, handlers):
+    name = unique_name()
+    board = PtyBoard(name, inlet=False, stop_after=1.0)
+    forces = tmp_path / "take.forces.npz"
+    room = 10.5 * (12 * GRID.size + FRAME_OVERHEAD_BYTES) / 1e9  # gigabytes: ten frames and a half
+    code, out, err = run([board.url, "--layout", layout, "--name", name, "--forces", forces,
+                          "--forces-memory", room], capsys)
+    board.thread.join(WAIT_S)
+    assert board.error is None, board.error
+    assert code == 1, err  # the file does not hold every frame published
+    last = [line for line in out.splitlines() if line.startswith("stopped after")][-1]
+    published = int(last.split(" solved and published")[0].split()[-1])
+    assert published > 10
+    assert f"--forces {forces} is full: it keeps the first 10 frames" in err  # said while streaming
+    assert (f"--forces {forces} holds the first 10 frames published; the {published - 10} published after "
+            "them were left out") in err
+    assert load_forces(forces)["frames"].tolist() == list(range(10))
+
+
 @pytest.mark.parametrize(("arguments", "message"), [
     (["socket://127.0.0.1:9"], "--layout is needed for a board"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--duration", "0"],
@@ -171,6 +191,10 @@ def test_a_burst_the_solver_cannot_follow_is_skipped_oldest_first_and_counted(la
      "--queue must be a whole number of frames >= 1, got 0"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--solvers", "0"],
      "--solvers must be a whole number of threads >= 1, got 0"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces-memory", "0"],
+     "--forces-memory must be a finite number of gigabytes > 0, got 0.0"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces-memory", "nan"],
+     "--forces-memory must be a finite number of gigabytes > 0, got nan"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--no-lsl", "--stress"], "--stress publishes over LSL"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces", "{tmp}/f.txt"],
      "--forces must end in .npz or .csv, got '.*f.txt'"),

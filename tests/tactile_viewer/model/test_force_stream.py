@@ -2,6 +2,7 @@
 a slow solver's skips counted, failures counted and survived, latency figures, the force log's table."""
 
 import math
+import os
 import threading
 from dataclasses import replace
 
@@ -10,7 +11,7 @@ import pytest
 
 from solver import Reconstructor, SensorGrid, loads
 from tactile_viewer.io.forces import load_forces, save_forces
-from tactile_viewer.model.force_stream import ForceLog, ForceStream
+from tactile_viewer.model.force_stream import FRAME_OVERHEAD_BYTES, ForceLog, ForceStream
 from tactile_viewer.sources.source import Source, SourceFrame
 
 GRID = SensorGrid.regular(6, 5, 2e-3, 2e-3)
@@ -278,6 +279,22 @@ def test_the_force_log_is_the_viewers_force_table_of_the_frames_published(frames
     np.testing.assert_allclose(table.contact_force[:, 0], [results[k].contacts[0].total_force for k in kept])
     saved = load_forces(save_forces(table, tmp_path / "take.forces.npz"))
     assert saved["forces"].shape == (4, GRID.size, 3) and str(saved["source"]) == "socket://board"
+
+
+def test_a_full_force_log_keeps_the_first_frames_and_counts_the_rest(frames, solver):
+    per_frame = 12 * GRID.size + FRAME_OVERHEAD_BYTES
+    log = ForceLog(GRID, kernel="layer", mode="auto", max_bytes=3 * per_frame + per_frame // 2)
+    for frame in frames[:6]:
+        log.add(frame, solver.solve(frame.stress))
+    assert (len(log), log.left_out) == (3, 3)
+    assert log.table().frames.tolist() == [0, 1, 2]
+
+
+def test_a_force_log_takes_at_most_a_quarter_of_the_machines_memory_by_default():
+    total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    assert ForceLog(GRID, kernel="layer", mode="auto").max_bytes == int(0.25 * total)
+    with pytest.raises(ValueError, match="max_bytes must be a whole number >= 1, got 0"):
+        ForceLog(GRID, kernel="layer", mode="auto", max_bytes=0)
 
 
 def test_an_empty_force_log_has_no_table():
