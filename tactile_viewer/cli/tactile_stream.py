@@ -101,9 +101,9 @@ def _parser() -> argparse.ArgumentParser:
                         help=f"frames that may wait for the solver (default {DEFAULT_QUEUE_FRAMES}); a frame "
                              "arriving at a full queue skips the oldest")
     parser.add_argument("--solvers", type=int, default=default_solvers(), metavar="N",
-                        help="threads solving frames side by side, out of order, each on a core of its own; "
-                             "the forces are still published in frame order (default: the cores this "
-                             f"process may use, at most {MOST_SOLVERS}; here {default_solvers()})")
+                        help="threads solving frames side by side, out of order (each may run on a core of "
+                             "its own); the forces are still published in frame order (default: the cores "
+                             f"this process may use, at most {MOST_SOLVERS}; here {default_solvers()})")
     return parser
 
 
