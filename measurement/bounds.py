@@ -173,7 +173,7 @@ def shear_bounds(frames, *, subdivision: int = 1) -> list[ShearBound]:
     return out
 
 
-def contact_bounds(frame, *, subdivision: int = 1) -> list[ShearBound]:
+def contact_bounds(frame, *, subdivision: int = 1, totals=None) -> list[ShearBound]:
     """The bound of the shear of each contact of a frame of several, all of them estimated at once.
 
     Every contact's profile and every other contact's shear are nuisances:
@@ -189,6 +189,10 @@ def contact_bounds(frame, *, subdivision: int = 1) -> list[ShearBound]:
         clean stress of the whole frame, as :func:`solver.loads.simulate` adds it).
     subdivision : int, optional
         As for :func:`shear_bounds`. Default 1.
+    totals : sequence of float, optional
+        Each contact's normal force on the skin as the simulator puts it there
+        alone, newtons (a caller that simulated each contact alone already has
+        them); default: simulated here.
 
     Returns
     -------
@@ -203,8 +207,11 @@ def contact_bounds(frame, *, subdivision: int = 1) -> list[ShearBound]:
         raise ValueError(f"frame must have noise > 0 (the bound scales with it), got {frame.noise!r}")
     grid = frame.grid
     # each contact's load on the skin as the simulator puts it there alone (the frame holds the sum)
-    totals = ([frame.forces[:, 2].sum()] if len(frame.contacts) == 1 else
-              [loads.simulate(grid, contact).forces[:, 2].sum() for contact in frame.contacts])
+    if totals is None:
+        totals = ([frame.forces[:, 2].sum()] if len(frame.contacts) == 1 else
+                  [loads.simulate(grid, contact).forces[:, 2].sum() for contact in frame.contacts])
+    elif len(totals) != len(frame.contacts):
+        raise ValueError(f"totals must give one force per contact ({len(frame.contacts)}), got {len(totals)}")
     return _bounds(frame, stress_matrix(grid, "layer", subdivision=subdivision), subdivision, totals)
 
 

@@ -355,6 +355,7 @@ class ForceLog:
                           else whole_number("max_bytes", max_bytes, low=1))
         self.left_out = 0  # frames published after the kept ones filled max_bytes
         self._bytes = 0
+        self._frame_bytes = 12 * grid.size + FRAME_OVERHEAD_BYTES  # what one kept frame takes
         self._tracker = ContactTracker(grid)
         self._forces: list[np.ndarray] = []
         # (frame index, t, shear ratio, shear direction, efficiency, residual, condition) per frame
@@ -367,11 +368,10 @@ class ForceLog:
 
     def add(self, frame: SourceFrame, result) -> None:
         """Keep one published frame (frames in the order published), or count it as left out when full."""
-        size = 12 * self.grid.size + FRAME_OVERHEAD_BYTES
-        if self.left_out or self._bytes + size > self.max_bytes:
+        if self.left_out or self._bytes + self._frame_bytes > self.max_bytes:
             self.left_out += 1
             return
-        self._bytes += size
+        self._bytes += self._frame_bytes
         index = len(self._rows) if frame.index is None else frame.index
         # frames skipped between two published ones count as frames their contacts were unseen
         step = max(1, index - self._last_index) if self._last_index is not None else 1

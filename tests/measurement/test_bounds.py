@@ -130,9 +130,12 @@ def test_the_joint_bound_is_the_shear_block_of_the_inverse_information_of_every_
     for k, bound in enumerate(bounds):
         np.testing.assert_allclose(np.linalg.inv(bound.information), covariance[2 * k:2 * k + 2, 2 * k:2 * k + 2],
                                    rtol=1e-6)
-    # each contact's own profile: what the simulator puts on the skin for it alone
-    for bound, contact in zip(bounds, frame.contacts, strict=True):
-        assert bound.profile.sum() == pytest.approx(loads.simulate(frame.grid, contact).forces[:, 2].sum())
+    # each contact's own profile: what the simulator puts on the skin for it alone (given or simulated)
+    totals = [loads.simulate(frame.grid, contact).forces[:, 2].sum() for contact in frame.contacts]
+    for bound, total in zip(bounds, totals, strict=True):
+        assert bound.profile.sum() == pytest.approx(total)
+    for given, bound in zip(contact_bounds(frame, totals=totals), bounds, strict=True):
+        np.testing.assert_allclose(given.information, bound.information, rtol=1e-12)
 
 
 def test_a_close_neighbour_widens_the_bound_and_a_far_one_does_not():
@@ -226,6 +229,8 @@ def test_bad_input_is_refused_with_the_rule_and_the_value():
         contact_bounds(replace(two, contacts=()))
     with pytest.raises(ValueError, match="subdivision must be"):
         contact_bounds(two, subdivision=0)
+    with pytest.raises(ValueError, match=r"totals must give one force per contact \(2\), got 1"):
+        contact_bounds(two, totals=[1.0])
     for rate in (0.0, 1.0, math.nan):
         with pytest.raises(ValueError, match=rf"false_rate must be in \(0, 1\), got {rate!r}"):
             miss_probability(np.eye(2), [0.1, 0.0], false_rate=rate)
