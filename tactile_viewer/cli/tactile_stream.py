@@ -1,7 +1,7 @@
 """tactile-stream: reconstruct every frame of a live board and publish the forces over LSL, without a display.
 
 ``tactile-stream SOURCE [--layout LAYOUT.json] [--format text|binary] [--duration S] [--record OUT.mcap]
-[--forces OUT.forces.npz [--forces-memory GB]] [--shear-ratio R --shear-direction DEG] [--preset NAME]
+[--forces OUT.forces.npz] [--shear-ratio R --shear-direction DEG] [--preset NAME]
 [--kernel K] [--name NAME] [--stress] [--no-lsl] [--queue FRAMES] [--solvers N]``
 
 SOURCE is a serial port (``/dev/ttyACM0``), any pyserial URL (``socket://host:port``,
@@ -10,8 +10,10 @@ solved (automatic parameters by default, each fit starting from the frame solved
 last; ``--solvers`` threads side by side) and its node forces published, in frame
 order, as an LSL stream of type ``TactileForce`` stamped with the frame's receive
 time on LSL's clock. ``--record`` writes the raw frames
-as ``tactile-record`` does (crash-safe MCAP); ``--forces`` writes the forces of
-every frame published when the stream stops (the viewer's force export).
+as ``tactile-record`` does (crash-safe MCAP); ``--forces`` keeps the forces of
+every frame published on disk as they come (a hidden spool beside the file, so
+memory does not grow with the take) and writes them when the stream stops (the
+viewer's force export).
 
 Once a second, and at the end: frames in, solves per second, frames published and
 skipped, the queue, the latency from receive to publish (median and 99th
@@ -37,7 +39,8 @@ from ..io.forces import save_forces
 from ..io.layout import LayoutError, load_layout
 from ..model.batch import PRESET_NAMES, settings_from_preset
 from ..model.captions import KERNEL_HELP
-from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceLog, ForceStream, default_max_bytes
+from ..model.force_log import ForceLog
+from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceStream
 from ..model.movie_settings import check_movie_parameters
 from ..sources.lsl_inlet import URL_PREFIX
 from .board_options import add_board_arguments, check_duration, print_messages, seconds_left, stop_on_signals
@@ -74,12 +77,8 @@ def _parser() -> argparse.ArgumentParser:
                         help="also record every raw frame, as tactile-record does (crash-safe)")
     parser.add_argument("--forces", metavar="OUT.forces.npz",
                         help="also write the forces of every frame published (.npz or .csv, the viewer's "
-                             "force export) when the stream stops; they are kept in memory until then "
-                             "(a 16x16 skin at 1 kHz: 3.8 MB a second), up to --forces-memory")
-    parser.add_argument("--forces-memory", type=float, default=None, metavar="GB",
-                        help="the most memory --forces may hold, gigabytes (default a quarter of this "
-                             f"machine's, here {default_max_bytes() / 1e9:.1f}); frames published after "
-                             "that are counted and left out of the file")
+                             "force export) when the stream stops; until then they are kept on disk beside "
+                             "it (a 16x16 skin at 1 kHz: 3.1 MB a second), not in memory")
     parser.add_argument("--overwrite", action="store_true", help="replace the --record or --forces file")
     parser.add_argument("--shear-ratio", type=float, metavar="R",
                         help="a given shear ratio for every frame (with --shear-direction; default: found "
@@ -119,8 +118,6 @@ def _check(parser, args):
         parser.error(f"--queue must be a whole number of frames >= 1, got {args.queue}")
     if args.solvers < 1:
         parser.error(f"--solvers must be a whole number of threads >= 1, got {args.solvers}")
-    if args.forces_memory is not None and not (math.isfinite(args.forces_memory) and args.forces_memory > 0):
-        parser.error(f"--forces-memory must be a finite number of gigabytes > 0, got {args.forces_memory}")
     if not args.name.strip():
         parser.error(f"--name must name the LSL stream, got {args.name!r}")
     if args.no_lsl and args.stress:
@@ -223,8 +220,8 @@ def main(argv=None) -> int:
     -------
     int
         0 after a clean stop, 1 when the board could not be opened, a recording or
-        force file failed, or the force file could not hold every frame published
-        (``--forces-memory``), 2 for bad options.
+        force file failed, or the force file could not hold every frame published (its
+        disk filled), 2 for bad options.
     """
     parser = _parser()
     args = parser.parse_args(argv)
@@ -256,8 +253,15 @@ def main(argv=None) -> int:
             print(f"{PROG}: cannot publish over LSL: {exc}", file=sys.stderr)
             return 1
     if args.forces is not None:
-        memory = None if args.forces_memory is None else max(1, int(args.forces_memory * 1e9))
-        log = ForceLog(grid, kernel=solver.kernel, mode=settings.mode, source=args.source, max_bytes=memory)
+        try:
+            log = ForceLog(grid, kernel=solver.kernel, mode=settings.mode, source=args.source,
+                           spool_beside=args.forces)
+        except OSError as exc:
+            print(f"{PROG}: --forces {args.forces}: cannot keep the forces beside it: {exc.strerror or exc}",
+                  file=sys.stderr)
+            if outlet is not None:
+                outlet.close()
+            return 1
     switch_interval = sys.getswitchinterval()
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     try:
@@ -266,6 +270,8 @@ def main(argv=None) -> int:
         sys.setswitchinterval(switch_interval)
         if outlet is not None:
             outlet.close()
+        if log is not None:
+            log.close()
 
 
 def _stream(args, source, solver, settings, outlet, log, stop, failed) -> int:
@@ -298,11 +304,10 @@ def _stream(args, source, solver, settings, outlet, log, stop, failed) -> int:
         while not stop.wait(min(1.0, seconds_left(start, args.duration))):
             elapsed = time.monotonic() - start
             print(status_line(elapsed, stream.figures(), source), flush=True)
-            if log is not None and log.left_out and not said_full:
-                print(f"{PROG}: --forces {args.forces} is full: it keeps the first {len(log)} frames "
-                      f"({log.max_bytes / 1e9:.3g} GB, --forces-memory); the frames after them are published "
-                      "but not kept. For a take this long, record it (--record) and run tactile-batch on "
-                      "the recording.", file=sys.stderr, flush=True)
+            if log is not None and log.failure is not None and not said_full:
+                print(f"{PROG}: --forces {args.forces}: cannot keep more forces: {_reason(log.failure)}; it "
+                      f"holds the first {len(log)} frames, the frames after them are published but not kept",
+                      file=sys.stderr, flush=True)
                 said_full = True
             if stream.last_error and not said_failure:  # the first; the count goes on in the lines
                 print(f"{PROG}: a frame failed: {stream.last_error}", file=sys.stderr, flush=True)
@@ -364,18 +369,22 @@ def _write_forces(log: ForceLog, path: str) -> bool:
     except ValueError as exc:
         print(f"{PROG}: --forces {path} not written: {exc}", file=sys.stderr, flush=True)
         return False
+    print(f"writing the forces of {len(log)} frames to {path} ...", flush=True)
     try:
         save_forces(table, path)
     except OSError as exc:
-        print(f"{PROG}: --forces {path}: cannot write: {exc.strerror or exc}", file=sys.stderr, flush=True)
+        print(f"{PROG}: --forces {path}: cannot write: {_reason(exc)}", file=sys.stderr, flush=True)
         return False
     print(f"wrote the forces of {len(log)} frames to {path}", flush=True)
     if log.left_out:
         print(f"{PROG}: --forces {path} holds the first {len(log)} frames published; the {log.left_out} "
-              f"published after them were left out (--forces-memory {log.max_bytes / 1e9:.3g} GB)",
-              file=sys.stderr, flush=True)
+              f"published after them were left out ({_reason(log.failure)})", file=sys.stderr, flush=True)
         return False
     return True
+
+
+def _reason(exc: OSError) -> str:
+    return exc.strerror or str(exc)
 
 
 if __name__ == "__main__":

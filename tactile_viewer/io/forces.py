@@ -2,12 +2,13 @@
 
 Force exports write the one file named, nothing beside it.
 
-Forces NPZ keys: ``forces (T, m, 3)`` N, ``frames (T,)`` indices into the
-recording, ``t (T,)`` s, ``shear_ratio (T,)``, ``shear_direction (T,)`` rad,
-``efficiency (T,)``, ``residual (T,)``, ``condition (T,)``, ``positions (m, 2)``
-m, ``nx``, ``ny``, ``pitch``, ``thickness`` (m), ``poisson_ratio`` (the
-elastomer's nu), ``sensor_size`` (side of a square taxel, m; 0: point sensors),
-``kernel``, ``mode`` ("auto" or "manual"), ``source`` (the recording's path).
+Forces NPZ keys: ``forces (T, m, 3)`` N (float64; float32 from ``tactile-stream``,
+as it published them), ``frames (T,)`` indices into the recording, ``t (T,)``
+s, ``shear_ratio (T,)``, ``shear_direction (T,)`` rad, ``efficiency (T,)``,
+``residual (T,)``, ``condition (T,)``, ``positions (m, 2)`` m, ``nx``, ``ny``,
+``pitch``, ``thickness`` (m), ``poisson_ratio`` (the elastomer's nu),
+``sensor_size`` (side of a square taxel, m; 0: point sensors), ``kernel``,
+``mode`` ("auto" or "manual"), ``source`` (the recording's path).
 
 Per-contact totals (both formats): the contacts of each frame as the solver
 found them, largest normal force first, each with its identity
@@ -31,7 +32,6 @@ and contact.
 
 from __future__ import annotations
 
-import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,6 +57,8 @@ class ForceTable:
     ``contact_identity (T, K)``, ``contact_force (T, K, 3)`` and
     ``contact_centre (T, K, 2)`` are each frame's contacts (module notes;
     :func:`contact_arrays`); None (the default) is no contacts, ``K = 0``.
+    ``forces`` is float64, or float32 or float64 kept as given when it is
+    read-only already (a memory-mapped spool: :class:`~tactile_viewer.model.force_log.ForceLog`).
     """
 
     forces: np.ndarray
@@ -81,7 +83,12 @@ class ForceTable:
     contact_centre: np.ndarray | None = None
 
     def __post_init__(self):
-        for name in ("forces", "frames", "t", "shear_ratio", "shear_direction", "efficiency", "residual",
+        forces = self.forces
+        if not (isinstance(forces, np.ndarray) and forces.dtype in (np.float32, np.float64)
+                and not forces.flags.writeable):
+            # kept as given when read-only already: a stream's spooled forces stay on disk (memory-mapped)
+            object.__setattr__(self, "forces", read_only(forces, float))
+        for name in ("frames", "t", "shear_ratio", "shear_direction", "efficiency", "residual",
                      "condition", "positions"):
             object.__setattr__(self, name, read_only(getattr(self, name), int if name == "frames" else float))
         count = len(self.frames)
@@ -116,32 +123,43 @@ def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
                                 contact_identity=table.contact_identity, contact_force=table.contact_force,
                                 contact_centre=table.contact_centre)
     elif path.suffix.lower() == ".csv":
-        T, m = table.forces.shape[:2]
-        rows = np.column_stack([
-            np.repeat(table.frames, m), np.repeat(table.t, m), np.tile(np.arange(m), T),
-            np.tile(table.positions[:, 0], T), np.tile(table.positions[:, 1], T),
-            table.forces.reshape(-1, 3), np.repeat(table.shear_ratio, m),
-            np.degrees(np.repeat(table.shear_direction, m)),
-        ])
-        buffer = io.StringIO()
-        for key, value in (("source", " ".join(source.split())), ("kernel", table.kernel),
-                           ("mode", table.mode), ("nx", nx), ("ny", ny), ("pitch", repr(table.pitch)),
-                           ("thickness", repr(table.thickness)), ("poisson_ratio", repr(table.poisson_ratio)),
-                           ("sensor_size", repr(table.sensor_size)), ("units", "m, N, degrees"),
-                           (f"{CONTACT_TAG}_columns", ",".join(CONTACT_COLUMNS))):
-            buffer.write(f"# {key}={value}\n")
-        buffer.write(",".join(CSV_COLUMNS) + "\n")
-        np.savetxt(buffer, rows, delimiter=",", fmt=["%d", "%.6f", "%d"] + ["%.9g"] * 7)
-        # the per-contact totals: "# contact=..." lines after the node rows
-        for row, slot in zip(*np.nonzero(table.contact_identity), strict=True):
-            values = (*table.contact_force[row, slot], *table.contact_centre[row, slot])
-            buffer.write(f"# {CONTACT_TAG}={table.frames[row]:d},{table.t[row]:.6f},"
-                         f"{table.contact_identity[row, slot]:d},{','.join(f'{v:.9g}' for v in values)}\n")
-        with written_whole(path) as temporary:
-            temporary.write_text(buffer.getvalue(), encoding="utf-8")
+        with written_whole(path) as temporary, open(temporary, "w", encoding="utf-8", newline="\n") as handle:
+            _write_csv(handle, table, source, nx, ny)
     else:
         raise ValueError(f"{path}: unknown export type {path.suffix!r}, expected .npz or .csv")
     return path
+
+
+# Frames written per piece of a CSV export: a long take (a stream's hour is millions of frames) is
+# formatted a few megabytes at a time, never as one table in memory.
+CSV_FRAMES_PER_PIECE = 1024
+
+
+def _write_csv(handle, table: ForceTable, source: str, nx: int, ny: int) -> None:
+    for key, value in (("source", " ".join(source.split())), ("kernel", table.kernel),
+                       ("mode", table.mode), ("nx", nx), ("ny", ny), ("pitch", repr(table.pitch)),
+                       ("thickness", repr(table.thickness)), ("poisson_ratio", repr(table.poisson_ratio)),
+                       ("sensor_size", repr(table.sensor_size)), ("units", "m, N, degrees"),
+                       (f"{CONTACT_TAG}_columns", ",".join(CONTACT_COLUMNS))):
+        handle.write(f"# {key}={value}\n")
+    handle.write(",".join(CSV_COLUMNS) + "\n")
+    T, m = table.forces.shape[:2]
+    for start in range(0, T, CSV_FRAMES_PER_PIECE):
+        piece = slice(start, min(T, start + CSV_FRAMES_PER_PIECE))
+        count = piece.stop - piece.start
+        rows = np.column_stack([
+            np.repeat(table.frames[piece], m), np.repeat(table.t[piece], m), np.tile(np.arange(m), count),
+            np.tile(table.positions[:, 0], count), np.tile(table.positions[:, 1], count),
+            np.asarray(table.forces[piece], dtype=float).reshape(-1, 3),
+            np.repeat(table.shear_ratio[piece], m),
+            np.degrees(np.repeat(table.shear_direction[piece], m)),
+        ])
+        np.savetxt(handle, rows, delimiter=",", fmt=["%d", "%.6f", "%d"] + ["%.9g"] * 7)
+    # the per-contact totals: "# contact=..." lines after the node rows
+    for row, slot in zip(*np.nonzero(table.contact_identity), strict=True):
+        values = (*table.contact_force[row, slot], *table.contact_centre[row, slot])
+        handle.write(f"# {CONTACT_TAG}={table.frames[row]:d},{table.t[row]:.6f},"
+                     f"{table.contact_identity[row, slot]:d},{','.join(f'{v:.9g}' for v in values)}\n")
 
 
 def load_forces(path) -> dict:

@@ -25,55 +25,32 @@ the process's CPU use, for the interval since its last call and for the whole
 run (percentiles of the whole run from a histogram with 1.2% wide bins, so a
 run of hours keeps a fixed memory).
 
-:class:`ForceLog` keeps the forces of the frames published and turns them into
-the viewer's force table (:class:`~tactile_viewer.io.forces.ForceTable`, File >
-Export forces), its contacts followed over the frames published.
+The forces published are kept for a force file by
+:class:`~tactile_viewer.model.force_log.ForceLog`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
-import os
 import threading
 import time
 from collections import deque
 from dataclasses import dataclass
-from types import SimpleNamespace
 
 import numpy as np
 
-from solver import ContactTracker, SensorGrid
 from solver.checks import whole_number
 from solver.threads import one_blas_thread
 
-from ..io.forces import ForceTable
 from ..sources.source import Source, SourceFrame
-from .force_tables import contact_arrays
 
-__all__ = ["StreamFigures", "ForceStream", "ForceLog", "DEFAULT_QUEUE_FRAMES", "default_max_bytes"]
+__all__ = ["StreamFigures", "ForceStream", "DEFAULT_QUEUE_FRAMES"]
 
 # Frames that may wait for the solver: 0.2 s of a 1 kHz board. A hiccup of the machine (another
 # process, a garbage collection) shorter than that is caught up without a skip; a solver slower
 # than the board skips frames within that much latency instead of falling ever further behind.
 DEFAULT_QUEUE_FRAMES = 200
-
-# A kept frame's memory besides its forces: its row and its contacts (measured with tracemalloc on a
-# 16x16 skin with two contacts: 3.8 kB a frame, 3 kB of it the forces).
-FRAME_OVERHEAD_BYTES = 1024
-# The share of the machine's memory a force log may take by default: the rest is the solver's, the
-# recorder's and every other program's.
-FORCE_LOG_SHARE = 0.25
-
-
-def default_max_bytes() -> int:
-    """A force log's default memory: :data:`FORCE_LOG_SHARE` of the machine's (4 GiB where unknown)."""
-    try:
-        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (AttributeError, ValueError, OSError):  # no sysconf (Windows), or the name unknown
-        return 4 << 30
-    return max(1, int(FORCE_LOG_SHARE * total))
-
 
 # latency histogram: log-spaced bins from 1 us to 100 s, 1.2% wide (1600 over 8 decades)
 _EDGES = np.logspace(-6, 2, 1601)
@@ -317,88 +294,3 @@ def _histogram_percentiles(histogram: np.ndarray, percents) -> tuple:
     # a bin's geometric middle; the first and last bins (under 1 us, over 100 s) their edge
     middles = np.concatenate(([_EDGES[0]], np.sqrt(_EDGES[:-1] * _EDGES[1:]), [_EDGES[-1]]))
     return tuple(float(middles[np.searchsorted(cumulative, math.ceil(p / 100 * total))]) for p in percents)
-
-
-class ForceLog:
-    """The forces of the frames a stream published, as the viewer's force table (module notes).
-
-    Keeps 12 bytes per node and frame (float32 forces) and each frame's contacts,
-    followed with a :class:`solver.ContactTracker` as they come: a 16x16 skin
-    takes about 3.8 kB a frame (3.8 MB a second at 1 kHz, 14 GB an hour). So it
-    keeps frames up to ``max_bytes`` only: the frames published after that are
-    counted (:attr:`left_out`), not kept, and the process is not run out of memory.
-
-    Parameters
-    ----------
-    grid : SensorGrid
-        The skin solved.
-    kernel : str
-        The solver's kernel (recorded in the table).
-    mode : {"auto", "manual"}
-        Whether the parameters were found for each frame or given.
-    source : str
-        What the frames came from (recorded in the table).
-    max_bytes : int or None
-        The most memory the kept frames may take (estimated); None (default):
-        :func:`default_max_bytes`.
-
-    Raises
-    ------
-    ValueError
-        For ``max_bytes`` not a whole number >= 1.
-    """
-
-    def __init__(self, grid: SensorGrid, *, kernel: str, mode: str, source: str = "",
-                 max_bytes: int | None = None):
-        self.grid, self.kernel, self.mode, self.source = grid, kernel, mode, source
-        self.max_bytes = (default_max_bytes() if max_bytes is None
-                          else whole_number("max_bytes", max_bytes, low=1))
-        self.left_out = 0  # frames published after the kept ones filled max_bytes
-        self._bytes = 0
-        self._frame_bytes = 12 * grid.size + FRAME_OVERHEAD_BYTES  # what one kept frame takes
-        self._tracker = ContactTracker(grid)
-        self._forces: list[np.ndarray] = []
-        # (frame index, t, shear ratio, shear direction, efficiency, residual, condition) per frame
-        self._rows: list[tuple] = []
-        self._contacts: list[tuple] = []
-        self._last_index: int | None = None
-
-    def __len__(self) -> int:
-        return len(self._rows)
-
-    def add(self, frame: SourceFrame, result) -> None:
-        """Keep one published frame (frames in the order published), or count it as left out when full."""
-        if self.left_out or self._bytes + self._frame_bytes > self.max_bytes:
-            self.left_out += 1
-            return
-        self._bytes += self._frame_bytes
-        index = len(self._rows) if frame.index is None else frame.index
-        # frames skipped between two published ones count as frames their contacts were unseen
-        step = max(1, index - self._last_index) if self._last_index is not None else 1
-        numbered = self._tracker.update(result, step)
-        self._last_index = index
-        self._forces.append(np.asarray(result.forces, np.float32))
-        self._rows.append((index, frame.t, result.shear_ratio, result.shear_direction, result.efficiency,
-                           result.residual, result.condition))
-        self._contacts.append(numbered.contacts)
-
-    def table(self) -> ForceTable:
-        """The force table of every frame kept (forces in newtons; ``frames`` the frames' sequence numbers).
-
-        Raises
-        ------
-        ValueError
-            When no frame was kept.
-        """
-        if not self._rows:
-            raise ValueError("no frame was published: there are no forces to write")
-        rows = np.array(self._rows, dtype=float)
-        identity, force, centre = contact_arrays([SimpleNamespace(contacts=c) for c in self._contacts])
-        grid = self.grid
-        return ForceTable(forces=np.array(self._forces), frames=rows[:, 0].astype(np.int64), t=rows[:, 1],
-                          shear_ratio=rows[:, 2], shear_direction=rows[:, 3], efficiency=rows[:, 4],
-                          residual=rows[:, 5], condition=rows[:, 6], positions=grid.positions,
-                          shape=tuple(grid.shape), pitch=grid.pitch, thickness=grid.thickness,
-                          kernel=self.kernel, mode=self.mode, source=self.source,
-                          poisson_ratio=grid.poisson_ratio, sensor_size=grid.sensor_size,
-                          contact_identity=identity, contact_force=force, contact_centre=centre)

@@ -1,6 +1,7 @@
 """tactile-stream (tactile_viewer/cli/tactile_stream.py): a simulated board on a pseudo-terminal solved frame by frame,
 its forces read back by a plain pylsl inlet, its raw frames recorded, its skips counted, its errors named."""
 
+import errno
 import os
 import re
 import signal
@@ -19,8 +20,8 @@ from tactile_viewer.cli.tactile_sim import Board
 from tactile_viewer.io.files import load
 from tactile_viewer.io.forces import load_forces
 from tactile_viewer.io.layout import SensorLayout, save_layout
+from tactile_viewer.model import force_log
 from tactile_viewer.model.batch import settings_from_preset
-from tactile_viewer.model.force_stream import FRAME_OVERHEAD_BYTES
 
 GRID = SensorGrid.regular(8, 8, 2e-3, 2e-3)
 FRAMES = 240  # frames the board sends
@@ -164,23 +165,33 @@ def test_a_burst_the_solver_cannot_follow_is_skipped_oldest_first_and_counted(la
     assert "FALLING BEHIND" in out
 
 
-def test_forces_beyond_their_memory_are_left_out_counted_and_said(layout, tmp_path, capsys, handlers):
+def test_forces_after_the_disk_filled_are_left_out_counted_and_said(layout, tmp_path, capsys, handlers,
+                                                                    monkeypatch):
     name = unique_name()
     board = PtyBoard(name, inlet=False, stop_after=1.0)
     forces = tmp_path / "take.forces.npz"
-    room = 10.5 * (12 * GRID.size + FRAME_OVERHEAD_BYTES) / 1e9  # gigabytes: ten frames and a half
-    code, out, err = run([board.url, "--layout", layout, "--name", name, "--forces", forces,
-                          "--forces-memory", room], capsys)
+    written = force_log._write_all
+    calls = []
+
+    def filling(descriptor, data):  # the disk fills at the eleventh frame's forces (three writes a frame)
+        calls.append(len(data))
+        if len(calls) > 30:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        written(descriptor, data)
+    monkeypatch.setattr(force_log, "_write_all", filling)
+    code, out, err = run([board.url, "--layout", layout, "--name", name, "--forces", forces], capsys)
     board.thread.join(WAIT_S)
     assert board.error is None, board.error
     assert code == 1, err  # the file does not hold every frame published
     last = [line for line in out.splitlines() if line.startswith("stopped after")][-1]
     published = int(last.split(" solved and published")[0].split()[-1])
     assert published > 10
-    assert f"--forces {forces} is full: it keeps the first 10 frames" in err  # said while streaming
+    assert (f"--forces {forces}: cannot keep more forces: No space left on device; it holds the first 10 "
+            "frames") in err  # said while streaming
     assert (f"--forces {forces} holds the first 10 frames published; the {published - 10} published after "
-            "them were left out") in err
+            "them were left out (No space left on device)") in err
     assert load_forces(forces)["frames"].tolist() == list(range(10))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["layout.json", "take.forces.npz"]  # no spool left
 
 
 @pytest.mark.parametrize(("arguments", "message"), [
@@ -191,10 +202,6 @@ def test_forces_beyond_their_memory_are_left_out_counted_and_said(layout, tmp_pa
      "--queue must be a whole number of frames >= 1, got 0"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--solvers", "0"],
      "--solvers must be a whole number of threads >= 1, got 0"),
-    (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces-memory", "0"],
-     "--forces-memory must be a finite number of gigabytes > 0, got 0.0"),
-    (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces-memory", "nan"],
-     "--forces-memory must be a finite number of gigabytes > 0, got nan"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--no-lsl", "--stress"], "--stress publishes over LSL"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces", "{tmp}/f.txt"],
      "--forces must end in .npz or .csv, got '.*f.txt'"),

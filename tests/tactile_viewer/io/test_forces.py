@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from solver import Reconstructor, SensorGrid, loads
+from tactile_viewer.io import forces as forces_module
 from tactile_viewer.io import sidecar
 from tactile_viewer.io.forces import CONTACT_COLUMNS, CSV_COLUMNS, ForceTable, load_forces, save_forces
 from tactile_viewer.io.recording import Recording
@@ -93,13 +94,11 @@ def test_a_failed_force_export_leaves_no_partial_file(recording, reconstructor, 
     if earlier:
         path.write_bytes(b"the earlier export")
 
-    def full_disk(handle_or_text, *args, **kwargs):
-        if hasattr(handle_or_text, "write"):
-            handle_or_text.write(b"PK\x03\x04 half an archive")
+    def full_disk(handle, *args, **kwargs):
+        handle.write(b"PK\x03\x04 half an archive" if "b" in getattr(handle, "mode", "b") else "0,0.0,0,half a row")
         raise OSError(28, "No space left on device")
     monkeypatch.setattr(np, "savez_compressed", full_disk)
-    monkeypatch.setattr(type(tmp_path), "write_text",
-                        lambda self, text, **kw: (open(self, "w").write(text[:100]), full_disk(None))[1])
+    monkeypatch.setattr(np, "savetxt", full_disk)  # the CSV's node rows, written a piece at a time
     with pytest.raises(OSError, match="No space left on device"):
         save_forces(table, path)
     assert [p.name for p in tmp_path.iterdir()] == ([name] if earlier else [])
@@ -337,3 +336,13 @@ def test_the_marker_is_not_taken_from_the_caller(tmp_path):
     with pytest.raises(TypeError, match="'tactile_viewer_sidecar' is written by write_sidecar"):
         write_sidecar(tmp_path / "shot.png", tactile_viewer_sidecar=0)
     assert not list(tmp_path.iterdir())
+
+
+def test_a_csv_written_in_pieces_is_the_csv_written_at_once(recording, reconstructor, tmp_path, monkeypatch):
+    # a long take is formatted CSV_FRAMES_PER_PIECE frames at a time: the same text as one piece
+    table = reconstruct_frames(recording, reconstructor)
+    whole = save_forces(table, tmp_path / "whole.csv").read_text()
+    monkeypatch.setattr(forces_module, "CSV_FRAMES_PER_PIECE", 1)
+    pieces = save_forces(table, tmp_path / "pieces.csv").read_text()
+    assert len(table.frames) == 4 and pieces == whole
+    assert load_forces(tmp_path / "pieces.csv")["frames"].tolist() == table.frames.tolist()

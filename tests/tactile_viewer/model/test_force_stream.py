@@ -1,8 +1,7 @@
 """Forces at sensor rate (tactile_viewer/model/force_stream.py): every frame solved and published in order,
-a slow solver's skips counted, failures counted and survived, latency figures, the force log's table."""
+a slow solver's skips counted, failures counted and survived, latency figures."""
 
 import math
-import os
 import threading
 from dataclasses import replace
 
@@ -10,8 +9,7 @@ import numpy as np
 import pytest
 
 from solver import Reconstructor, SensorGrid, loads
-from tactile_viewer.io.forces import load_forces, save_forces
-from tactile_viewer.model.force_stream import FRAME_OVERHEAD_BYTES, ForceLog, ForceStream
+from tactile_viewer.model.force_stream import ForceStream
 from tactile_viewer.sources.source import Source, SourceFrame
 
 GRID = SensorGrid.regular(6, 5, 2e-3, 2e-3)
@@ -263,40 +261,3 @@ def test_bad_options_are_named(options, message):
 def test_a_source_without_a_clock_needs_one():
     with pytest.raises(ValueError, match="clock must be given for a source without a now"):
         ForceStream(Source("no clock", GRID), None, print)
-
-
-def test_the_force_log_is_the_viewers_force_table_of_the_frames_published(frames, solver, tmp_path):
-    log = ForceLog(GRID, kernel="layer", mode="auto", source="socket://board")
-    results = [solver.solve(f.stress) for f in frames[:5]]
-    kept = [0, 1, 3, 4]  # frame 2 skipped by the stream
-    for k in kept:
-        log.add(frames[k], results[k])
-    table = log.table()
-    assert len(log) == 4 and table.frames.tolist() == kept and table.t.tolist() == [frames[k].t for k in kept]
-    np.testing.assert_allclose(table.forces, [results[k].forces for k in kept], rtol=1e-6, atol=1e-9)
-    assert table.shear_ratio.tolist() == [results[k].shear_ratio for k in kept]
-    assert table.contact_identity[:, 0].tolist() == [1, 1, 1, 1]  # one contact followed over the skip
-    np.testing.assert_allclose(table.contact_force[:, 0], [results[k].contacts[0].total_force for k in kept])
-    saved = load_forces(save_forces(table, tmp_path / "take.forces.npz"))
-    assert saved["forces"].shape == (4, GRID.size, 3) and str(saved["source"]) == "socket://board"
-
-
-def test_a_full_force_log_keeps_the_first_frames_and_counts_the_rest(frames, solver):
-    per_frame = 12 * GRID.size + FRAME_OVERHEAD_BYTES
-    log = ForceLog(GRID, kernel="layer", mode="auto", max_bytes=3 * per_frame + per_frame // 2)
-    for frame in frames[:6]:
-        log.add(frame, solver.solve(frame.stress))
-    assert (len(log), log.left_out) == (3, 3)
-    assert log.table().frames.tolist() == [0, 1, 2]
-
-
-def test_a_force_log_takes_at_most_a_quarter_of_the_machines_memory_by_default():
-    total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    assert ForceLog(GRID, kernel="layer", mode="auto").max_bytes == int(0.25 * total)
-    with pytest.raises(ValueError, match="max_bytes must be a whole number >= 1, got 0"):
-        ForceLog(GRID, kernel="layer", mode="auto", max_bytes=0)
-
-
-def test_an_empty_force_log_has_no_table():
-    with pytest.raises(ValueError, match="no frame was published: there are no forces to write"):
-        ForceLog(GRID, kernel="layer", mode="auto").table()
