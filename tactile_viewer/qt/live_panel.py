@@ -7,6 +7,11 @@ counts, rejections and recording, and raises the banner when frames stop.
 Tare goes through the model (:meth:`~tactile_viewer.model.viewer_model.ViewerModel.retare`,
 as the Recording menu's); recording acts on the source directly; what it reports
 (a saved or failed recording) comes back through the model's ``message``.
+
+An LSL stream is connected in a :class:`~tactile_viewer.qt.tasks.Task` (opening its inlet
+waits for the network, up to seconds); the outcome comes back on the GUI thread as
+``lsl_connected``. A connection still being made when the window closes is waited for and
+the source it made is stopped.
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from dataclasses import dataclass
 from pathlib import Path
 
 from PyQt6 import QtCore, QtGui, QtWidgets
@@ -26,12 +32,24 @@ from ..sources.lsl_inlet import FoundStream, LslSource
 from ..sources.serial_reader import SerialReader
 from .connect_dialog import ConnectDialog
 from .lsl_connect_dialog import LslConnectDialog
+from .tasks import Task
 
 __all__ = ["LivePanel", "TARE_FRAMES", "SILENCE_S"]
 
 TARE_FRAMES = 50  # frames averaged by a tare
 SILENCE_S = 1.0  # seconds without a frame before the banner says NO DATA
 DISPLAY_WINDOW_S = 2.0  # seconds of drawn frames the on-screen rate is measured over
+_CONNECT_ERRORS = (LayoutError, ValueError, OSError, RuntimeError)  # RuntimeError: pylsl's own
+
+
+@dataclass(eq=False)
+class _Attempt:
+    """An LSL connection being made off the GUI thread."""
+
+    stream: FoundStream
+    task: Task | None = None
+    source: LslSource | None = None  # set by the task once made (read on the GUI thread after it ends)
+    abandoned: bool = False  # the window closed first: its outcome is dropped, its source stopped
 
 
 class LivePanel(QtWidgets.QFrame):
@@ -55,10 +73,18 @@ class LivePanel(QtWidgets.QFrame):
     ----------
     banner : QLabel
         The NO DATA banner, placed by the window above the scene.
+
+    Signals
+    -------
+    lsl_connected(bool)
+        A connection started by :meth:`connect_lsl` ended: True once its source is
+        started and handed to ``install``, False when it failed (the error is shown)
+        or the window closed first.
     """
 
     disconnected = QtCore.pyqtSignal()  # the board shown was disconnected by the user
     recording_to = QtCore.pyqtSignal(str)  # the file frames are recorded to now ("": none)
+    lsl_connected = QtCore.pyqtSignal(bool)  # the outcome of connect_lsl's connection
 
     def __init__(self, model: ViewerModel, *, install, error, notify, parent=None):
         super().__init__(parent)
@@ -66,6 +92,7 @@ class LivePanel(QtWidgets.QFrame):
         self._install, self._error, self._notify = install, error, notify
         self._layout_name = ""  # the layout file of the board shown, to name it
         self._recording_to = ""
+        self._connecting: _Attempt | None = None  # the LSL connection being made
         self.setFrameShape(QtWidgets.QFrame.Shape.StyledPanel)
         bar = QtWidgets.QHBoxLayout(self)
         bar.setContentsMargins(6, 2, 6, 2)
@@ -107,6 +134,7 @@ class LivePanel(QtWidgets.QFrame):
         self.banner.setSizePolicy(policy.Ignored, policy.Preferred)
         self.banner.hide()
         self.actions: dict[str, QtGui.QAction] = {}  # those that need a connection
+        self.connect_actions: dict[str, QtGui.QAction] = {}  # off while a connection is being made
         self.publish_actions: dict[str, QtGui.QAction] = {}  # publishing is chosen at any time
         self._timer = QtCore.QTimer(self, interval=250)
         self._timer.timeout.connect(self.follow)
@@ -117,8 +145,8 @@ class LivePanel(QtWidgets.QFrame):
 
     def add_actions(self, menu: QtWidgets.QMenu):
         """Fill the Live menu: connect a board or an LSL stream, disconnect, tare, record, publish."""
-        menu.addAction("&Connect...", self.connect_dialog)
-        menu.addAction("Connect to an &LSL stream...", self.lsl_connect_dialog)
+        self.connect_actions["connect"] = menu.addAction("&Connect...", self.connect_dialog)
+        self.connect_actions["lsl"] = menu.addAction("Connect to an &LSL stream...", self.lsl_connect_dialog)
         for name, label, slot in (("disconnect", "&Disconnect", self.disconnect_live),
                                   ("tare", f"&Tare (average {TARE_FRAMES} frames)", self.tare),
                                   ("record", "&Record...", self.record_dialog),
@@ -155,8 +183,11 @@ class LivePanel(QtWidgets.QFrame):
     def connect_live(self, url: str, layout, *, fmt: str = "binary", baudrate: int = 115200) -> bool:
         """Show frames from a serial URL; ``layout`` is a SensorLayout or its JSON path.
 
-        Errors (bad layout, port that cannot be opened) are shown and change nothing.
+        Errors (bad layout, port that cannot be opened) are shown and change nothing; so is a
+        call while an LSL connection is being made (refused: False).
         """
+        if self._refused_while_connecting():
+            return False
         try:
             named = "" if isinstance(layout, SensorLayout) else Path(layout).name
             if not isinstance(layout, SensorLayout):
@@ -177,22 +208,109 @@ class LivePanel(QtWidgets.QFrame):
             self.connect_lsl(chosen.stream, chosen.layout or None)
 
     def connect_lsl(self, stream: FoundStream, layout=None) -> bool:
-        """Show frames from an LSL stream; ``layout``: a SensorLayout, its JSON path, or None (the stream's).
+        """Connect to an LSL stream off the GUI thread, then show its frames.
 
-        Errors (bad layout, a channel count that is not the layout's, a stream gone) are shown and
-        change nothing.
+        Opening the stream's inlet waits for the network (up to the source's ``timeout``,
+        2 s, for its description and again to open it), so the layout file is read and the
+        :class:`~tactile_viewer.sources.lsl_inlet.LslSource` made in a
+        :class:`~tactile_viewer.qt.tasks.Task` while the window stays responsive; the status
+        bar says "connecting to lsl:NAME ..." and the Connect actions are off meanwhile. Once
+        it is made, on the GUI thread, the source is started and handed to ``install``;
+        ``lsl_connected`` reports the outcome.
+
+        Parameters
+        ----------
+        stream : FoundStream
+            The stream chosen (:func:`~tactile_viewer.sources.lsl_inlet.find_streams`).
+        layout : SensorLayout, str, Path or None
+            The layout, its JSON path, or None for the one in the stream's description.
+
+        Returns
+        -------
+        bool
+            True when a connection was started; False when it was refused because
+            another is still being made (the status bar says so; nothing changes).
+
+        Notes
+        -----
+        Errors (bad layout, a channel count that is not the layout's, a stream gone) are
+        shown as "Cannot connect" when the attempt ends and change nothing
+        (``lsl_connected(False)``). When the window closes first, the close waits for the
+        attempt and stops the source it made.
         """
+        if self._refused_while_connecting():
+            return False
+        named = "" if layout is None or isinstance(layout, SensorLayout) else Path(layout).name
+        attempt = _Attempt(stream)
+
+        def connect(_progress):
+            chosen = layout if layout is None or isinstance(layout, SensorLayout) else load_layout(layout)
+            attempt.source = LslSource(stream, chosen)
+            return attempt.source
+
+        attempt.task = Task(connect, self)
+        attempt.task.succeeded.connect(lambda reader: self._lsl_made(attempt, reader, named))
+        attempt.task.failed.connect(lambda exc: self._lsl_failed(attempt, exc))
+        attempt.task.finished.connect(attempt.task.deleteLater)
+        self._connecting = attempt
+        self._enable()
+        self._notify(f"connecting to {stream.url} ...")
+        attempt.task.start()
+        return True
+
+    def _refused_while_connecting(self) -> bool:
+        if self._connecting is None:
+            return False
+        self._notify(f"still connecting to {self._connecting.stream.url}: connect again once it has ended")
+        return True
+
+    def _lsl_made(self, attempt: _Attempt, reader: LslSource, named: str):
+        if attempt.abandoned:
+            return  # the window closed first: cancel_connecting stopped it
+        self._connecting = None
+        self._enable()
+        url = attempt.stream.url
         try:
-            named = "" if layout is None or isinstance(layout, SensorLayout) else Path(layout).name
-            if layout is not None and not isinstance(layout, SensorLayout):
-                layout = load_layout(layout)
-            reader = LslSource(stream, layout)
             self._layout_name = named
             reader.start()
-        except (LayoutError, ValueError, OSError, RuntimeError) as exc:  # RuntimeError: pylsl's own
-            self._error("Cannot connect", f"{stream.url}: {exc}")
-            return False
-        return self._install(reader)
+        except _CONNECT_ERRORS as exc:
+            self._notify(f"not connected to {url}")
+            self._error("Cannot connect", f"{url}: {exc}")
+            self.lsl_connected.emit(False)
+            return
+        self._notify(f"connected to {url}")
+        self.lsl_connected.emit(bool(self._install(reader)))
+
+    def _lsl_failed(self, attempt: _Attempt, exc: Exception):
+        if attempt.abandoned:
+            return
+        self._connecting = None
+        self._enable()
+        self._notify(f"not connected to {attempt.stream.url}")
+        expected = isinstance(exc, _CONNECT_ERRORS)
+        if expected:
+            self._error("Cannot connect", f"{attempt.stream.url}: {exc}")
+        self.lsl_connected.emit(False)
+        if not expected:
+            raise exc  # a bug: to the app's error hook, as when it was raised on the GUI thread
+
+    def cancel_connecting(self):
+        """Give up the LSL connection being made (the window is closing): wait for it, stop what it made.
+
+        Its outcome is dropped (no error is shown) and ``lsl_connected(False)`` is emitted.
+        The wait lasts as long as the inlet's own wait (seconds at worst): a task must not
+        outlive the window.
+        """
+        attempt, self._connecting = self._connecting, None
+        if attempt is None:
+            return
+        attempt.abandoned = True
+        attempt.task.wait()
+        if attempt.source is not None:
+            attempt.source.stop()  # never started: closes the inlet it opened
+        self._enable()
+        self.lsl_connected.emit(False)
+
 
     def _publishing_toggled(self, _checked: bool):
         actions = self.publish_actions
@@ -289,6 +407,8 @@ class LivePanel(QtWidgets.QFrame):
             self.buttons[name].setEnabled(on)
             if name in self.actions:
                 self.actions[name].setEnabled(on)
+        for action in self.connect_actions.values():
+            action.setEnabled(self._connecting is None)
 
     def follow(self):
         """Show the source's state: rate, counts, rejections, recording; NO DATA after a silence."""

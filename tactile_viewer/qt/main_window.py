@@ -452,6 +452,7 @@ class MainWindow(QtWidgets.QMainWindow):
         save_window_state("docks", self.saveState())
         save_view(self.model.display, speed=self.playback.speed, loop=self.playback.loop_box.isChecked())
         self.playback.stop()
+        self.live_panel.cancel_connecting()  # an LSL connection being made: waited for, its source stopped
         self.tasks.close()  # first: a result arriving while the source stops is dropped
         self.model.close()
         self.plotter.close()

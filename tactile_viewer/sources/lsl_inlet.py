@@ -257,6 +257,13 @@ class LslSource(LiveSource):
             return None
         return samples.copy(), stamps  # the buffer is refilled by the next pull
 
+    def stop(self) -> None:
+        """Stop reading; a source never started closes the inlet its constructor opened."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            self._close(pending)
+        super().stop()
+
     def _close(self, inlet) -> None:
         try:
             inlet.close_stream()

@@ -98,6 +98,18 @@ def test_a_layout_file_overrides_the_description(tmp_path):
     assert source.grid.thickness == 0.002
 
 
+
+def test_a_source_stopped_before_it_started_closes_the_inlet_it_opened():
+    # the window's connection made after the window closed is stopped unstarted: no consumer stays
+    name = unique()
+    outlet = plain_outlet(name, layout=SensorLayout(GRID, "kPa"))
+    source = LslSource(found(name))
+    wait_until(outlet.have_consumers, "the constructor's inlet to connect")
+    source.stop()
+    wait_until(lambda: not outlet.have_consumers(), "the inlet to close")
+    assert source.state == "stopped"
+
+
 def test_nan_and_wrong_count_samples_are_counted_never_handed_on(streaming):
     outlet, source = streaming()
     bad = np.full((1, 12), 3.0, dtype=np.float32)
