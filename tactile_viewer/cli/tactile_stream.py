@@ -304,10 +304,9 @@ def _stream(args, source, solver, settings, outlet, log, stop, failed) -> int:
         while not stop.wait(min(1.0, seconds_left(start, args.duration))):
             elapsed = time.monotonic() - start
             print(status_line(elapsed, stream.figures(), source), flush=True)
-            if log is not None and log.failure is not None and not said_full:
-                print(f"{PROG}: --forces {args.forces}: cannot keep more forces: {_reason(log.failure)}; it "
-                      f"holds the first {len(log)} frames, the frames after them are published but not kept",
-                      file=sys.stderr, flush=True)
+            if log is not None and log.left_out and not said_full:  # the first; the end counts them all
+                print(f"{PROG}: --forces {args.forces}: frames published are left out of it "
+                      f"({log.reason()}); they are still solved and published", file=sys.stderr, flush=True)
                 said_full = True
             if stream.last_error and not said_failure:  # the first; the count goes on in the lines
                 print(f"{PROG}: a frame failed: {stream.last_error}", file=sys.stderr, flush=True)
@@ -373,18 +372,14 @@ def _write_forces(log: ForceLog, path: str) -> bool:
     try:
         save_forces(table, path)
     except OSError as exc:
-        print(f"{PROG}: --forces {path}: cannot write: {_reason(exc)}", file=sys.stderr, flush=True)
+        print(f"{PROG}: --forces {path}: cannot write: {exc.strerror or exc}", file=sys.stderr, flush=True)
         return False
     print(f"wrote the forces of {len(log)} frames to {path}", flush=True)
     if log.left_out:
-        print(f"{PROG}: --forces {path} holds the first {len(log)} frames published; the {log.left_out} "
-              f"published after them were left out ({_reason(log.failure)})", file=sys.stderr, flush=True)
+        print(f"{PROG}: --forces {path} holds {len(log)} of the frames published; {log.left_out} were left "
+              f"out ({log.reason()})", file=sys.stderr, flush=True)
         return False
     return True
-
-
-def _reason(exc: OSError) -> str:
-    return exc.strerror or str(exc)
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 of the frames kept, memory that does not grow with the take, a full disk counted and said, the spool removed."""
 
 import errno
+import threading
 import tracemalloc
 
 import numpy as np
@@ -70,6 +71,7 @@ def test_the_log_is_the_viewers_force_table_of_the_frames_published(frames, resu
 def test_the_spool_is_hidden_beside_the_force_file_and_removed_on_close(frames, results, tmp_path):
     log = ForceLog(GRID, kernel="layer", mode="auto", spool_beside=tmp_path / "take.forces.npz")
     log.add(frames[0], results[0])
+    log.flush()
     assert log.spool.parent == tmp_path and log.spool.name.startswith(".take.forces.npz.")
     assert (log.spool / "forces").stat().st_size == 12 * GRID.size
     log.close()
@@ -80,11 +82,13 @@ def test_memory_does_not_grow_with_the_frames_kept(frames, results, log):
     # warm first: the tracker's numbering (identities past the cached small ints) and numpy's caches
     for k in range(2000):
         log.add(frames[k % 8], results[k % 8])
+    log.flush()
     tracemalloc.start()
     try:
         before = tracemalloc.get_traced_memory()[0]
         for k in range(1000):
             log.add(frames[k % 8], results[k % 8])
+        log.flush()
         grown = tracemalloc.get_traced_memory()[0] - before
     finally:
         tracemalloc.stop()
@@ -104,11 +108,56 @@ def test_a_full_disk_keeps_the_frames_written_and_counts_the_rest(frames, result
     monkeypatch.setattr(force_log, "_write_all", filling)
     for frame, result in zip(frames, results, strict=True):
         log.add(frame, result)
-    assert (len(log), log.left_out) == (3, 5)
+    log.flush()
+    assert (len(log), log.left_out, log.unwritten, log.behind) == (3, 5, 5, 0)
     assert log.failure.errno == errno.ENOSPC
+    assert log.reason() == "5 after a write failed: No space left on device"
     table = log.table()  # the frames kept, whole: the fourth frame's forces on disk are not read
     assert table.frames.tolist() == [0, 1, 2] and table.forces.shape == (3, GRID.size, 3)
     assert table.contact_identity.shape[0] == 3
+
+
+def test_publishing_never_waits_for_the_disk_frames_beyond_the_queue_are_counted(frames, results, tmp_path,
+                                                                              monkeypatch):
+    written = force_log._write_all
+    inside, go_on = threading.Event(), threading.Event()
+
+    def stalled(descriptor, data):  # the kernel's write-back holds the first write
+        inside.set()
+        assert go_on.wait(10)
+        written(descriptor, data)
+    monkeypatch.setattr(force_log, "_write_all", stalled)
+    log = ForceLog(GRID, kernel="layer", mode="auto", spool_beside=tmp_path / "f.npz", queue_frames=2)
+    try:
+        log.add(frames[0], results[0])
+        assert inside.wait(10)  # the writer holds frame 0; two frames may wait behind it
+        for k in range(1, 8):
+            log.add(frames[k], results[k])  # returns at once: it never waits for the writer
+        assert log.behind == 5 and len(log) == 0
+        go_on.set()
+        table = log.table()
+        assert table.frames.tolist() == [0, 1, 2] and log.left_out == 5 and log.unwritten == 0
+        assert log.reason() == "5 while the disk fell 2 frames behind"
+    finally:
+        go_on.set()
+        log.close()
+    assert not log.spool.exists()
+
+
+def test_a_defect_in_the_writer_is_counted_and_never_hangs_the_log(frames, results, log, monkeypatch):
+    def broken(descriptor, data):
+        raise ValueError("a defect")
+    monkeypatch.setattr(force_log, "_write_all", broken)
+    for k in range(3):
+        log.add(frames[k], results[k])
+    log.flush()  # returns: the writer counted the frames and goes on
+    assert (len(log), log.unwritten) == (0, 3) and str(log.failure) == "a defect"
+
+
+def test_the_queue_must_hold_a_frame(tmp_path):
+    with pytest.raises(ValueError, match="queue_frames must be a whole number >= 1, got 0"):
+        ForceLog(GRID, kernel="layer", mode="auto", spool_beside=tmp_path / "f.npz", queue_frames=0)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_an_empty_log_has_no_table(log):
