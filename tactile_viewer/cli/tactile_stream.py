@@ -221,7 +221,7 @@ def main(argv=None) -> int:
     int
         0 after a clean stop, 1 when the board could not be opened, a recording or
         force file failed, or the force file could not hold every frame published (its
-        disk filled), 2 for bad options.
+        disk filled or fell behind), 2 for bad options.
     """
     parser = _parser()
     args = parser.parse_args(argv)
