@@ -78,10 +78,9 @@ class ForceLog:
         Whether the parameters were found for each frame or given.
     source : str
         What the frames came from (recorded in the table).
-    spool_beside : path-like or None
+    spool_beside : path-like
         The spool is a hidden folder in this file's folder (the force file's:
-        the same disk, which then also holds the file written from it); None
-        (default): the system's temporary folder.
+        the same disk, which then also holds the file written from it).
 
     queue_frames : int, optional
         Most frames waiting for the writer (default :data:`QUEUE_FRAMES`).
@@ -92,7 +91,7 @@ class ForceLog:
         When the spool cannot be made there.
     """
 
-    def __init__(self, grid: SensorGrid, *, kernel: str, mode: str, source: str = "", spool_beside=None,
+    def __init__(self, grid: SensorGrid, *, kernel: str, mode: str, spool_beside, source: str = "",
                  queue_frames: int = QUEUE_FRAMES):
         self.grid, self.kernel, self.mode, self.source = grid, kernel, mode, source
         self.behind = 0  # frames published while queue_frames waited (the disk did not keep up)
@@ -103,15 +102,8 @@ class ForceLog:
         self._contacts = 0
         self._last_index: int | None = None
         self._tracker = ContactTracker(grid)
-        if spool_beside is None:
-            import tempfile
-
-            folder = Path(tempfile.gettempdir())
-            name = f"tactile-forces.{secrets.token_hex(4)}.spool"
-        else:
-            target = Path(spool_beside)
-            folder, name = target.parent, f".{target.name}.{secrets.token_hex(4)}.spool"
-        self.spool = folder / name
+        target = Path(spool_beside)
+        self.spool = target.parent / f".{target.name}.{secrets.token_hex(4)}.spool"
         self.spool.mkdir()
         self._files = {}
         try:
