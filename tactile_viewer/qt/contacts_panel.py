@@ -77,8 +77,12 @@ class ContactsPanel(QtWidgets.QGroupBox):
         self.table.verticalHeader().hide()
         self.table.setEditTriggers(QtWidgets.QAbstractItemView.EditTrigger.NoEditTriggers)
         self.table.setSelectionMode(QtWidgets.QAbstractItemView.SelectionMode.NoSelection)
-        self.table.horizontalHeader().setSectionResizeMode(QtWidgets.QHeaderView.ResizeMode.ResizeToContents)
-        self.table.horizontalHeader().setStretchLastSection(True)
+        header = self.table.horizontalHeader()
+        header.setSectionResizeMode(QtWidgets.QHeaderView.ResizeMode.ResizeToContents)
+        # the note takes the width left, however little: the numbers are never scrolled sideways out
+        # of view (a stretched last section kept 100 px, 17 px more than a 1280 px window leaves);
+        # a note too long for it is elided and whole in its tooltip
+        header.setSectionResizeMode(len(COLUMNS) - 1, QtWidgets.QHeaderView.ResizeMode.Stretch)
         self.table.setToolTip("Each contact's resultant and its own shear parameters "
                               "(the red arrows in the scene)")
         row_height = self.table.verticalHeader().defaultSectionSize()
@@ -104,3 +108,5 @@ class ContactsPanel(QtWidgets.QGroupBox):
                         item.setTextAlignment(alignment)
                     self.table.setItem(r, c, item)
                 item.setText(text)
+                if c == len(COLUMNS) - 1:
+                    item.setToolTip(text)

@@ -749,3 +749,73 @@ def test_at_1280x800_the_timeline_and_every_control_are_in_view_unscrolled(opene
     # the timeline sits under the scene
     scene = opened.plotter.interactor
     assert opened.playback.mapTo(opened, QtCore.QPoint(0, 0)).y() >= scene.mapTo(opened, QtCore.QPoint(0, 0)).y() + scene.height()
+
+
+def out_of_reach(window):
+    """The controls column's panels and controls that cannot be brought wholly into its view, and why.
+
+    The column scrolls only up and down: it must be no wider than its view. Each panel and control
+    is scrolled to (``ensureWidgetVisible``, as the keyboard focus does) and must then lie wholly
+    inside the view; the contacts table must show all its columns and three rows.
+    """
+    from PyQt6 import QtCore, QtWidgets
+
+    column = window._controls
+    scroll = column
+    while not isinstance(scroll, QtWidgets.QScrollArea):
+        scroll = scroll.parentWidget()
+    viewport = scroll.viewport()
+    kinds = (QtWidgets.QGroupBox, QtWidgets.QAbstractButton, QtWidgets.QComboBox, QtWidgets.QAbstractSpinBox,
+             QtWidgets.QSlider, QtWidgets.QLabel, QtWidgets.QTableWidget)
+    table = window.contacts_panel.table
+    problems = []
+    if scroll.horizontalScrollBar().maximum() > 0:  # hidden, so the column's right edge would be cut off
+        problems.append(("column wider than its view", column.width(), viewport.width()))
+    for widget in column.findChildren(QtWidgets.QWidget):
+        inside_table = table.isAncestorOf(widget)  # its own scroll bars and corner button
+        if not isinstance(widget, kinds) or inside_table or not widget.isVisibleTo(column):
+            continue
+        scroll.ensureWidgetVisible(widget, 0, 0)
+        QtWidgets.QApplication.processEvents()
+        placed = QtCore.QRect(widget.mapTo(viewport, QtCore.QPoint(0, 0)), widget.size())
+        if widget.width() <= 0 or widget.height() <= 0 or not viewport.rect().contains(placed):
+            problems.append((type(widget).__name__, widget.objectName() or getattr(widget, "text", str)(),
+                             placed, viewport.rect()))
+    scroll.verticalScrollBar().setValue(0)
+    header = table.horizontalHeader()
+    if header.length() > table.viewport().width() or table.horizontalScrollBar().maximum() > 0:
+        problems.append(("contacts table columns", header.length(), table.viewport().width()))
+    if table.viewport().height() < 3 * table.verticalHeader().defaultSectionSize():
+        problems.append(("contacts table rows", table.viewport().height()))
+    return problems
+
+
+@pytest.mark.parametrize("case", ["maximised"])
+def test_at_1280x800_every_control_of_the_column_can_be_scrolled_into_view_whole(window, qtbot, case):
+    # before: the contacts table scrolled sideways at every size (its note column kept 100 px, 17 px
+    # more than was left), its scroll bar over its third row
+    from PyQt6 import QtCore
+
+    from solver.quality import Configuration
+
+    with qtbot.waitSignal(window.ready, timeout=20000):
+        assert window.open(SAMPLES / "two_contacts.npz")
+    with qtbot.waitSignal(window.model.solved, timeout=10000):
+        window.model.set_frame(4)  # two contacts, one with a note
+    table = window.contacts_panel.table
+    assert table.rowCount() == 2
+    notes = [table.item(row, table.columnCount() - 1) for row in range(2)]
+    assert [(n.text(), n.toolTip()) for n in notes if n.text()] == [("no shear", "no shear")]  # whole if elided
+    screen = window.screen().availableGeometry()
+    assert (screen.width(), screen.height()) == (1280, 800)  # pytest-xvfb's screen (pyproject.toml)
+    if case == "maximised":
+        size = screen.size()  # no window manager under Xvfb: maximised is the screen's available size
+    else:
+        size = QtCore.QSize(1280, 760)  # what a 1280x800 screen opens the window at (first_size)
+        with qtbot.waitSignal(window.model.solved, timeout=30000):
+            window._rebuild(window.model.kernel, Configuration("normal only", path="normal"))
+        assert window.parameters.shear_note.isVisible()  # the tallest the column gets
+    window.resize(size)
+    qtbot.waitUntil(lambda: window.size() == size, timeout=5000)
+    qtbot.wait(100)  # the dock's layout follows the column's scroll bar
+    assert out_of_reach(window) == []
