@@ -34,9 +34,12 @@ from .search import (
     contact_stress,
     fit_at,
     gauss_newton,
-    load_patches,
+    load_decision,
+    misfit_variance,
+    near_sums,
     pairs_of,
     scipy_fit,
+    shear_evidence,
     workspace,
 )
 
@@ -213,10 +216,10 @@ class ContactFit:
         # Soft decision from the sensors near each contact (module notes).
         k = p.shape[1]
         near = frame.row_contact
-        rho = (residual ** 2) @ near
+        rho = near_sums(residual * residual, near)
         variance = self._variance(frame, g, residual, k)
-        gain = (residual0 ** 2) @ near - rho
-        evidence = self._evidence(frame, gain, variance, k)
+        gain = near_sums(residual0 * residual0, near) - rho
+        evidence = shear_evidence(frame.stress, near, gain, variance, k)
         if K > 1:
             # Contacts fitted together: the gain from no shear anywhere to the found shear, on the
             # sensors near one contact, is partly its neighbours' (their shear's signature reaches
@@ -236,7 +239,7 @@ class ContactFit:
                 total = explained.sum(axis=0)
                 for c in refit:
                     gain[c] = self._shear_free_misfit(frame, total - explained[c], g0, c) - rho[c]
-            evidence = self._evidence(frame, gain, variance, k)
+            evidence = shear_evidence(frame.stress, near, gain, variance, k)
         with np.errstate(divide="ignore", invalid="ignore"):
             keep = np.where(evidence > 0, np.maximum(0.0, 1.0 - self.shrinkage / evidence), 0.0)
         p = p * keep[:, None]
@@ -262,27 +265,10 @@ class ContactFit:
         left = columns.T @ profile - b
         return float(left @ left)
 
-    @staticmethod
-    def _evidence(frame, gain, variance, parameters):
-        # the F statistic of a gain in |residual|^2 near the contacts; an improvement below 1e-10 of
-        # |b|^2 there is no evidence: rounding (on exact template data the search gains up to 1e-31
-        # of |b|^2, measured) or far below any noise
-        gain = np.where(gain > 1e-10 * ((frame.stress ** 2) @ frame.row_contact), gain, 0.0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            evidence = np.where(variance > 0, gain / parameters / variance, np.inf)
-        return np.nan_to_num(evidence, nan=0.0)
-
-    def _variance(self, frame, g, residual, parameters, *, unknown=np.inf):
-        # misfit variance near each contact (K,): its residual over its degrees of freedom, at
-        # least the model's own error; ``unknown`` where no freedom is left
-        near = frame.row_contact
-        positive = np.bincount(frame.column_contact[g > 0], minlength=frame.contacts)
-        dof = near.sum(axis=0) - positive - parameters
-        peak = np.array([np.abs(frame.stress[near[:, c]]).max(initial=0.0) for c in range(frame.contacts)])
-        floor = (self.model_error * peak) ** 2
-        rho = (residual ** 2) @ near
-        return np.where(dof > 0, np.maximum(rho / np.maximum(dof, 1), floor),
-                        floor if unknown is None else unknown)
+    def _variance(self, frame, g, residual, parameters):
+        # misfit variance near each contact (K,); infinite where no freedom is left
+        return misfit_variance(frame.stress, residual, frame.row_contact, frame.column_contact, g, parameters,
+                               self.model_error, np.inf)
 
     def _choice(self, frame, shear, g, residual, evidence, detected, *, decide=True, shear_free=None):
         # the load decision (class notes) when the search was free, then the functional's value
@@ -297,24 +283,10 @@ class ContactFit:
                       shear_free)
 
     def _load_decision(self, frame, shear, g, residual):
-        K = frame.contacts
-        # patches: the connected pieces of each contact's fitted load, gaps of one node bridged
-        column_patch, patch_contact, size, explained = load_patches(
-            frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact, frame.column_node, shear, g,
-            *frame.neighbours)
-        # with no freedom left to measure the noise, only the model's own error is known
-        variance = self._variance(frame, g, residual, 0, unknown=None)[patch_contact]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            chi2 = np.nan_to_num(np.sum(explained ** 2, axis=1) / variance, nan=0.0)
-        patch_evidence = (chi2 - size) / np.sqrt(2 * size)
-        noise = patch_evidence < self.min_load_evidence
-        if noise.any():
-            g = np.where(noise[column_patch] & (column_patch >= 0), 0.0, g)
-            residual = residual - explained[noise].sum(axis=0)
-        # each contact's evidence: that of its strongest patch kept
-        load_evidence = np.zeros(K)
-        np.maximum.at(load_evidence, patch_contact[~noise], patch_evidence[~noise])
-        return g, residual, load_evidence
+        # (class notes) compiled: solver.search.load_decision
+        return load_decision(frame.fit_x.T, frame.fit_y.T, frame.fit_z.T, frame.column_contact,
+                             frame.column_node, shear, g, residual, *frame.neighbours, frame.stress,
+                             frame.row_contact, self.model_error, self.min_load_evidence)
 
 
 def independent_groups(frame: FunctionalInput) -> list:

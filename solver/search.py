@@ -35,9 +35,9 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["contact_cores", "contact_labels", "gather", "template_misfit", "contact_stress",
-           "load_patches", "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
-           "BOTH", "RATIO", "DIRECTION"]
+__all__ = ["contact_cores", "contact_labels", "fit_view", "template_misfit", "contact_stress",
+           "load_patches", "near_sums", "misfit_variance", "shear_evidence", "load_decision", "scipy_fit",
+           "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of", "BOTH", "RATIO", "DIRECTION"]
 
 
 # Columns whose remaining norm after projecting out the set's columns is below this fraction
@@ -611,26 +611,65 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
 
 
 @numba.njit(cache=True, nogil=True)
-def gather(matrix, rows, columns):
-    """``matrix[columns][:, rows]`` in one pass: the fit's columns, each on the fit's sensors.
+def fit_view(b, labels, near, source, cells):
+    """The contact fit's view of a frame: its sub-cell columns on the sensors near the contacts.
 
     Parameters
     ----------
-    matrix : (N, m) ndarray
-        Stress matrix stored by column (one row of ``matrix`` per force column).
-    rows : (R,) ndarray of int
-    columns : (n,) ndarray of int
+    b : (m,) ndarray
+        Sensor stress, pascals.
+    labels : (m,) ndarray of int
+        Contact 1..K of each node, 0 outside every contact.
+    near : (m, K) ndarray of bool
+        The sensors near each contact.
+    source : (3 c m, m) ndarray
+        The stress matrix's columns as rows, ``c`` sub-cells per node (sub-cell
+        ``q`` of node ``j`` along x is row ``q m + j``; along y and z the same
+        a ``c m`` further each).
+    cells : int
+        ``c``.
 
     Returns
     -------
-    (n, R) ndarray
+    stress : (R,) ndarray
+        ``b`` on the rows.
+    fit : (3n, R) ndarray
+        The columns along x, then y, then z, each on the rows, in one pass.
+    column_contact, column_node, column_id : (n,) ndarray of int
+        Contact 0..K-1, node and sub-cell id (``q m + node``) of each column.
+    row_contact : (R, K) ndarray of bool
     """
-    out = np.empty((columns.size, rows.size))
-    for i in range(columns.size):
-        source = matrix[columns[i]]
-        for j in range(rows.size):
-            out[i, j] = source[rows[j]]
-    return out
+    m, K = near.shape
+    rows = np.empty(m, np.int64)
+    R = 0
+    for i in range(m):
+        for c in range(K):
+            if near[i, c]:
+                rows[R] = i
+                R += 1
+                break
+    index = np.flatnonzero(labels)
+    n = cells * index.size
+    column_id = np.empty(n, np.int64)
+    column_node = np.empty(n, np.int64)
+    column_contact = np.empty(n, np.int64)
+    for q in range(cells):
+        for i in range(index.size):
+            column_id[q * index.size + i] = q * m + index[i]
+            column_node[q * index.size + i] = index[i]
+            column_contact[q * index.size + i] = labels[index[i]] - 1
+    fit = np.empty((3 * n, R))
+    for axis in range(3):
+        for i in range(n):
+            column = source[axis * cells * m + column_id[i]]
+            for r in range(R):
+                fit[axis * n + i, r] = column[rows[r]]
+    stress = np.empty(R)
+    row_contact = np.empty((R, K), np.bool_)
+    for r in range(R):
+        stress[r] = b[rows[r]]
+        row_contact[r] = near[rows[r]]
+    return stress, fit, column_contact, column_node, column_id, row_contact
 
 
 @numba.njit(cache=True, nogil=True)
@@ -753,6 +792,152 @@ def load_patches(xt, yt, zt, contact, node, shear, g, indptr, indices):
     return column_patch, patch_contact, size, explained
 
 
+# -- the decisions after the search: shear evidence and load evidence ------------------------
+
+# np.nan_to_num's stand-ins for infinities (the decisions' statistics were defined with it)
+_LARGEST = np.finfo(np.float64).max
+
+
+@numba.njit(cache=True, nogil=True)
+def _finite(value):
+    # np.nan_to_num(value, nan=0.0) of one number
+    if math.isnan(value):
+        return 0.0
+    if math.isinf(value):
+        return _LARGEST if value > 0 else -_LARGEST
+    return value
+
+
+@numba.njit(cache=True, nogil=True)
+def near_sums(values, row_contact):
+    """``values @ row_contact``: the sum of ``values`` (R,) over each contact's rows (R, K) of bool."""
+    rows, K = row_contact.shape
+    out = np.zeros(K)
+    for r in range(rows):
+        for c in range(K):
+            if row_contact[r, c]:
+                out[c] += values[r]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def misfit_variance(stress, residual, row_contact, column_contact, g, parameters, model_error, unknown):
+    """The misfit variance near each contact (the contact fit's noise estimate).
+
+    Its residual over its degrees of freedom (the sensors near it less its
+    positive columns and ``parameters``), at least the model's own error
+    ``(model_error * peak)^2``, ``peak`` the largest stress near it.
+
+    Parameters
+    ----------
+    stress, residual : (R,) ndarray
+        Pascals.
+    row_contact : (R, K) ndarray of bool
+    column_contact : (n,) ndarray of int
+    g : (n,) ndarray
+        The fitted profile, newtons.
+    parameters : int
+        Free shear parameters of each contact.
+    model_error : float
+    unknown : float
+        The variance where no freedom is left; NaN: the model's error floor.
+
+    Returns
+    -------
+    (K,) ndarray
+        Pascals squared.
+    """
+    rows, K = row_contact.shape
+    rho, count, peak = np.zeros(K), np.zeros(K), np.zeros(K)
+    for r in range(rows):
+        square, size = residual[r] * residual[r], abs(stress[r])
+        for c in range(K):
+            if row_contact[r, c]:
+                rho[c] += square
+                count[c] += 1
+                peak[c] = max(peak[c], size)
+    positive = np.zeros(K)
+    for j in range(g.size):
+        if g[j] > 0:
+            positive[column_contact[j]] += 1
+    variance = np.empty(K)
+    for c in range(K):
+        dof = count[c] - positive[c] - parameters
+        floor = (model_error * peak[c]) ** 2
+        if dof > 0:
+            variance[c] = max(rho[c] / max(dof, 1.0), floor)
+        else:
+            variance[c] = floor if math.isnan(unknown) else unknown
+    return variance
+
+
+@numba.njit(cache=True, nogil=True)
+def shear_evidence(stress, row_contact, gain, variance, parameters):
+    """The F statistic of each contact's gain in ``|residual|^2`` near it from ``parameters`` shear
+    parameters; a gain below 1e-10 of ``|b|^2`` there is no evidence (rounding: on exact template data
+    the search gains up to 1e-31 of it, measured, or far below any noise).
+
+    Returns
+    -------
+    (K,) ndarray
+        ``inf`` where the variance is 0, given as the largest float (as ``np.nan_to_num``).
+    """
+    scale = near_sums(stress * stress, row_contact)
+    K = gain.size
+    evidence = np.empty(K)
+    for c in range(K):
+        kept = gain[c] if gain[c] > 1e-10 * scale[c] else 0.0
+        evidence[c] = _finite(kept / parameters / variance[c] if variance[c] > 0 else np.inf)
+    return evidence
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")  # 0 / 0 is NaN, as in numpy
+def load_decision(xt, yt, zt, contact, node, shear, g, residual, indptr, indices, stress, row_contact,
+                  model_error, min_evidence):
+    """The contact fit's load decision: patches of fitted load the data cannot tell from noise are dropped.
+
+    Patch ``P`` (:func:`load_patches`) explains ``A_P g_P``; its evidence is
+    ``L_P = (chi2_P - n_P) / sqrt(2 n_P)``, ``chi2_P = |A_P g_P|^2 / variance``
+    (:func:`misfit_variance` of its contact without shear parameters, the
+    model's floor where no freedom is left), ``n_P`` its positive columns.
+    Patches below ``min_evidence`` are noise.
+
+    Returns
+    -------
+    g : (n,) ndarray
+        The profile without the noise patches (a new array).
+    residual : (R,) ndarray
+        ``A g - b`` without them (a new array).
+    load_evidence : (K,) ndarray
+        Each contact's strongest patch kept, 0 without one.
+    """
+    column_patch, patch_contact, size, explained = load_patches(xt, yt, zt, contact, node, shear, g,
+                                                                indptr, indices)
+    variance = misfit_variance(stress, residual, row_contact, contact, g, 0, model_error, np.nan)
+    patches, rows = explained.shape
+    K = row_contact.shape[1]
+    noise = np.zeros(patches, np.bool_)
+    removed = np.zeros(rows)
+    load_evidence = np.zeros(K)
+    for q in range(patches):
+        square = 0.0
+        for r in range(rows):
+            square += explained[q, r] * explained[q, r]
+        chi2 = _finite(square / variance[patch_contact[q]])
+        evidence = (chi2 - size[q]) / math.sqrt(2 * size[q])
+        if evidence < min_evidence:
+            noise[q] = True
+            for r in range(rows):
+                removed[r] += explained[q, r]
+        else:
+            load_evidence[patch_contact[q]] = max(load_evidence[patch_contact[q]], evidence)
+    kept = g.copy()
+    for j in range(g.size):
+        if column_patch[j] >= 0 and noise[column_patch[j]]:
+            kept[j] = 0.0
+    return kept, residual - removed, load_evidence
+
+
 # -- the Gauss-Newton search over the shear pairs ----------------------------------------------
 
 BOTH, RATIO, DIRECTION = 0, 1, 2    # which parameters are free
@@ -803,11 +988,12 @@ def fit_at(xt, yt, zt, contact, b, s, free, g, residual, factor, index, columns)
     return steps, k, residual @ residual
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp):
     # Gauss-Newton step of the linearized problem in (g on its set, dp) together, with g
     # eliminated through the set's Cholesky factor: with J = d(A g)/dp and W = A_S^T J,
-    # (J^T J - W^T G^-1 W) dp = -J^T r, G = A_S^T A_S = L L^T
+    # (J^T J - W^T G^-1 W) dp = -J^T r, G = A_S^T A_S = L L^T. Loops, not BLAS: its several
+    # hundred inner products of 200 are too short for a library call each (3.2x faster alone).
     K = jacobian.shape[0]
     q = K * kp
     rows = residual.shape[0]
@@ -815,20 +1001,28 @@ def _step(xt, yt, contact, g, residual, columns, factor, index, k, jacobian, kp)
     sy = np.zeros((K, rows))
     for j in range(g.shape[0]):
         if g[j] > 0:
-            sx[contact[j]] += g[j] * xt[j]
-            sy[contact[j]] += g[j] * yt[j]
+            _axpy(g[j], xt[j], sx[contact[j]])
+            _axpy(g[j], yt[j], sy[contact[j]])
     J = np.empty((q, rows))
     for c in range(K):
         for l in range(kp):
-            J[c * kp + l] = sx[c] * jacobian[c, 0, l] + sy[c] * jacobian[c, 1, l]
+            a, b = jacobian[c, 0, l], jacobian[c, 1, l]
+            for r in range(rows):
+                J[c * kp + l, r] = sx[c, r] * a + sy[c, r] * b
     W = np.empty((q, k))
     V = np.empty((q, k))
+    for i in range(k):
+        column = columns[index[i]]
+        for a in range(q):
+            W[a, i] = _dot(J[a], column)
     for a in range(q):
-        for i in range(k):
-            W[a, i] = J[a] @ columns[index[i]]
         _solve(factor, k, W[a], V[a])
-    schur = J @ J.T - W @ V.T
-    rhs = -(J @ residual)
+    schur = np.empty((q, q))
+    rhs = np.empty(q)
+    for a in range(q):
+        rhs[a] = -_dot(J[a], residual)
+        for b in range(q):
+            schur[a, b] = _dot(J[a], J[b]) - _dot(W[a], V[b])
     try:
         return np.linalg.solve(schur, rhs)
     except Exception:  # a contact whose columns carry no load: no curvature along its pair

@@ -17,7 +17,7 @@ import numpy as np
 from .arrays import read_only
 from .functional import FunctionalInput
 from .geometry import SensorGrid
-from .search import gather
+from .search import fit_view
 
 __all__ = ["SeenFrame", "noise_level", "WHOLE_CELLS", "NOISE_EVIDENCE"]
 
@@ -120,8 +120,6 @@ class SeenFrame:
         covered = int(np.count_nonzero(labels))
         if covered > WHOLE_CELLS * budget:
             return cls(frame=None, over=covered, **seen)
-        rows = np.flatnonzero(near.any(axis=1))
-        index = np.flatnonzero(labels)
         source, cells = fit_columns, subdivision ** 2
         if covered > budget and cells > 1:
             # whole cells: a quarter of the columns, the same compressive, friction-shaped fit
@@ -132,13 +130,9 @@ class SeenFrame:
             seen["fallback"] = "; ".join(filter(None, [seen.get("fallback", ""), (
                 f"{left_out} contact(s) of weaker evidence left out: the fit's budget of "
                 f"{WHOLE_CELLS * budget} nodes ({WHOLE_CELLS} x fit_budget) held the strongest")]))
-        columns = (np.arange(cells)[:, None] * m + index).ravel()  # sub-cell q of node j: q m + j
-        width = cells * m
-        every = np.concatenate([columns, columns + width, columns + 2 * width])
-        fit = gather(source, rows, every).T  # (R, 3n), each column contiguous
-        n = columns.size
-        frame = FunctionalInput(stress=b[rows], fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],
-                      column_contact=np.tile(labels[index] - 1, cells).astype(np.intp),
-                      row_contact=near[rows], max_shear_ratio=max_shear_ratio,
-                      column_node=np.tile(index, cells), neighbours=neighbours, column_id=columns)
+        stress, fit, contact, node, column_id, row_contact = fit_view(b, labels, near, source, cells)
+        fit, n = fit.T, column_id.size  # (R, 3n), each column contiguous
+        frame = FunctionalInput(stress=stress, fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],
+                                column_contact=contact, row_contact=row_contact, column_node=node,
+                                max_shear_ratio=max_shear_ratio, neighbours=neighbours, column_id=column_id)
         return cls(frame=frame, **seen)

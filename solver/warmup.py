@@ -24,4 +24,8 @@ def warm_up():
     for parameters in ({}, dict(shear_ratio=0.2, shear_direction=0.3), dict(shear_direction=0.3),
                        dict(shear_ratio=0.2)):
         solver.solve(stress, **parameters)
+    # frames read from a recording or a board are read-only: numba compiles for them apart
+    recorded = stress.copy()
+    recorded.setflags(write=False)
+    solver.sibling().solve(recorded)  # a sibling: the solver itself would reuse the same bytes' frame
     RegionSolver(grid).windows(stress)  # the large-skin path's windows

@@ -9,7 +9,16 @@ import solver.search as search
 from solver import SensorGrid, loads
 from solver.inverse import DenseSolver
 from solver.region import RegionSolver
-from solver.search import contact_labels, load_patches, template_misfit
+from solver.search import (
+    contact_labels,
+    fit_view,
+    load_decision,
+    load_patches,
+    misfit_variance,
+    near_sums,
+    shear_evidence,
+    template_misfit,
+)
 
 
 def random_problem(seed):
@@ -143,6 +152,87 @@ def test_load_patches_are_connected_pieces_of_one_contacts_load():
     columns = zt + shear[contact, :1] * xt + shear[contact, 1:] * yt   # A's columns, one per row
     for k in range(3):
         np.testing.assert_allclose(explained[k], (g * (column_patch == k)) @ columns, rtol=1e-12)
+
+
+def test_the_variance_near_each_contact_is_its_misfit_over_its_freedom_or_the_models_floor():
+    # 6 rows: 0-3 near contact 0, 2-5 near contact 1; contact 0 has 2 positive columns, contact 1 has 4
+    near = np.zeros((6, 2), bool)
+    near[:4, 0] = near[2:, 1] = True
+    stress = np.array([1.0, -8.0, 2.0, 3.0, 5.0, -4.0])
+    residual = np.array([0.5, -1.0, 0.25, 2.0, -0.5, 1.5])
+    contact = np.array([0, 0, 0, 1, 1, 1, 1])
+    g = np.array([1.0, 0.0, 2.0, 1.0, 1.0, 3.0, 1.0])
+    np.testing.assert_array_equal(near_sums(residual ** 2, near), (residual ** 2) @ near)
+    rho = (residual ** 2) @ near
+    # contact 0: 4 rows - 2 positive - 1 parameter = 1; its floor (0.01 * 8)^2 is below rho / 1
+    # contact 1: 4 rows - 4 positive - 1 = -1, no freedom: the given unknown, or NaN: the floor
+    variance = misfit_variance(stress, residual, near, contact, g, 1, 0.01, np.inf)
+    np.testing.assert_allclose(variance, [rho[0] / 1, np.inf], rtol=1e-15)
+    floor = misfit_variance(stress, residual, near, contact, g, 1, 0.01, np.nan)
+    np.testing.assert_allclose(floor, [rho[0], (0.01 * 5.0) ** 2], rtol=1e-15)
+    # a floor above the misfit wins
+    np.testing.assert_allclose(misfit_variance(stress, residual, near, contact, g, 1, 1.0, np.inf),
+                               [64.0, np.inf], rtol=1e-15)
+
+
+def test_shear_evidence_is_the_f_statistic_with_rounding_as_no_gain():
+    near = np.ones((3, 3), bool)
+    stress = np.array([1.0, 2.0, 2.0])       # |b|^2 near every contact: 9
+    gain = np.array([4.0, 8.0e-10, 1.0])      # contact 1's gain is below 1e-10 |b|^2: rounding
+    variance = np.array([0.5, 0.5, 0.0])      # contact 2: no misfit left, infinite evidence
+    evidence = shear_evidence(stress, near, gain, variance, 2)
+    np.testing.assert_array_equal(evidence, [4.0 / 2 / 0.5, 0.0, np.finfo(float).max])
+
+
+def test_the_load_decision_drops_the_patches_noise_could_have_made():
+    # one contact, nodes 0..5 on a line (neighbours within two steps); patch {0, 1} explains much
+    # of the data, the lone column 5 (a patch of its own) almost nothing
+    m = 6
+    neighbours = sparse.csr_matrix(np.abs(np.subtract.outer(np.arange(m), np.arange(m))) <= 2)
+    rng = np.random.default_rng(12)  # fixed seed
+    rows = 40
+    xt, yt, zt = (rng.standard_normal((m, rows)) for _ in range(3))
+    contact, node = np.zeros(m, np.int64), np.arange(m)
+    shear = np.array([[0.2, 0.1]])
+    g = np.array([3.0, 2.0, 0.0, 0.0, 0.0, 1e-3])
+    columns = zt + 0.2 * xt + 0.1 * yt
+    noise = 0.1 * rng.standard_normal(rows)
+    stress = g @ columns + noise
+    residual = g @ columns - stress
+    near = np.ones((rows, 1), bool)
+    kept, left, evidence = load_decision(xt, yt, zt, contact, node, shear, g, residual, neighbours.indptr,
+                                         neighbours.indices, stress, near, 0.002, 10.0)
+    np.testing.assert_array_equal(kept, [3.0, 2.0, 0.0, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(left, kept @ columns - stress, atol=1e-12)
+    # the evidence of the patch kept, in deviations of chi2 (2 positive columns)
+    variance = (residual @ residual) / (rows - 3)
+    chi2 = np.sum((g[:2] @ columns[:2]) ** 2) / variance
+    np.testing.assert_allclose(evidence, [(chi2 - 2) / 2.0], rtol=1e-12)
+    # with -inf every patch stays
+    kept, left, _ = load_decision(xt, yt, zt, contact, node, shear, g, residual, neighbours.indptr,
+                                  neighbours.indices, stress, near, 0.002, -np.inf)
+    np.testing.assert_array_equal(kept, g)
+    np.testing.assert_array_equal(left, residual)
+
+
+def test_the_fit_view_is_the_sub_cell_columns_on_the_rows_near_the_contacts():
+    # 5 nodes, 2 sub-cells each: source rows x (q m + j), then y and z each 2 m further
+    m, cells = 5, 2
+    rng = np.random.default_rng(3)  # fixed seed
+    source = rng.standard_normal((3 * cells * m, m))
+    labels = np.array([0, 2, 0, 1, 0])
+    near = np.zeros((m, 2), bool)
+    near[[0, 1, 3], 1] = near[[3, 4], 0] = True
+    b = rng.standard_normal(m)
+    stress, fit, contact, node, column_id, row_contact = fit_view(b, labels, near, source, cells)
+    rows = [0, 1, 3, 4]
+    np.testing.assert_array_equal(stress, b[rows])
+    np.testing.assert_array_equal(row_contact, near[rows])
+    np.testing.assert_array_equal(column_id, [1, 3, 6, 8])
+    np.testing.assert_array_equal(node, [1, 3, 1, 3])
+    np.testing.assert_array_equal(contact, [1, 0, 1, 0])
+    every = np.concatenate([column_id + axis * cells * m for axis in range(3)])
+    np.testing.assert_array_equal(fit, source[every][:, rows])
 
 
 def test_template_misfit_is_the_friction_shaped_load_and_what_it_leaves():
