@@ -28,6 +28,7 @@ from ..render.scene import Scene
 from ..sources.source import RecordingSource, Source
 from .bag_dialog import ask_recording_path, load_asking
 from .contacts_panel import ContactsPanel
+from .control_column import ControlColumn
 from .display_panel import DisplayPanel
 from .export_dialogs import ExportActions
 from .hover import TaxelReadout
@@ -141,16 +142,10 @@ class MainWindow(QtWidgets.QMainWindow):
         column.addWidget(self.display_panel)
         column.addWidget(self.contacts_panel, 1)  # the table takes the height left
         # on a short screen the column scrolls rather than push the status bar off it
-        scroll = QtWidgets.QScrollArea()
-        scroll.setWidget(self._controls)
-        scroll.setWidgetResizable(True)
-        scroll.setFrameShape(QtWidgets.QFrame.Shape.NoFrame)
-        scroll.setHorizontalScrollBarPolicy(QtCore.Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-        self._controls.setMinimumWidth(self._controls.sizeHint().width())
         dock = QtWidgets.QDockWidget("Controls", self)
         dock.setObjectName("controls")  # saveState/restoreState find the dock by it
         dock.setFeatures(QtWidgets.QDockWidget.DockWidgetFeature.NoDockWidgetFeatures)
-        dock.setWidget(scroll)
+        dock.setWidget(ControlColumn(self._controls))
         self.addDockWidget(QtCore.Qt.DockWidgetArea.RightDockWidgetArea, dock)
         self._build_menus()
         self.status = QtWidgets.QLabel("open a recording (File > Open) or connect a board (Live > Connect)")
