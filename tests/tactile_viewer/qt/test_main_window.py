@@ -820,3 +820,15 @@ def test_at_1280x800_every_control_of_the_column_can_be_scrolled_into_view_whole
     qtbot.waitUntil(lambda: window.size() == size, timeout=5000)
     qtbot.wait(100)  # the dock's layout follows the column's scroll bar
     assert out_of_reach(window) == []
+
+
+def test_dragging_the_column_narrower_stops_at_its_widest_control(window, qtbot):
+    # before: the dock's separator squeezed the column to 300 px, its right 130 px out of reach
+    from PyQt6 import QtCore, QtWidgets
+
+    window.resize(1280, 800)
+    qtbot.waitUntil(lambda: window.height() == 800, timeout=5000)
+    dock = window.findChild(QtWidgets.QDockWidget, "controls")
+    window.resizeDocks([dock], [300], QtCore.Qt.Orientation.Horizontal)  # as a drag of the separator
+    qtbot.wait(100)
+    assert out_of_reach(window) == []
