@@ -97,7 +97,8 @@ def test_cycles_are_shared_by_scene_and_everything_of_the_grid():
 
 def test_a_cycle_started_while_its_thread_is_stopping_computes_again(monkeypatch):
     fake_frames(monkeypatch, lambda k: time.sleep(0.03))
-    cycle = Cycle("circle", SensorGrid.regular(3, 2, 2e-3, 2e-3)).start()
+    # 10 frames (a layer frame takes about 0.2 s here): the stop lands on the first one all the same
+    cycle = Cycle("circle", SensorGrid.regular(3, 2, 2e-3, 2e-3), 10).start()
     try:
         stopping = cycle._worker
         cycle.close(timeout=0)  # told to stop, still on its frame
