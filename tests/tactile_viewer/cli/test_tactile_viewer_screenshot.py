@@ -32,30 +32,36 @@ def test_command_line_screenshot_renders_saves_and_exits(tmp_path):
     assert sidecar["poisson_ratio"] == 0.5 and sidecar["sensor_size"] == 0.0  # the material solved with
 
 
-def test_a_screenshot_leaves_the_layout_of_the_same_stem_alone_and_replaces_its_own_sidecar(tmp_path):
+def screenshot_here(out, *options):
+    """``tactile-viewer --screenshot`` in this process (the command itself runs in the test above)."""
+    from tactile_viewer.cli.tactile_viewer import main
+
+    return main([str(SAMPLES / "flat_punch_shear.npz"), *options, "--size", "320x240", "--screenshot", str(out)])
+
+
+def test_a_screenshot_leaves_the_layout_of_the_same_stem_alone_and_replaces_its_own_sidecar(tmp_path, capsys):
     # the tester's case: board.png's sidecar was board.json, and overwrote the sensor layout
     layout = tmp_path / "board.json"
     layout.write_bytes(b'{"nx": 16, "ny": 16, "pitch": 0.002, "thickness": 0.002}\n')
     before = layout.read_bytes()
     out = tmp_path / "board.png"
     for frame in ("3", "5"):  # the second run replaces the first one's sidecar
-        done = run_screenshot(out, "--frame", frame)
-        assert done.returncode == 0, done.stderr
+        assert screenshot_here(out, "--frame", frame) == 0, capsys.readouterr().err
         assert layout.read_bytes() == before
         assert json.loads((tmp_path / "board.png.view.json").read_text())["frame"] == int(frame)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["board.json", "board.png", "board.png.view.json"]
 
 
-def test_a_screenshot_refuses_to_overwrite_an_unrelated_file_of_the_sidecar_name(tmp_path):
+def test_a_screenshot_refuses_to_overwrite_an_unrelated_file_of_the_sidecar_name(tmp_path, capsys):
     out = tmp_path / "board.png"
     foreign = tmp_path / "board.png.view.json"
     foreign.write_bytes(b'{"notes": "calibration of board 7"}\n')
     before = foreign.read_bytes()
-    done = run_screenshot(out, "--frame", "3")
-    assert done.returncode != 0
+    assert screenshot_here(out, "--frame", "3") != 0  # refused, not raised (no traceback)
+    err = capsys.readouterr().err
     assert re.search(rf"^tactile-viewer: {re.escape(str(foreign))}: the sidecar of board\.png was not written: "
-                     r".*'tactile_viewer_sidecar'.* is JSON without that key$", done.stderr, re.MULTILINE), done.stderr
-    assert "Traceback" not in done.stderr
+                     r".*'tactile_viewer_sidecar'.* is JSON without that key$", err, re.MULTILINE), err
+    assert "Traceback" not in err
     assert foreign.read_bytes() == before
 
 
