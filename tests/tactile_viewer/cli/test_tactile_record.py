@@ -1,6 +1,7 @@
 """tactile-record (tactile_viewer/cli/tactile_record.py): killed at any instant, its file opens with every frame but
 the last second; Ctrl+C, SIGTERM and --duration stop it cleanly; its errors are named."""
 
+import json
 import re
 import signal
 import subprocess
@@ -134,7 +135,7 @@ def test_a_stop_leaves_a_complete_file_and_says_what_was_recorded(board, tmp_pat
         np.testing.assert_array_equal(np.array([frame.values for frame in frames]), raw)
 
 
-@pytest.mark.parametrize(("arguments", "code", "message"), [
+ERRORS = [
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--out", "{tmp}/a.mcap"], 1, "cannot open socket://"),
     (["{link}", "--layout", "{tmp}/missing.json", "--out", "{tmp}/a.mcap"], 2, "missing.json"),
     (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.npz"], 1,
@@ -147,14 +148,49 @@ def test_a_stop_leaves_a_complete_file_and_says_what_was_recorded(board, tmp_pat
      "--duration must be a finite number of seconds > 0, got nan"),
     (["{link}", "--layout", "{layout}", "--out", "{tmp}/a.mcap", "--baudrate", "4294967296"], 2,
      "baud rate must be a whole number from 1 to 2147483647, got 4294967296"),
-])
-def test_errors_are_named_and_nothing_is_left_running(board, tmp_path, arguments, code, message):
-    filled = [a.format(layout=board.layout, link=board.link, tmp=tmp_path) for a in arguments]
-    done = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_record", *filled], capture_output=True,
-                          text=True, timeout=30)
-    assert done.returncode == code
-    assert re.search(message, done.stderr), done.stderr
-    assert not (tmp_path / "a.mcap").exists()
+]
+
+# the error cases one after another in one process (a start of Python costs seconds): each one's exit code
+# and stderr, and the threads it left that would keep a process of its own from ending
+EACH_IN_TURN = """
+import contextlib, io, json, sys, threading
+from tactile_viewer.cli import tactile_record as record
+
+results = []
+for arguments in json.loads(sys.argv[1]):
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            code = record.main(arguments)
+        except SystemExit as exit:  # argparse's errors
+            code = exit.code
+    left = [t for t in threading.enumerate() if t is not threading.main_thread() and not t.daemon]
+    for thread in left:
+        thread.join(30)  # as long as a process of its own would have been given to end
+    results.append({"code": code, "stderr": err.getvalue(), "left": [t.name for t in left if t.is_alive()]})
+print(json.dumps(results))
+"""
+
+
+@pytest.fixture(scope="module")
+def error_runs(board, tmp_path_factory):
+    """Per case of ERRORS: its own folder ({tmp}) and what running it gave."""
+    folders = [tmp_path_factory.mktemp("error") for _ in ERRORS]
+    runs = [[a.format(layout=board.layout, link=board.link, tmp=folder) for a in arguments]
+            for (arguments, _, _), folder in zip(ERRORS, folders, strict=True)]
+    done = subprocess.run([sys.executable, "-c", EACH_IN_TURN, json.dumps(runs)], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    return list(zip(folders, json.loads(done.stdout.splitlines()[-1]), strict=True))
+
+
+@pytest.mark.parametrize(("arguments", "code", "message"), ERRORS)
+def test_errors_are_named_and_nothing_is_left_running(error_runs, arguments, code, message):
+    folder, done = error_runs[ERRORS.index((arguments, code, message))]
+    assert done["code"] == code
+    assert re.search(message, done["stderr"]), done["stderr"]
+    assert not done["left"], f"threads left running: {done['left']}"
+    assert not (folder / "a.mcap").exists()
 
 
 FULL_DISK = """
