@@ -58,12 +58,14 @@ def test_the_command_line_writes_one_video_frame_per_recording_frame(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["press.mp4"]  # no temporary file left
 
 
-def test_the_command_line_writes_an_animated_gif_at_the_rate_asked_for(tmp_path):
+def test_the_command_line_writes_an_animated_gif_at_the_rate_asked_for(tmp_path, capsys):
+    # main() in this process: the command itself runs as a process in the test above
     out = tmp_path / "punch.gif"
-    done = run_movie("flat_punch_shear.npz", out, "--stop", "6", "--fps", "10", "--size", "400x300",
-                     "--shear-ratio", "0.3", "--shear-direction", "30", "--camera", "top")
-    assert done.returncode == 0, done.stderr
-    assert f"wrote {out}: 6 frames, 400 x 300, fps 10," in done.stdout
+    code = main([str(SAMPLES / "flat_punch_shear.npz"), "--movie", str(out), "--stop", "6", "--fps", "10",
+                 "--size", "400x300", "--shear-ratio", "0.3", "--shear-direction", "30", "--camera", "top"])
+    done = capsys.readouterr()
+    assert code == 0, done.err
+    assert f"wrote {out}: 6 frames, 400 x 300, fps 10," in done.out
     frames = iio3.imread(out, index=None)
     assert frames.shape[:3] == (6, 300, 400)
     assert [iio3.immeta(out, index=k)["duration"] for k in range(6)] == [100] * 6
