@@ -237,20 +237,17 @@ def test_sensor_size_averages_the_kernel_over_the_taxel(kernel):
     averaged = kernels.stress_matrix(grid, kernel)
     # brute force: the point-sensor kernel on a fine grid of the taxel
     fine = (np.arange(40) + 0.5) / 40 * side - side / 2
-    total = np.zeros_like(averaged)
-    for u in fine:
-        for v in fine:
-            shifted = SensorGrid(point.positions + [u, v], h, pitch, (point.size,))
-            p, q = shifted.positions, point.positions
-            dx, dy = p[:, 0, None] - q[None, :, 0], p[:, 1, None] - q[None, :, 1]
-            if kernel == "layer":
-                parts = kernels.layer_force_stress(dx, dy, h, pitch, 0.5)
-            elif kernel == "cell":
-                parts = kernels.cell_force_stress(dx, dy, h, pitch)
-            else:
-                parts = kernels.half_space_point_stress(dx, dy, h)
-            total += np.hstack(parts)
-    total /= fine.size**2
+    u, v = np.meshgrid(fine, fine, indexing="ij")
+    # every point of the taxel at once: sensors p shifted by it, (40 * 40, 9, 2), against the nodes q
+    p, q = point.positions[None] + np.column_stack([u.ravel(), v.ravel()])[:, None], point.positions
+    dx, dy = p[..., 0, None] - q[:, 0], p[..., 1, None] - q[:, 1]
+    if kernel == "layer":
+        parts = kernels.layer_force_stress(dx, dy, h, pitch, 0.5)
+    elif kernel == "cell":
+        parts = kernels.cell_force_stress(dx, dy, h, pitch)
+    else:
+        parts = kernels.half_space_point_stress(dx, dy, h)
+    total = np.concatenate(parts, axis=2).mean(axis=0)
     assert np.abs(averaged - total).max() <= 2e-3 * np.abs(total).max()
 
 
