@@ -2,7 +2,7 @@
 
 import pytest
 
-from measurement.cases import layer_cases, standard_cases
+from measurement.cases import layer_cases, standard_cases, validation_cases
 
 
 @pytest.fixture(scope="session")
@@ -17,3 +17,18 @@ def standard_set():
 def layer_noisy():
     # the physics set (layer_cases): its own seed and h/p 2, nothing was tuned on it
     return layer_cases(noise=0.01)
+
+
+@pytest.fixture(scope="session")
+def validation_set():
+    """``validation_set(noise)``: measurement.cases.validation_cases(noise=noise), built once per noise.
+
+    Cases are frozen and their frames read-only: tests that share one only read it.
+    """
+    made = {}
+
+    def get(noise=0.01):
+        if noise not in made:
+            made[noise] = validation_cases(noise=noise)
+        return made[noise]
+    return get

@@ -11,7 +11,6 @@ from measurement.cases import (
     default_cases,
     standard_contact,
     tuning_cases,
-    validation_cases,
 )
 from solver import SensorGrid
 
@@ -40,8 +39,8 @@ def test_layer_set_covers_what_the_issue_names(layer_noisy):
     assert all(c.frame.medium == "layer" and c.frame.grid.poisson_ratio == 0.5 for c in layer_noisy)
 
 
-def test_the_validation_set_is_not_the_tuning_set():
-    tuning, validation = tuning_cases(), validation_cases()
+def test_the_validation_set_is_not_the_tuning_set(validation_set):
+    tuning, validation = tuning_cases(), validation_set()  # validation_cases() of conftest.py
     assert {c.thickness_ratio for c in tuning} == {0.5, 1.0, 1.5}
     assert {c.thickness_ratio for c in validation} == {0.6, 1.0, 1.4}
     # 12 shear-free loads, 24 with shear, on layer data

@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from measurement.cases import LOAD_VALIDATION_SEEDS, layer_cases, standard_cases, validation_cases
+from measurement.cases import LOAD_VALIDATION_SEEDS, layer_cases, standard_cases
 from measurement.validation import (
     counts,
     decision_curve,
@@ -23,8 +23,8 @@ from measurement.validation import (
 from solver import Reconstructor, SensorGrid, loads
 from solver.efficiency import ContactFit
 
-# standard_set (the standard set on half-space data) and layer_noisy (the physics set, 1% noise)
-# are session fixtures of conftest.py
+# standard_set (the standard set on half-space data), layer_noisy (the physics set, 1% noise) and
+# validation_set (the validation set by noise) are session fixtures of conftest.py
 
 
 @pytest.mark.parametrize("kernel, normal_bar", [("cell", 0.03), ("point", 0.08)])
@@ -126,10 +126,11 @@ def validation_solvers():
 
 @pytest.mark.parametrize("noise, tangential_bar, direction_bar", [(0.01, 0.09, 10.0), (0.003, 0.03, 5.0),
                                                                  (0.0, 0.005, 1.0)])
-def test_accuracy_on_the_validation_set(validation_solvers, noise, tangential_bar, direction_bar, capsys):
+def test_accuracy_on_the_validation_set(validation_solvers, validation_set, noise, tangential_bar, direction_bar,
+                                       capsys):
     # ContactFit's shrinkage and model_error were chosen on tuning_cases (seed 7, h/p 0.5, 1,
     # 1.5); this set has seed 31, h/p 0.6, 1.0, 1.4, other sizes and positions.
-    cases = validation_cases(noise=noise)
+    cases = validation_set(noise)
     rows = evaluate(cases, validation_solvers)
     decided = counts(rows)
     with capsys.disabled():
@@ -260,7 +261,7 @@ def test_the_command_prints_the_decision_curve_beside_the_ideal_tests_bound(caps
     assert missed[0] > missed[1] > missed[2]
 
 
-def test_the_command_prints_the_sheared_loads_medians_beside_the_bounds(capsys):
+def test_the_command_prints_the_sheared_loads_medians_beside_the_bounds(validation_set, capsys):
     from measurement.bounds import shear_bounds
     from measurement.validation import against_bound, main
 
@@ -272,7 +273,7 @@ def test_the_command_prints_the_sheared_loads_medians_beside_the_bounds(capsys):
     for line, ratio in zip(lines[5:], ("0.6", "1", "1.4"), strict=True):
         assert re.fullmatch(rf" +{ratio} +8 +\d+\.\d% +\d+\.\d% +\d+\.\dd +\d+\.\dd", line)
     # the medians are of each thickness's sheared loads, the measured ones from the scored rows
-    cases = [c for c in validation_cases(noise=0.003) if c.thickness_ratio == 1.4]
+    cases = [c for c in validation_set(0.003) if c.thickness_ratio == 1.4]
     rows = evaluate(cases, lambda g: Reconstructor(g))
     table, = against_bound(cases, rows, shear_bounds([c.frame for c in cases]))
     sheared = [r for r in rows if r["true_ratio"] >= 0.2]
