@@ -387,24 +387,56 @@ def test_cli_rejects_bad_arguments(option, value, capsys, tmp_path):
     assert not (tmp_path / "board").exists()
 
 
-def test_cli_writes_poisson_ratio_and_sensor_size_to_its_layout(tmp_path):
-    layout_path = tmp_path / "layout.json"
-    out = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--nx", "3", "--ny", "2",
-                          "--poisson-ratio", "0.45", "--sensor-size", "1e-3", "--duration", "0",
-                          "--layout", str(layout_path), "--link", str(tmp_path / "board")],
-                         capture_output=True, text=True, timeout=60)
-    assert out.returncode == 0, out.stderr[-500:]
-    grid = load_layout(layout_path).grid
+# tactile-sim runs that end by themselves, one after another in one process (a start of Python costs
+# seconds; main() is not run in the test's own process: it opens a pseudo-terminal and takes SIGTERM):
+# each one's exit code and stderr
+RUNS = {
+    "material": ["--nx", "3", "--ny", "2", "--poisson-ratio", "0.45", "--sensor-size", "1e-3", "--duration", "0",
+                 "--layout", "{tmp}/material.json", "--link", "{tmp}/board1"],
+    "defaults": ["--nx", "3", "--ny", "2", "--duration", "0", "--layout", "{tmp}/defaults.json",
+                 "--link", "{tmp}/board2"],
+    # --duration 0.1 at 100 Hz, nobody reading; fixed seed: some dropped, some sent
+    "duration": ["--rate", "100", "--duration", "0.1", "--nx", "3", "--ny", "2", "--dropout", "0.5", "--seed", "1"],
+}
+EACH_IN_TURN = """
+import contextlib, io, json, sys
+from tactile_viewer.cli import tactile_sim
+
+results = {}
+for name, arguments in json.loads(sys.argv[1]).items():
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            code = tactile_sim.main(arguments)
+        except SystemExit as exit:
+            code = exit.code
+    results[name] = {"code": code, "stderr": err.getvalue()}
+print(json.dumps(results))
+"""
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """``(folder, results)``: RUNS run in turn, {tmp} the folder; results by name: code and stderr."""
+    folder = tmp_path_factory.mktemp("runs")
+    arguments = {name: [a.format(tmp=folder) for a in run] for name, run in RUNS.items()}
+    done = subprocess.run([sys.executable, "-c", EACH_IN_TURN, json.dumps(arguments)], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return folder, json.loads(done.stdout.splitlines()[-1])
+
+
+def test_cli_writes_poisson_ratio_and_sensor_size_to_its_layout(runs):
+    folder, results = runs
+    assert results["material"]["code"] == 0, results["material"]["stderr"][-500:]
+    grid = load_layout(folder / "material.json").grid
     assert grid.poisson_ratio == 0.45 and grid.sensor_size == 1e-3 and grid.shape == (2, 3)
 
 
-def test_cli_layout_defaults_to_an_incompressible_layer_and_point_sensors(tmp_path):
-    layout_path = tmp_path / "layout.json"
-    out = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--nx", "3", "--ny", "2",
-                          "--duration", "0", "--layout", str(layout_path), "--link", str(tmp_path / "board")],
-                         capture_output=True, text=True, timeout=60)
-    assert out.returncode == 0, out.stderr[-500:]
-    spec = json.loads(layout_path.read_text())
+def test_cli_layout_defaults_to_an_incompressible_layer_and_point_sensors(runs):
+    folder, results = runs
+    assert results["defaults"]["code"] == 0, results["defaults"]["stderr"][-500:]
+    spec = json.loads((folder / "defaults.json").read_text())
     assert spec["poisson_ratio"] == 0.5 and spec["sensor_size"] == 0.0
 
 
@@ -421,21 +453,20 @@ def test_cli_rejects_an_impossible_material_or_taxel(option, value, message, cap
     assert not (tmp_path / "board").exists()
 
 
-def test_cli_rejects_negative_noise(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--noise", "-0.1", "--nx", "3",
-                          "--ny", "2", "--duration", "0.2", "--link", str(tmp_path / "board")],
-                         capture_output=True, text=True, timeout=30)
-    assert out.returncode == 2 and "--noise" in out.stderr, out.stderr[-500:]
+def test_cli_rejects_negative_noise(tmp_path, capsys):
+    # an argument error, before the pseudo-terminal is opened: main() runs in this process
+    with pytest.raises(SystemExit) as info:
+        main(["--noise", "-0.1", "--nx", "3", "--ny", "2", "--duration", "0.2", "--link", str(tmp_path / "board")])
+    err = capsys.readouterr().err
+    assert info.value.code == 2 and "--noise" in err, err[-500:]
+    assert not (tmp_path / "board").exists()
 
 
-def test_cli_duration_bounds_the_frame_count():
+def test_cli_duration_bounds_the_frame_count(runs):
     # --duration 0.1 at 100 Hz: exactly 10 sequence numbers are used, even with nobody reading
-    out = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_sim", "--rate", "100",
-                          "--duration", "0.1", "--nx", "3", "--ny", "2",
-                          "--dropout", "0.5", "--seed", "1"],  # fixed seed: some dropped, some sent
-                         capture_output=True, text=True, timeout=30)
-    assert out.returncode == 0, out.stderr
-    counts = re.search(r"sent (\d+) frames, dropped (\d+)", out.stderr)
+    out = runs[1]["duration"]
+    assert out["code"] == 0, out["stderr"]
+    counts = re.search(r"sent (\d+) frames, dropped (\d+)", out["stderr"])
     sent, dropped = int(counts[1]), int(counts[2])
     assert sent + dropped == 10 and dropped > 0
 
