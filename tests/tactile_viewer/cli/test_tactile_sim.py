@@ -270,6 +270,17 @@ def read_until_exit(port, process, timeout=15.0):
     return bytes(data)
 
 
+@pytest.fixture(scope="module")
+def cycles():
+    """``cycles(scene, grid)``: the module's Cycle of ``scene`` on ``grid``, never started: only the frames
+    the tests ask for are computed (each once; a frame of a small skin takes a tenth of a second)."""
+    made = {}
+
+    def get(scene, grid):
+        return made.setdefault((scene, grid.key), Cycle(scene, grid))
+    return get
+
+
 @pytest.fixture
 def processes():
     started = []
@@ -280,7 +291,7 @@ def processes():
         process.communicate(timeout=10)
 
 
-def test_cli_streams_through_a_linked_pseudo_terminal(tmp_path, processes):
+def test_cli_streams_through_a_linked_pseudo_terminal(tmp_path, processes, cycles):
     process, link, layout_path = run_sim(tmp_path, "--rate", "500", "--duration", "1",
                                          "--nx", "6", "--ny", "4", "--noise", "0")
     processes.append(process)
@@ -303,12 +314,16 @@ def test_cli_streams_through_a_linked_pseudo_terminal(tmp_path, processes):
     np.testing.assert_array_equal(np.diff(seqs), 1)
     assert not decoder.rejected and decoder.pending == 0
     # the frames are the cycle of the layout it wrote, in kPa
-    cycle = contact_cycle(layout.grid) * 1e-3
+    cycle = cycles("circle", layout.grid)
     index = (seqs / 500 / 2.0 * len(cycle)).astype(int) % len(cycle)
-    np.testing.assert_allclose([f.values for f in frames], cycle[index], rtol=1e-6)
+    np.testing.assert_allclose([f.values for f in frames], [cycle[k] * 1e-3 for k in index], rtol=1e-6)
 
 
-def test_cli_text_format(tmp_path, processes):
+# the text runs send 0.5 s at 200 Hz of the 2 s circling contact: frames 0 to 24 of its 100-frame cycle
+SENT = 25
+
+
+def test_cli_text_format(tmp_path, processes, cycles):
     process, link, layout_path = run_sim(tmp_path, "--format", "text", "--rate", "200", "--duration", "0.5",
                                          "--nx", "3", "--ny", "2", "--noise", "0")
     processes.append(process)
@@ -320,12 +335,12 @@ def test_cli_text_format(tmp_path, processes):
     frames = decoder.feed(data)
     # the port may open in the middle of a line: at most that one is rejected
     assert len(frames) >= 80 and sum(decoder.rejected.values()) <= 1
-    cycle = contact_cycle(layout.grid) * 1e-3
+    cycle = np.array([cycles("circle", layout.grid)[k] for k in range(SENT)]) * 1e-3
     for frame in frames[1:]:  # the first may be the tail of a cut line that still parses
         assert np.abs(frame.values / cycle - 1).max(axis=1).min() < 1e-5  # one of the cycle's frames
 
 
-def test_cli_text_format_with_checksum(tmp_path, processes):
+def test_cli_text_format_with_checksum(tmp_path, processes, cycles):
     process, link, layout_path = run_sim(tmp_path, "--format", "text", "--checksum", "--rate", "200",
                                          "--duration", "0.5", "--nx", "3", "--ny", "2", "--noise", "0")
     processes.append(process)
@@ -338,7 +353,7 @@ def test_cli_text_format_with_checksum(tmp_path, processes):
     # the port may open in the middle of a line: at most that one fails its checksum
     assert len(frames) >= 80 and decoder.checked and sum(decoder.rejected.values()) <= 1
     assert all(re.fullmatch(rb"[^*]+\*[0-9A-F]{4}", line) for line in data.splitlines()[1:])
-    cycle = contact_cycle(layout.grid) * 1e-3
+    cycle = np.array([cycles("circle", layout.grid)[k] for k in range(SENT)]) * 1e-3
     for frame in frames:  # a cut first line fails its checksum instead of passing as a tail that parses
         assert np.abs(frame.values / cycle - 1).max(axis=1).min() < 1e-5
 
@@ -656,7 +671,7 @@ def test_cli_refuses_an_unknown_scene(value, capsys, tmp_path):
     assert not (tmp_path / "board").exists()
 
 
-def test_cli_streams_a_scene(tmp_path, processes):
+def test_cli_streams_a_scene(tmp_path, processes, cycles):
     process, link, layout_path = run_sim(tmp_path, "--scene", "two", "--rate", "100", "--duration", "0.5",
                                          "--nx", "6", "--ny", "4", "--noise", "0")
     processes.append(process)
@@ -666,7 +681,7 @@ def test_cli_streams_a_scene(tmp_path, processes):
     layout = load_layout(layout_path)
     frames = BinaryDecoder(layout.count).feed(data)
     assert len(frames) >= 40
-    cycle = Cycle("two", layout.grid)  # computes only the frames asked for
+    cycle = cycles("two", layout.grid)  # computes only the frames asked for
     index = (np.array([f.seq for f in frames]) / 100 / 4.0 * len(cycle)).astype(int) % len(cycle)
     np.testing.assert_allclose([f.values for f in frames], [cycle[k] * 1e-3 for k in index], rtol=1e-6)
 
