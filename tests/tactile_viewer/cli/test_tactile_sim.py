@@ -615,7 +615,7 @@ def test_boards_sharing_a_cycle_keep_it_computing_until_the_last_one_closes(monk
 
 
 def test_the_last_board_to_close_stops_the_thread_and_a_new_one_restarts_it(monkeypatch):
-    fake_frames(monkeypatch, lambda k: time.sleep(0.03))  # 3 s a cycle
+    fake_frames(monkeypatch, lambda k: time.sleep(0.03), stand_in=True)  # 3 s a cycle
     layout = SensorLayout(SensorGrid.regular(3, 2, 2e-3, 2e-3), "Pa")
     a, b = Board(layout, noise=0.0), Board(layout, noise=0.0)
     cycle = a.cycle

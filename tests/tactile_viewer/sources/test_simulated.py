@@ -1,6 +1,7 @@
 """The simulated scenes (tactile_viewer/sources/simulated.py): their contacts and frames, the lazy cycle."""
 
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -17,15 +18,20 @@ def wait_for(condition, what, timeout=30.0):
         time.sleep(0.01)
 
 
-def fake_frames(monkeypatch, gate):
+def fake_frames(monkeypatch, gate, *, stand_in=False):
     """Make the scene frames wait: frame ``k`` of a cycle of ``CYCLE`` is computed once ``gate(k)`` returns.
 
-    The cache of cycles starts empty (and the test's cycles stay out of the real one).
+    The cache of cycles starts empty (and the test's cycles stay out of the real one). With
+    ``stand_in``, frame ``k`` is not simulated (a tenth of a second each): its stress is ``k + 1``
+    at every sensor, for tests of the threads that compute frames rather than of the frames.
     """
     real = simulated.scene_frame
 
     def gated(scene, grid, phase, **kwargs):
-        gate(round(phase * simulated.CYCLE))
+        k = round(phase * simulated.CYCLE)
+        gate(k)
+        if stand_in:
+            return SimpleNamespace(clean_stress=np.full(grid.size, k + 1.0))
         return real(scene, grid, phase, **kwargs)
 
     monkeypatch.setattr(simulated, "scene_frame", gated)
