@@ -225,27 +225,39 @@ def test_after_a_write_error_the_last_line_counts_what_the_file_holds(board, tmp
     assert re.search(r"; \d+ received but not written$", last), last
 
 
+def refused_here(arguments, capsys):
+    """tactile-record's main() in this process, for a refusal that comes before the board is opened (and
+    before its signal handlers are installed): its exit code and stderr."""
+    from tactile_viewer.cli.tactile_record import main
+
+    code = main([str(a) for a in arguments])
+    return code, capsys.readouterr().err
+
+
 @pytest.mark.parametrize("overwrite", [False, True])
-def test_the_output_is_never_written_through_a_dangling_link(board, tmp_path, overwrite):
+def test_the_output_is_never_written_through_a_dangling_link(board, tmp_path, overwrite, capsys):
     # --out followed a dangling symbolic link and created its target
     link, target = tmp_path / "take.mcap", tmp_path / "target.mcap"
     link.symlink_to(target)
-    done = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_record", str(board.link), "--layout",
-                           str(board.layout), "--out", str(link), "--duration", "1",
-                           *(["--overwrite"] if overwrite else [])], capture_output=True, text=True, timeout=30)
-    assert done.returncode == (1 if overwrite else 2)
+    arguments = [board.link, "--layout", board.layout, "--out", link, "--duration", "1"]
+    if overwrite:  # refused once the board is open: the command itself
+        done = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_record", *map(str, arguments),
+                               "--overwrite"], capture_output=True, text=True, timeout=30)
+        code, err = done.returncode, done.stderr
+    else:
+        code, err = refused_here(arguments, capsys)
+    assert code == (1 if overwrite else 2)
     assert ("is a symbolic link: a recording is not written through one" if overwrite else
-            "exists: not replacing a recording") in done.stderr
+            "exists: not replacing a recording") in err
     assert not target.exists() and link.is_symlink()
 
 
-def test_an_existing_recording_is_not_replaced_without_overwrite(board, tmp_path):
+def test_an_existing_recording_is_not_replaced_without_overwrite(board, tmp_path, capsys):
     path = tmp_path / "take.mcap"
     path.write_bytes(b"an earlier session")
     arguments = [str(board.link), "--layout", str(board.layout), "--out", str(path)]
-    done = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_record", *arguments], capture_output=True,
-                          text=True, timeout=30)
-    assert done.returncode == 2 and "exists: not replacing a recording (--overwrite replaces it)" in done.stderr
+    code, err = refused_here(arguments, capsys)
+    assert code == 2 and "exists: not replacing a recording (--overwrite replaces it)" in err
     assert path.read_bytes() == b"an earlier session"
     done = subprocess.run([sys.executable, "-m", "tactile_viewer.cli.tactile_record", *arguments, "--overwrite",
                            "--duration", "1.2"], capture_output=True, text=True, timeout=30)
