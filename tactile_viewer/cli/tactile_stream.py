@@ -2,7 +2,8 @@
 
 ``tactile-stream SOURCE [--layout LAYOUT.json] [--format text|binary] [--duration S] [--record OUT.mcap]
 [--forces OUT.forces.npz] [--shear-ratio R --shear-direction DEG] [--preset NAME]
-[--kernel K] [--name NAME] [--stress] [--no-lsl] [--queue FRAMES] [--solvers N]``
+[--kernel K] [--name NAME] [--stress] [--no-lsl] [--queue FRAMES] [--solvers N]``;
+``tactile-stream --recover SPOOL [--forces OUT] [--overwrite]``
 
 SOURCE is a serial port (``/dev/ttyACM0``), any pyserial URL (``socket://host:port``,
 ``loop://``) or ``lsl:NAME`` (an LSL stream of one channel per taxel). Every frame is
@@ -13,7 +14,10 @@ time on LSL's clock. ``--record`` writes the raw frames
 as ``tactile-record`` does (crash-safe MCAP); ``--forces`` keeps the forces of
 every frame published on disk as they come (a hidden spool beside the file, so
 memory does not grow with the take) and writes them when the stream stops (the
-viewer's force export).
+viewer's force export). A stream killed before it wrote them leaves the spool:
+the next stream writing the same file says so, and ``--recover SPOOL`` writes
+every frame whole in it to the force file it was for (or ``--forces``) and
+removes it.
 
 Once a second, and at the end: frames in, solves per second, frames published and
 skipped, the queue, the latency from receive to publish (median and 99th
@@ -28,6 +32,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import shutil
 import sys
 import time
 from dataclasses import replace
@@ -39,7 +44,7 @@ from ..io.forces import save_forces
 from ..io.layout import LayoutError, load_layout
 from ..model.batch import PRESET_NAMES, settings_from_preset
 from ..model.captions import KERNEL_HELP
-from ..model.force_log import ForceLog
+from ..model.force_log import ForceLog, leftover_spools, recover, spool_target
 from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceStream
 from ..model.movie_settings import check_movie_parameters
 from ..sources.lsl_inlet import URL_PREFIX
@@ -65,7 +70,7 @@ MOST_SOLVERS = 2
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
-    parser.add_argument("source", metavar="SOURCE",
+    parser.add_argument("source", metavar="SOURCE", nargs="?",
                         help="the board: a device path (/dev/ttyACM0), a pyserial URL (socket://host:port), "
                              "or lsl:NAME, an LSL stream with one channel per taxel")
     parser.add_argument("--layout", metavar="LAYOUT.json",
@@ -80,6 +85,10 @@ def _parser() -> argparse.ArgumentParser:
                              "force export) when the stream stops; until then they are kept on disk beside "
                              "it (a 16x16 skin at 1 kHz: 3.1 MB a second), not in memory")
     parser.add_argument("--overwrite", action="store_true", help="replace the --record or --forces file")
+    parser.add_argument("--recover", metavar="SPOOL",
+                        help="instead of streaming: write the forces a stream that was killed left in its "
+                             "spool (the hidden .NAME.XXXXXXXX.spool folder beside its --forces file) to "
+                             "that file, or to --forces, and remove the spool")
     parser.add_argument("--shear-ratio", type=float, metavar="R",
                         help="a given shear ratio for every frame (with --shear-direction; default: found "
                              "for each frame)")
@@ -113,6 +122,15 @@ def default_solvers() -> int:
 
 def _check(parser, args):
     """The settings the options ask for; a bad option ends the command (exit status 2)."""
+    if args.recover is not None:
+        if args.source is not None:
+            parser.error(f"--recover writes a spool's forces and streams nothing: it takes no SOURCE, got "
+                         f"{args.source!r}")
+        if args.forces is not None and Path(args.forces).suffix.lower() not in (".npz", ".csv"):
+            parser.error(f"--forces must end in .npz or .csv, got {args.forces!r}")
+        return None
+    if args.source is None:
+        parser.error("the board (SOURCE) is needed, or --recover SPOOL")
     check_duration(parser, args)
     if args.queue < 1:
         parser.error(f"--queue must be a whole number of frames >= 1, got {args.queue}")
@@ -225,7 +243,15 @@ def main(argv=None) -> int:
     """
     parser = _parser()
     args = parser.parse_args(argv)
+    if args.recover is not None:
+        _check(parser, args)
+        return _recover(args.recover, args.forces, overwrite=args.overwrite)
     settings = _check(parser, args)
+    if args.forces is not None:
+        for spool in leftover_spools(args.forces):
+            print(f"{PROG}: a stream writing {args.forces} was stopped before it wrote it; its forces are in "
+                  f"{spool} ({_size(spool)}): tactile-stream --recover {spool} writes them",
+                  file=sys.stderr, flush=True)
     layout = None
     if args.layout is not None:
         try:
@@ -360,6 +386,36 @@ def _warm(solver, grid) -> None:
     warm_up()
     x, y = grid.positions.T
     solver.solve(1e3 * np.exp(-((x - x.mean()) ** 2 + (y - y.mean()) ** 2) / (2 * grid.pitch ** 2)))
+
+
+def _size(spool: Path) -> str:
+    total = sum(p.stat().st_size for p in spool.iterdir() if p.is_file())
+    return f"{total / 1e6:.1f} MB"
+
+
+def _recover(spool: str, out: str | None, *, overwrite: bool) -> int:
+    """``--recover``: the spool's frames to the force file it was for (or ``out``), then the spool removed."""
+    try:
+        table = recover(spool)
+    except (OSError, ValueError) as exc:
+        print(f"{PROG}: --recover {spool}: {getattr(exc, 'strerror', None) or exc}", file=sys.stderr)
+        return 1
+    path = Path(out) if out is not None else spool_target(spool)
+    if os.path.lexists(path) and not overwrite:
+        print(f"{PROG}: --recover {spool}: {path} exists: not replacing it (--overwrite replaces it, "
+              f"--forces names another file)", file=sys.stderr)
+        return 2
+    T = len(table.frames)
+    print(f"writing the forces of {T} frames from {spool} to {path} ...", flush=True)
+    try:
+        save_forces(table, path)
+    except OSError as exc:
+        print(f"{PROG}: --recover {spool}: cannot write {path}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    del table  # its forces are mapped from the spool
+    shutil.rmtree(spool, ignore_errors=True)
+    print(f"wrote the forces of {T} frames to {path}; removed {spool}", flush=True)
+    return 0
 
 
 def _write_forces(log: ForceLog, path: str) -> bool:

@@ -26,10 +26,17 @@ a buffer, and a frame counts as kept only once all three writes returned.
 When a write fails (a full disk), that frame and every later one are counted
 (:attr:`ForceLog.unwritten`) and the error kept (:attr:`ForceLog.failure`);
 the stream goes on publishing them. :meth:`ForceLog.close` removes the spool.
+
+A stream that ends without closing its log (killed, a power cut) leaves its
+spool behind, with a description of the skin and the solve (``about.json``,
+written first): :func:`recover` reads the frames whole in it as the same force
+table, and :func:`leftover_spools` finds such spools beside a force file
+(``tactile-stream --recover SPOOL``).
 """
 
 from __future__ import annotations
 
+import json
 import os
 import queue
 import secrets
@@ -46,7 +53,8 @@ from solver.checks import whole_number
 from ..io.forces import ForceTable
 from ..sources.source import SourceFrame
 
-__all__ = ["ForceLog", "ROW_FIELDS", "CONTACT_FIELDS", "QUEUE_FRAMES"]
+__all__ = ["ForceLog", "recover", "spool_target", "leftover_spools", "ROW_FIELDS", "CONTACT_FIELDS",
+           "QUEUE_FRAMES"]
 
 # Frames that may wait for the log's writer: 4 s of a 1 kHz board (a result is about 20 kB on a 16x16
 # skin, so at most about 80 MB), far longer than the write-back stalls measured (tens of ms).
@@ -56,6 +64,11 @@ QUEUE_FRAMES = 4096
 ROW_FIELDS = ("frame", "t", "shear_ratio", "shear_direction", "efficiency", "residual", "condition")
 # one float64 each per contact: the row of its frame (0, 1, ... in the order kept), then the contact
 CONTACT_FIELDS = ("row", "identity", "Fx", "Fy", "Fz", "x", "y")
+
+
+# the spool's description of the skin and the solve, written when it is made
+ABOUT = "about.json"
+SPOOL_VERSION = 1
 
 
 def _write_all(descriptor: int, data: bytes) -> None:
@@ -107,6 +120,11 @@ class ForceLog:
         self.spool.mkdir()
         self._files = {}
         try:
+            (self.spool / ABOUT).write_text(json.dumps(dict(
+                version=SPOOL_VERSION, target=target.name, kernel=kernel, mode=mode, source=source,
+                shape=list(grid.shape), pitch=grid.pitch, thickness=grid.thickness,
+                poisson_ratio=grid.poisson_ratio, sensor_size=grid.sensor_size,
+                positions=grid.positions.tolist())))
             for part in ("forces", "rows", "contacts"):
                 self._files[part] = os.open(self.spool / part, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         except OSError:
@@ -205,35 +223,7 @@ class ForceLog:
         self.flush()
         if not self._kept:
             raise ValueError("no frame was published: there are no forces to write")
-        T, m = self._kept, self.grid.size
-        forces = np.memmap(self.spool / "forces", dtype=np.float32, mode="r", shape=(T, m, 3))
-        rows = np.fromfile(self.spool / "rows", dtype=np.float64, count=T * len(ROW_FIELDS)).reshape(T, -1)
-        identity, force, centre = self._contact_arrays(T)
-        grid = self.grid
-        return ForceTable(forces=forces, frames=rows[:, 0].astype(np.int64), t=rows[:, 1],
-                          shear_ratio=rows[:, 2], shear_direction=rows[:, 3], efficiency=rows[:, 4],
-                          residual=rows[:, 5], condition=rows[:, 6], positions=grid.positions,
-                          shape=tuple(grid.shape), pitch=grid.pitch, thickness=grid.thickness,
-                          kernel=self.kernel, mode=self.mode, source=self.source,
-                          poisson_ratio=grid.poisson_ratio, sensor_size=grid.sensor_size,
-                          contact_identity=identity, contact_force=force, contact_centre=centre)
-
-    def _contact_arrays(self, T: int):
-        # the contacts as the force table's slots (force_tables.contact_arrays): largest normal force first
-        # in each frame, as the tracker returned them; identity 0 and nan in the empty slots
-        flat = np.fromfile(self.spool / "contacts", dtype=np.float64,
-                           count=self._contacts * len(CONTACT_FIELDS)).reshape(-1, len(CONTACT_FIELDS))
-        row = flat[:, 0].astype(np.int64)
-        counts = np.bincount(row, minlength=T)
-        width = int(counts.max(initial=0))
-        slot = np.arange(row.size) - np.repeat(np.cumsum(counts) - counts, counts)
-        identity = np.zeros((T, width), np.int64)
-        force = np.full((T, width, 3), np.nan)
-        centre = np.full((T, width, 2), np.nan)
-        identity[row, slot] = flat[:, 1].astype(np.int64)
-        force[row, slot] = flat[:, 2:5]
-        centre[row, slot] = flat[:, 5:7]
-        return identity, force, centre
+        return _spool_table(self.spool, self._kept, self._contacts)
 
     def close(self) -> None:
         """Stop the writer, close and remove the spool (a table taken from it before can no longer be read).
@@ -248,3 +238,90 @@ class ForceLog:
             os.close(descriptor)
         self._files = {}
         shutil.rmtree(self.spool, ignore_errors=True)
+
+
+def _spool_table(spool: Path, kept: int, contacts: int) -> ForceTable:
+    # the force table of the first ``kept`` frames of a spool and their contacts (of the first
+    # ``contacts`` records: a frame cut short may have written its contacts but not its row)
+    about = json.loads((spool / ABOUT).read_text())
+    positions = np.array(about["positions"], dtype=np.float64).reshape(-1, 2)
+    forces = np.memmap(spool / "forces", dtype=np.float32, mode="r", shape=(kept, positions.shape[0], 3))
+    rows = np.fromfile(spool / "rows", dtype=np.float64, count=kept * len(ROW_FIELDS)).reshape(kept, -1)
+    flat = np.fromfile(spool / "contacts", dtype=np.float64,
+                       count=contacts * len(CONTACT_FIELDS)).reshape(-1, len(CONTACT_FIELDS))
+    identity, force, centre = _contact_arrays(flat[flat[:, 0] < kept], kept)
+    return ForceTable(forces=forces, frames=rows[:, 0].astype(np.int64), t=rows[:, 1],
+                      shear_ratio=rows[:, 2], shear_direction=rows[:, 3], efficiency=rows[:, 4],
+                      residual=rows[:, 5], condition=rows[:, 6], positions=positions,
+                      shape=tuple(about["shape"]), pitch=about["pitch"], thickness=about["thickness"],
+                      kernel=about["kernel"], mode=about["mode"], source=about["source"],
+                      poisson_ratio=about["poisson_ratio"], sensor_size=about["sensor_size"],
+                      contact_identity=identity, contact_force=force, contact_centre=centre)
+
+
+def _contact_arrays(flat: np.ndarray, T: int):
+    # the contacts as the force table's slots (force_tables.contact_arrays): largest normal force first
+    # in each frame, as the tracker returned them; identity 0 and nan in the empty slots
+    row = flat[:, 0].astype(np.int64)
+    counts = np.bincount(row, minlength=T)
+    width = int(counts.max(initial=0))
+    slot = np.arange(row.size) - np.repeat(np.cumsum(counts) - counts, counts)
+    identity = np.zeros((T, width), np.int64)
+    force = np.full((T, width, 3), np.nan)
+    centre = np.full((T, width, 2), np.nan)
+    identity[row, slot] = flat[:, 1].astype(np.int64)
+    force[row, slot] = flat[:, 2:5]
+    centre[row, slot] = flat[:, 5:7]
+    return identity, force, centre
+
+
+def recover(spool) -> ForceTable:
+    """The force table of a spool a stream left behind (module notes): every frame whole in it.
+
+    A frame is whole once its row is written (the row is its last write), so
+    the frames are the whole rows; a frame cut short by the end is not one.
+    ``forces`` is read from the spool as it is needed: write the table
+    (:func:`~tactile_viewer.io.forces.save_forces`) before removing the spool.
+
+    Parameters
+    ----------
+    spool : path-like
+        The spool folder (``.NAME.XXXXXXXX.spool`` beside the force file).
+
+    Raises
+    ------
+    ValueError
+        When the folder is not a spool this version can read, or holds no whole frame.
+    OSError
+        When it cannot be read.
+    """
+    spool = Path(spool)
+    try:
+        about = json.loads((spool / ABOUT).read_text())
+    except FileNotFoundError:
+        raise ValueError(f"{spool} is not a force spool: it has no {ABOUT}") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{spool / ABOUT} is not a spool's description: {exc}") from None
+    if not isinstance(about, dict) or about.get("version") != SPOOL_VERSION:
+        found = about.get("version") if isinstance(about, dict) else about
+        raise ValueError(f"{spool / ABOUT}: a spool of version {SPOOL_VERSION} was expected, got {found!r}")
+    m = len(about["positions"])
+    kept = min((spool / "rows").stat().st_size // (8 * len(ROW_FIELDS)),
+               (spool / "forces").stat().st_size // (12 * m))
+    if not kept:
+        raise ValueError(f"{spool} holds no whole frame: there are no forces to write")
+    contacts = (spool / "contacts").stat().st_size // (8 * len(CONTACT_FIELDS))
+    return _spool_table(spool, kept, contacts)
+
+
+def spool_target(spool) -> Path:
+    """The force file a spool was for (:func:`recover` checks the spool first)."""
+    spool = Path(spool)
+    return spool.parent / json.loads((spool / ABOUT).read_text())["target"]
+
+
+def leftover_spools(path) -> list:
+    """The spools that streams writing the force file ``path`` left behind beside it, oldest first."""
+    target = Path(path)
+    found = [p for p in target.parent.glob(f".{target.name}.*.spool") if (p / ABOUT).is_file()]
+    return sorted(found, key=lambda p: p.stat().st_mtime)

@@ -22,6 +22,7 @@ from tactile_viewer.io.forces import load_forces
 from tactile_viewer.io.layout import SensorLayout, save_layout
 from tactile_viewer.model import force_log
 from tactile_viewer.model.batch import settings_from_preset
+from tactile_viewer.sources.source import SourceFrame
 
 GRID = SensorGrid.regular(8, 8, 2e-3, 2e-3)
 FRAMES = 240  # frames the board sends
@@ -289,3 +290,66 @@ def test_an_lsl_stream_of_stress_in_becomes_an_lsl_stream_of_forces_out(layout, 
                 for row in sent]
     np.testing.assert_allclose(np.array(received).reshape(60, GRID.size, 3), expected, rtol=0,
                                atol=1e-5 * np.abs(expected).max())
+
+
+def _spool_of_a_killed_stream(path, frames=3):
+    # a stream's log killed with its spool open: frames written, then its descriptors gone and the folder kept
+    log = force_log.ForceLog(GRID, kernel="layer", mode="auto", source="socket://board", spool_beside=path)
+    x, y = GRID.positions.T
+    solver = settings_from_preset(None).build(GRID)
+    for k in range(frames):
+        stress = 5e3 * np.exp(-((x - 1e-3 * k) ** 2 + y ** 2) / (2 * 3e-3 ** 2))
+        log.add(SourceFrame(stress, 0.01 * k, k), solver.solve(stress))
+    log.flush()
+    for descriptor in log._files.values():
+        os.close(descriptor)
+    log._files = {}
+    log._queue.put(None)
+    log._writer.join()
+    return log.spool
+
+
+def test_a_stream_killed_before_it_wrote_its_forces_is_said_and_recovered(layout, tmp_path, capsys, handlers):
+    forces = tmp_path / "take.forces.npz"
+    left = _spool_of_a_killed_stream(forces)
+    # the next stream writing the same file says where the forces are, and streams as ever
+    name = unique_name()
+    board = PtyBoard(name, inlet=False, stop_after=0.5)
+    code, out, err = run([board.url, "--layout", layout, "--name", name, "--forces", forces], capsys)
+    board.thread.join(WAIT_S)
+    assert code == 0, err
+    assert (f"a stream writing {forces} was stopped before it wrote it; its forces are in {left} ("
+            in err and f"tactile-stream --recover {left} writes them" in err)
+    assert left.is_dir()  # left as it was
+    # the file it was for exists now: not replaced without --overwrite; --forces names another
+    code, out, err = run(["--recover", left], capsys)
+    assert code == 2 and f"{forces} exists: not replacing it" in err and left.is_dir()
+    code, out, err = run(["--recover", left, "--forces", tmp_path / "recovered.forces.csv"], capsys)
+    assert code == 0, err
+    assert f"wrote the forces of 3 frames to {tmp_path / 'recovered.forces.csv'}; removed {left}" in out
+    assert not left.exists()
+    assert load_forces(tmp_path / "recovered.forces.csv")["frames"].tolist() == [0, 1, 2]
+
+
+def test_recover_writes_the_file_the_spool_was_for(tmp_path, capsys):
+    left = _spool_of_a_killed_stream(tmp_path / "take.forces.npz", frames=2)
+    code, out, err = run(["--recover", left], capsys)
+    assert code == 0, err
+    table = load_forces(tmp_path / "take.forces.npz")
+    assert table["frames"].tolist() == [0, 1] and table["forces"].shape == (2, GRID.size, 3)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["take.forces.npz"]
+
+
+@pytest.mark.parametrize(("arguments", "status", "message"), [
+    (["socket://127.0.0.1:9", "--recover", "{tmp}"], 2, "--recover writes a spool's forces and streams nothing"),
+    (["--recover", "{tmp}", "--forces", "{tmp}/f.txt"], 2, "--forces must end in .npz or .csv"),
+    (["--layout", "{tmp}/layout.json"], 2, r"the board \(SOURCE\) is needed, or --recover SPOOL"),
+    (["--recover", "{tmp}"], 1, "is not a force spool: it has no about.json"),
+])
+def test_recover_refuses_what_it_cannot_do(tmp_path, capsys, arguments, status, message):
+    arguments = [a.format(tmp=tmp_path) for a in arguments]
+    try:
+        code, _, err = run(arguments, capsys)
+    except SystemExit as exc:  # the parser's own errors
+        code, err = exc.code, capsys.readouterr().err
+    assert code == status and re.search(message, err), err
