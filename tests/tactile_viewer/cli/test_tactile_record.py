@@ -2,11 +2,13 @@
 the last second; Ctrl+C, SIGTERM and --duration stop it cleanly; its errors are named."""
 
 import json
+import os
 import re
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,38 +20,65 @@ from tactile_viewer.io.files import load
 from tactile_viewer.io.recording import RecordingError
 from tests.tactile_viewer.conftest import Board
 
-# tactile-record on a slow disk: every write of the file goes out in 4 KiB pieces 5 ms apart (a
-# second of frames takes about 1.3 s), and a marker file exists while a write is under way, so
-# that a kill can be aimed inside one (the marker stays when the write dies with the process)
-SLOW_DISK = """
-import io, sys, time
+# Recorders to kill: one Python imports tactile-record once, then for each line it reads (output file,
+# slow-disk marker or "", the command's arguments, tab-separated) forks a recorder, a process of its
+# own writing its output to that file (its errors beside it, in .err), says its pid, waits for it to end and says its wait status.
+# Ten kills would otherwise start Python ten times (seconds of imports each); the launcher only
+# waits while a recorder runs. With a marker, the recorder is on a slow disk: every write of the
+# file goes out in 4 KiB pieces 5 ms apart (a second of frames takes about 1.3 s), and the marker
+# file exists while a write is under way, so that a kill can be aimed inside one (the marker stays
+# when the write dies with the process).
+LAUNCHER = """
+import io, os, sys, time
 from pathlib import Path
 from tactile_viewer.cli import tactile_record as record
 from tactile_viewer.io import mcap_writer as container
 
-marker = Path(sys.argv[1])
 
-class SlowDisk(io.FileIO):
-    def write(self, data):
-        marker.touch()
-        view, done = memoryview(data), 0
-        while done < len(view):
-            done += super().write(view[done:done + 4096])
-            time.sleep(0.005)
-        marker.unlink()
-        return done
+def on_a_slow_disk(marker):
+    class SlowDisk(io.FileIO):
+        def write(self, data):
+            marker.touch()
+            view, done = memoryview(data), 0
+            while done < len(view):
+                done += super().write(view[done:done + 4096])
+                time.sleep(0.005)
+            marker.unlink()
+            return done
 
-container.open = lambda name, mode, **kw: (io.BufferedWriter(SlowDisk(name, "w", **kw)) if mode == "wb"
-                                          else io.open(name, mode, **kw))
-sys.exit(record.main(sys.argv[2:]))
+    container.open = lambda name, mode, **kw: (io.BufferedWriter(SlowDisk(name, "w", **kw)) if mode == "wb"
+                                              else io.open(name, mode, **kw))
+
+
+for line in sys.stdin:
+    out, marker, *arguments = line.rstrip("\\n").split("\\t")
+    pid = os.fork()
+    if pid == 0:  # the recorder
+        code = 1
+        try:
+            os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+            os.dup2(os.open(out, os.O_WRONLY | os.O_TRUNC), 1)
+            os.dup2(os.open(out + ".err", os.O_WRONLY | os.O_CREAT | os.O_TRUNC), 2)
+            sys.stdout = open(1, "w", buffering=1, closefd=False)
+            sys.stderr = open(2, "w", buffering=1, closefd=False)
+            if marker:
+                on_a_slow_disk(Path(marker))
+            code = record.main(arguments)
+        except SystemExit as exit:
+            code = exit.code
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(code if isinstance(code, int) else 1)
+    print(pid, flush=True)
+    print(os.waitpid(pid, 0)[1], flush=True)
 """
 
 
-def spawn(board, out, *extra, marker=None):
+def spawn(board, out, *extra):
     arguments = [str(board.link), "--layout", str(board.layout), "--out", str(out), *extra]
-    command = ([sys.executable, "-c", SLOW_DISK, str(marker)] if marker else
-               [sys.executable, "-m", "tactile_viewer.cli.tactile_record"]) + arguments
-    return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen([sys.executable, "-m", "tactile_viewer.cli.tactile_record", *arguments],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 @pytest.fixture(scope="module")
@@ -68,23 +97,48 @@ def wait_for(condition, timeout=10.0):
         time.sleep(0.001)
 
 
+@pytest.fixture
+def launcher():
+    """The LAUNCHER process; the recorder it forked last, if any, is killed when the test ends."""
+    process = subprocess.Popen([sys.executable, "-c", LAUNCHER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                               text=True)
+    process.recorder = None
+    yield process
+    if process.recorder is not None:
+        try:
+            os.kill(process.recorder, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    process.stdin.close()  # the launcher's loop ends: it exits
+    process.wait(timeout=30)
+    process.stdout.close()
+
+
 @pytest.mark.slow
-def test_killed_at_any_instant_the_file_opens_with_every_frame_but_the_last_second(board, tmp_path):
+def test_killed_at_any_instant_the_file_opens_with_every_frame_but_the_last_second(board, tmp_path, launcher):
     rng = np.random.default_rng(21)  # fixed seed: the same kill instants every run
     inside_a_write = 0
     for k in range(10):
-        path, marker = tmp_path / f"kill{k}.mcap", tmp_path / f"writing{k}"
+        path, marker, said = tmp_path / f"kill{k}.mcap", tmp_path / f"writing{k}", tmp_path / f"kill{k}.out"
         slow = k % 2 == 1  # every other one on the slow disk, killed inside a chunk's write
-        process = spawn(board, path, marker=marker if slow else None)
-        assert process.stdout.readline().startswith("recording")
+        arguments = [board.link, "--layout", board.layout, "--out", path]
+        said.write_text("")
+        launcher.stdin.write("\t".join(map(str, [said, marker if slow else "", *arguments])) + "\n")
+        launcher.stdin.flush()
+        launcher.recorder = int(launcher.stdout.readline())
+        # its first line, once it has opened the board
+        wait_for(lambda said=said: "\n" in said.read_text(), timeout=60)
+        assert said.read_text().startswith("recording"), said.read_text() + Path(f"{said}.err").read_text()
         # on the slow disk the first chunk is on disk about 2.3 s in: kill inside a later one
         time.sleep(float(rng.uniform(2.6, 3.5) if slow else rng.uniform(1.0, 2.5)))
         if slow:
             wait_for(marker.exists)
             time.sleep(float(rng.uniform(0.0, 0.05)))
         killed = time.time()
-        process.send_signal(signal.SIGKILL)
-        process.wait()
+        os.kill(launcher.recorder, signal.SIGKILL)
+        status = int(launcher.stdout.readline())  # the launcher waited for it: it is gone
+        launcher.recorder = None
+        assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGKILL, Path(f"{said}.err").read_text()
         inside_a_write += slow and marker.exists()
         try:
             recording = load(path)
