@@ -164,22 +164,38 @@ def _open_pty(link: Path | None):
     return master, slave, name
 
 
-def _write_all(fd: int, data: bytes, stall: float) -> bool:
+def _write_all(fd: int, data: bytes, stall: float) -> tuple[bool, bool]:
     """Write everything unless the reader stalls for ``stall`` seconds (then drop the rest).
 
     ``fd`` is non-blocking, so a reader that stops reading never blocks the board (or its
     SIGTERM) for longer than ``stall``.
+
+    Returns
+    -------
+    sent : bool
+        Everything was written.
+    blocked : bool
+        The reader left no room for :data:`BLOCKED_WRITE_S` at a time, as the kernel saw it
+        (``select`` timed out). A stall of this process (another thread holding the GIL, a busy
+        machine) is not one: ``select`` looks at the descriptor again when it wakes, while the
+        wall time of the whole write would count the stall too (a board computing its cycle
+        ahead once skipped 514 frames of a reader that never waited more than 6 ms).
     """
     view = memoryview(data)
+    blocked, waited = False, 0.0
     while view:
-        _, writable, _ = select.select([], [fd], [], stall)
+        _, writable, _ = select.select([], [fd], [], min(BLOCKED_WRITE_S, stall))
         if not writable:
-            return False
+            blocked = True
+            waited += min(BLOCKED_WRITE_S, stall)
+            if waited >= stall:
+                return False, True
+            continue
         try:
             view = view[os.write(fd, view):]
         except BlockingIOError:
             continue
-    return True
+    return True, blocked
 
 
 def main(argv=None) -> int:
@@ -234,7 +250,10 @@ def main(argv=None) -> int:
         import serial
 
         port = serial.serial_for_url(args.url, baudrate=115200)
-        write = lambda data: port.write(data) == len(data)  # noqa: E731
+        def write(data):  # a port's write blocks: a write that took that long found no room
+            started = time.perf_counter()
+            sent = port.write(data) == len(data)
+            return sent, time.perf_counter() - started > BLOCKED_WRITE_S
         print(f"writing to {args.url}", flush=True)
     else:
         master, slave, name = _open_pty(args.link)
@@ -265,10 +284,8 @@ def main(argv=None) -> int:
                 unread += due - 1 - board.seq
                 board.seq = due - 1
             chunk = b"".join(board.next_bytes() for _ in range(due - board.seq))
-            writing = time.perf_counter()
-            if chunk and not write(chunk):
-                unsent += 1
-            blocked = time.perf_counter() - writing > BLOCKED_WRITE_S
+            sent, blocked = write(chunk) if chunk else (True, False)
+            unsent += not sent
             time.sleep(max(0.0, (board.seq / args.rate) - (time.perf_counter() - start)))
     except KeyboardInterrupt:
         pass

@@ -8,12 +8,14 @@ import subprocess
 import sys
 import threading
 import time
+import tty
 
 import numpy as np
 import pytest
 import serial
 
 from solver import SensorGrid
+from tactile_viewer.cli import tactile_sim
 from tactile_viewer.cli.tactile_sim import Board, main
 from tactile_viewer.io.layout import SensorLayout, load_layout
 from tactile_viewer.sources import simulated
@@ -716,3 +718,39 @@ def test_frames_queued_before_a_reader_came_are_dropped_not_stamped_as_a_burst(t
     # blocked for less than simulator.BLOCKED_WRITE_S still sends its frames, late)
     assert frames[0].seq >= (opened - 1.0) * 1000, (frames[0].seq, opened)
     assert int(re.search(r"frames skipped while nobody read (\d+)", err).group(1)) > 0
+
+
+def test_a_write_is_blocked_only_when_the_reader_left_no_room():
+    master, slave = os.openpty()
+    tty.setraw(slave)  # bytes pass as they are (no line to wait for)
+    os.set_blocking(master, False)
+    try:
+        # a reader: everything sent, never blocked
+        assert tactile_sim._write_all(master, b"x" * 100, stall=1.0) == (True, False)
+        assert len(os.read(slave, 100)) == 100
+        # nobody reads: the buffer fills, the rest is dropped after the stall, and it was blocked
+        started = time.perf_counter()
+        assert tactile_sim._write_all(master, b"x" * (1 << 22), stall=0.6) == (False, True)
+        assert time.perf_counter() - started >= 0.6
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_a_stall_of_the_board_itself_is_not_a_reader_that_stopped(monkeypatch):
+    # the board's own process held up for longer than BLOCKED_WRITE_S inside a write (another thread
+    # holding the GIL, a busy machine) while the reader kept reading: not blocked, nothing skipped
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    os.set_blocking(master, False)
+    real = tactile_sim.select.select
+
+    def held_up(*arguments):
+        time.sleep(tactile_sim.BLOCKED_WRITE_S + 0.1)
+        return real(*arguments)
+    monkeypatch.setattr(tactile_sim.select, "select", held_up)
+    try:
+        assert tactile_sim._write_all(master, b"x" * 100, stall=1.0) == (True, False)
+    finally:
+        os.close(master)
+        os.close(slave)
