@@ -44,7 +44,7 @@ from ..io.forces import save_forces
 from ..io.layout import LayoutError, load_layout
 from ..model.batch import PRESET_NAMES, settings_from_preset
 from ..model.captions import KERNEL_HELP
-from ..model.force_log import ForceLog, leftover_spools, recover, spool_target
+from ..model.force_log import ForceLog, leftover_spools, recover
 from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceStream
 from ..model.movie_settings import check_movie_parameters
 from ..sources.lsl_inlet import URL_PREFIX
@@ -122,12 +122,12 @@ def default_solvers() -> int:
 
 def _check(parser, args):
     """The settings the options ask for; a bad option ends the command (exit status 2)."""
+    if args.forces is not None and Path(args.forces).suffix.lower() not in (".npz", ".csv"):
+        parser.error(f"--forces must end in .npz or .csv, got {args.forces!r}")
     if args.recover is not None:
         if args.source is not None:
             parser.error(f"--recover writes a spool's forces and streams nothing: it takes no SOURCE, got "
                          f"{args.source!r}")
-        if args.forces is not None and Path(args.forces).suffix.lower() not in (".npz", ".csv"):
-            parser.error(f"--forces must end in .npz or .csv, got {args.forces!r}")
         return None
     if args.source is None:
         parser.error("the board (SOURCE) is needed, or --recover SPOOL")
@@ -145,8 +145,6 @@ def _check(parser, args):
                      f"{args.source} without one")
     if args.source.startswith(URL_PREFIX) and not args.source[len(URL_PREFIX):].strip():
         parser.error(f"an LSL source is lsl:NAME with the stream's name, got {args.source!r}")
-    if args.forces is not None and Path(args.forces).suffix.lower() not in (".npz", ".csv"):
-        parser.error(f"--forces must end in .npz or .csv, got {args.forces!r}")
     if args.record is not None and Path(args.record).suffix.lower() != ".mcap":
         parser.error(f"--record must end in .mcap, got {args.record!r}")
     for option in ("record", "forces"):
@@ -396,11 +394,11 @@ def _size(spool: Path) -> str:
 def _recover(spool: str, out: str | None, *, overwrite: bool) -> int:
     """``--recover``: the spool's frames to the force file it was for (or ``out``), then the spool removed."""
     try:
-        table = recover(spool)
+        table, target = recover(spool)
     except (OSError, ValueError) as exc:
         print(f"{PROG}: --recover {spool}: {getattr(exc, 'strerror', None) or exc}", file=sys.stderr)
         return 1
-    path = Path(out) if out is not None else spool_target(spool)
+    path = Path(out) if out is not None else target
     if os.path.lexists(path) and not overwrite:
         print(f"{PROG}: --recover {spool}: {path} exists: not replacing it (--overwrite replaces it, "
               f"--forces names another file)", file=sys.stderr)

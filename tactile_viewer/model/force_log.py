@@ -53,7 +53,7 @@ from solver.checks import whole_number
 from ..io.forces import ForceTable
 from ..sources.source import SourceFrame
 
-__all__ = ["ForceLog", "recover", "spool_target", "leftover_spools", "ROW_FIELDS", "CONTACT_FIELDS",
+__all__ = ["ForceLog", "recover", "leftover_spools", "ROW_FIELDS", "CONTACT_FIELDS",
            "QUEUE_FRAMES"]
 
 # Frames that may wait for the log's writer: 4 s of a 1 kHz board (a result is about 20 kB on a 16x16
@@ -223,7 +223,7 @@ class ForceLog:
         self.flush()
         if not self._kept:
             raise ValueError("no frame was published: there are no forces to write")
-        return _spool_table(self.spool, self._kept, self._contacts)
+        return _spool_table(self.spool, _read_about(self.spool), self._kept, self._contacts)
 
     def close(self) -> None:
         """Stop the writer, close and remove the spool (a table taken from it before can no longer be read).
@@ -240,10 +240,23 @@ class ForceLog:
         shutil.rmtree(self.spool, ignore_errors=True)
 
 
-def _spool_table(spool: Path, kept: int, contacts: int) -> ForceTable:
+def _read_about(spool: Path) -> dict:
+    # the spool's description, checked: a ValueError names what is wrong with it
+    try:
+        about = json.loads((spool / ABOUT).read_text())
+    except FileNotFoundError:
+        raise ValueError(f"{spool} is not a force spool: it has no {ABOUT}") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{spool / ABOUT} is not a spool's description: {exc}") from None
+    if not isinstance(about, dict) or about.get("version") != SPOOL_VERSION:
+        found = about.get("version") if isinstance(about, dict) else about
+        raise ValueError(f"{spool / ABOUT}: a spool of version {SPOOL_VERSION} was expected, got {found!r}")
+    return about
+
+
+def _spool_table(spool: Path, about: dict, kept: int, contacts: int) -> ForceTable:
     # the force table of the first ``kept`` frames of a spool and their contacts (of the first
     # ``contacts`` records: a frame cut short may have written its contacts but not its row)
-    about = json.loads((spool / ABOUT).read_text())
     positions = np.array(about["positions"], dtype=np.float64).reshape(-1, 2)
     forces = np.memmap(spool / "forces", dtype=np.float32, mode="r", shape=(kept, positions.shape[0], 3))
     rows = np.fromfile(spool / "rows", dtype=np.float64, count=kept * len(ROW_FIELDS)).reshape(kept, -1)
@@ -275,8 +288,8 @@ def _contact_arrays(flat: np.ndarray, T: int):
     return identity, force, centre
 
 
-def recover(spool) -> ForceTable:
-    """The force table of a spool a stream left behind (module notes): every frame whole in it.
+def recover(spool) -> tuple:
+    """The force table of a spool a stream left behind (module notes), and the file it was for.
 
     A frame is whole once its row is written (the row is its last write), so
     the frames are the whole rows; a frame cut short by the end is not one.
@@ -288,6 +301,13 @@ def recover(spool) -> ForceTable:
     spool : path-like
         The spool folder (``.NAME.XXXXXXXX.spool`` beside the force file).
 
+    Returns
+    -------
+    table : ForceTable
+        Every whole frame in the spool.
+    target : Path
+        The force file the stream was writing (beside the spool).
+
     Raises
     ------
     ValueError
@@ -296,28 +316,14 @@ def recover(spool) -> ForceTable:
         When it cannot be read.
     """
     spool = Path(spool)
-    try:
-        about = json.loads((spool / ABOUT).read_text())
-    except FileNotFoundError:
-        raise ValueError(f"{spool} is not a force spool: it has no {ABOUT}") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{spool / ABOUT} is not a spool's description: {exc}") from None
-    if not isinstance(about, dict) or about.get("version") != SPOOL_VERSION:
-        found = about.get("version") if isinstance(about, dict) else about
-        raise ValueError(f"{spool / ABOUT}: a spool of version {SPOOL_VERSION} was expected, got {found!r}")
+    about = _read_about(spool)
     m = len(about["positions"])
     kept = min((spool / "rows").stat().st_size // (8 * len(ROW_FIELDS)),
                (spool / "forces").stat().st_size // (12 * m))
     if not kept:
         raise ValueError(f"{spool} holds no whole frame: there are no forces to write")
     contacts = (spool / "contacts").stat().st_size // (8 * len(CONTACT_FIELDS))
-    return _spool_table(spool, kept, contacts)
-
-
-def spool_target(spool) -> Path:
-    """The force file a spool was for (:func:`recover` checks the spool first)."""
-    spool = Path(spool)
-    return spool.parent / json.loads((spool / ABOUT).read_text())["target"]
+    return _spool_table(spool, about, kept, contacts), spool.parent / about["target"]
 
 
 def leftover_spools(path) -> list:

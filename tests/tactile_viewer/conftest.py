@@ -124,3 +124,23 @@ def board(tmp_path):
     made = Board(tmp_path)
     yield made
     made.stop()
+
+
+@pytest.fixture
+def kill_log():
+    """A function leaving a force log as a stream killed with it open leaves it; it returns the spool.
+
+    Frames queued are written first; then the log's descriptors are closed and its writer
+    stopped without :meth:`~tactile_viewer.model.force_log.ForceLog.close`, so the spool stays.
+    """
+
+    def kill(log):
+        log.flush()
+        for descriptor in log._files.values():
+            os.close(descriptor)
+        log._files = {}
+        log._queue.put(None)
+        log._writer.join()
+        return log.spool
+
+    return kill

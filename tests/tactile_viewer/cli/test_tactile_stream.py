@@ -292,26 +292,21 @@ def test_an_lsl_stream_of_stress_in_becomes_an_lsl_stream_of_forces_out(layout, 
                                atol=1e-5 * np.abs(expected).max())
 
 
-def _spool_of_a_killed_stream(path, frames=3):
-    # a stream's log killed with its spool open: frames written, then its descriptors gone and the folder kept
+def _spool_of_a_killed_stream(kill_log, path, frames=3):
+    # a stream's log killed with its spool open
     log = force_log.ForceLog(GRID, kernel="layer", mode="auto", source="socket://board", spool_beside=path)
     x, y = GRID.positions.T
     solver = settings_from_preset(None).build(GRID)
     for k in range(frames):
         stress = 5e3 * np.exp(-((x - 1e-3 * k) ** 2 + y ** 2) / (2 * 3e-3 ** 2))
         log.add(SourceFrame(stress, 0.01 * k, k), solver.solve(stress))
-    log.flush()
-    for descriptor in log._files.values():
-        os.close(descriptor)
-    log._files = {}
-    log._queue.put(None)
-    log._writer.join()
-    return log.spool
+    return kill_log(log)
 
 
-def test_a_stream_killed_before_it_wrote_its_forces_is_said_and_recovered(layout, tmp_path, capsys, handlers):
+def test_a_stream_killed_before_it_wrote_its_forces_is_said_and_recovered(layout, tmp_path, capsys, handlers,
+                                                                           kill_log):
     forces = tmp_path / "take.forces.npz"
-    left = _spool_of_a_killed_stream(forces)
+    left = _spool_of_a_killed_stream(kill_log, forces)
     # the next stream writing the same file says where the forces are, and streams as ever
     name = unique_name()
     board = PtyBoard(name, inlet=False, stop_after=0.5)
@@ -331,8 +326,8 @@ def test_a_stream_killed_before_it_wrote_its_forces_is_said_and_recovered(layout
     assert load_forces(tmp_path / "recovered.forces.csv")["frames"].tolist() == [0, 1, 2]
 
 
-def test_recover_writes_the_file_the_spool_was_for(tmp_path, capsys):
-    left = _spool_of_a_killed_stream(tmp_path / "take.forces.npz", frames=2)
+def test_recover_writes_the_file_the_spool_was_for(tmp_path, capsys, kill_log):
+    left = _spool_of_a_killed_stream(kill_log, tmp_path / "take.forces.npz", frames=2)
     code, out, err = run(["--recover", left], capsys)
     assert code == 0, err
     table = load_forces(tmp_path / "take.forces.npz")

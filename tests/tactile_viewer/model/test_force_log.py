@@ -2,7 +2,6 @@
 of the frames kept, memory that does not grow with the take, a full disk counted and said, the spool removed."""
 
 import errno
-import os
 import threading
 import tracemalloc
 
@@ -171,29 +170,16 @@ def test_a_spool_that_cannot_be_made_is_an_error(tmp_path):
         ForceLog(GRID, kernel="layer", mode="auto", spool_beside=tmp_path / "no such folder" / "f.npz")
 
 
-def _left_behind(log):
-    # what a stream killed while its log was open leaves: the spool as it is on disk (the log's
-    # descriptors closed, the folder kept), frames queued first written
-    log.flush()
-    spool = log.spool
-    for descriptor in log._files.values():
-        os.close(descriptor)
-    log._files = {}
-    log._queue.put(None)
-    log._writer.join()
-    return spool
-
-
-def test_a_spool_left_behind_is_recovered_as_the_same_table(frames, results, log, tmp_path):
+def test_a_spool_left_behind_is_recovered_as_the_same_table(frames, results, log, tmp_path, kill_log):
     kept = [0, 2, 3, 5]
     for k in kept:
         log.add(frames[k], results[k])
     expected = log.table()
-    spool = _left_behind(log)
+    spool = kill_log(log)
     assert force_log.leftover_spools(tmp_path / "take.forces.npz") == [spool]
     assert force_log.leftover_spools(tmp_path / "other.forces.npz") == []
-    assert force_log.spool_target(spool) == tmp_path / "take.forces.npz"
-    table = force_log.recover(spool)
+    table, target = force_log.recover(spool)
+    assert target == tmp_path / "take.forces.npz"
     for name in ("forces", "frames", "t", "shear_ratio", "shear_direction", "efficiency", "residual", "condition",
                  "positions", "contact_identity", "contact_force", "contact_centre"):
         np.testing.assert_array_equal(getattr(table, name), getattr(expected, name), err_msg=name)
@@ -203,10 +189,10 @@ def test_a_spool_left_behind_is_recovered_as_the_same_table(frames, results, log
     assert load_forces(tmp_path / "recovered.forces.npz")["frames"].tolist() == kept
 
 
-def test_a_frame_cut_short_by_the_end_is_not_recovered(frames, results, log):
+def test_a_frame_cut_short_by_the_end_is_not_recovered(frames, results, log, kill_log):
     for k in range(3):
         log.add(frames[k], results[k])
-    spool = _left_behind(log)
+    spool = kill_log(log)
     # killed in the middle of the fourth frame: its forces and contacts written, its row half
     with open(spool / "forces", "ab") as f:
         f.write(np.asarray(results[3].forces, np.float32).tobytes())
@@ -214,12 +200,12 @@ def test_a_frame_cut_short_by_the_end_is_not_recovered(frames, results, log):
         f.write(np.array([[3, 1, 0.1, 0.2, 0.3, 0.0, 0.0]]).tobytes())
     with open(spool / "rows", "ab") as f:
         f.write(np.zeros(3).tobytes())
-    table = force_log.recover(spool)
+    table, _ = force_log.recover(spool)
     assert table.frames.tolist() == [0, 1, 2] and table.forces.shape == (3, GRID.size, 3)
     assert table.contact_identity.shape[0] == 3 and np.all(table.contact_identity > 0)
 
 
-def test_what_is_not_a_readable_spool_is_refused(tmp_path, log, frames, results):
+def test_what_is_not_a_readable_spool_is_refused(tmp_path, log, kill_log):
     with pytest.raises(ValueError, match="is not a force spool: it has no about.json"):
         force_log.recover(tmp_path)
     (tmp_path / "about.json").write_text("{not json")
@@ -228,6 +214,6 @@ def test_what_is_not_a_readable_spool_is_refused(tmp_path, log, frames, results)
     (tmp_path / "about.json").write_text('{"version": 7}')
     with pytest.raises(ValueError, match="a spool of version 1 was expected, got 7"):
         force_log.recover(tmp_path)
-    spool = _left_behind(log)  # nothing published
+    spool = kill_log(log)  # nothing published
     with pytest.raises(ValueError, match="holds no whole frame"):
         force_log.recover(spool)
