@@ -51,7 +51,9 @@ TIPS = {
              "true |F|",
     "direction_error": "Angle between the estimated and the true total tangential force, degrees",
 }
-ANGLE_TICKS = [[(v, str(v)) for v in (-180, -90, 0, 90, 180)]]
+# the direction's ticks: the quarters marked, labelled every half turn (five labels overlapped in a
+# row 45 px high)
+ANGLE_TICKS = [[(v, str(v)) for v in (-180, 0, 180)], [(-90, ""), (90, "")]]
 
 
 def _broken(x, y, jump=180.0):

@@ -18,7 +18,7 @@ from ..model.viewer_model import ViewerModel
 
 __all__ = ["ContactsPanel", "contact_rows", "COLUMNS"]
 
-COLUMNS = ("#", "Fz mN", "Ft mN", "mu", "theta deg", "x mm", "y mm", "note")
+COLUMNS = ("#", "Fz mN", "Ft mN", "mu", "dir °", "x mm", "y mm", "note")
 TIPS = ("Contact number: it keeps it from frame to frame while the contact persists; a new contact gets "
         "the next number, one lost for long is ended (its number never comes back); after a jump in the "
         "recording the numbers start again from 1. The rows are largest normal force first",

@@ -21,8 +21,9 @@ from ..model.time_plot_rows import ANGLE_TICKS, ERROR_ROWS, ROWS, TIPS, contacts
 
 __all__ = ["TimePlotStack"]
 
-ROW_PX = 50  # the least height of one plot: below it the dock scrolls instead of squashing them
+ROW_PX = 45  # the least height of one plot: below it the dock scrolls instead of squashing them
 AXIS_PX = 35  # the time axis under the lowest plot shown
+LEGEND_PX = 15  # the line above a plot that names its curves (the Fz and error rows)
 # on white, as the scene: the plots read alike on screen, in the PNG export and in print
 ESTIMATE_PEN = pg.mkPen((31, 119, 180), width=2)
 LOST_BRUSH = pg.mkBrush(176, 0, 32, 50)  # the NO DATA red, faint
@@ -34,6 +35,37 @@ CONTACT_COLOURS = ((148, 103, 189), (140, 86, 75), (227, 119, 194), (127, 127, 1
 CURSOR_PEN = pg.mkPen((0, 0, 0, 170), width=1)
 CURSOR_HOVER_PEN = pg.mkPen((214, 39, 40), width=3)
 INK = (40, 40, 40)  # axes, ticks and labels
+
+
+class _ShortSample(pg.ItemSample):
+    # pyqtgraph's legend sample, 14 px high instead of 20: the legend's line fits its row
+    def __init__(self, item):
+        super().__init__(item)
+        self.setFixedHeight(14)
+
+    def boundingRect(self):
+        return QtCore.QRectF(0, 0, 20, 14)
+
+    def paint(self, painter, *args):
+        painter.translate(0, -4)  # its line at 7 px, the label's middle
+        super().paint(painter, *args)
+
+
+class _OneLineLegend(pg.LegendItem):
+    # the legend of a plot on one line in the plot's title row, above its curves: samples 14 px high,
+    # labels without their text's 4 px margins (the line was 21 px high)
+    def addItem(self, item, name):
+        super().addItem(item, name)
+        label = self.items[-1][1]
+        label.item.document().setDocumentMargin(0)
+        label.updateMin()
+        label.setMaximumHeight(label.minimumHeight())
+        self.updateSize()
+
+    def updateSize(self):
+        # as wide and high as its entries: pyqtgraph's reads their laid-out sizes, stale until the next
+        # layout pass
+        self.resize(self.layout.effectiveSizeHint(QtCore.Qt.SizeHint.PreferredSize))
 
 
 class TimePlotStack(pg.GraphicsLayoutWidget):
@@ -105,8 +137,16 @@ class TimePlotStack(pg.GraphicsLayoutWidget):
     def _plot(self, key, label, unit, first):
         plot = pg.PlotItem()
         if key in ("fz", "error"):
-            # before its curves: a legend lists the named curves added after it
-            plot.addLegend(offset=(-10, 5), brush=(255, 255, 255, 200), labelTextColor=INK)  # over the curves
+            # before its curves: a legend lists the named curves added after it (PlotItem.addItem). On
+            # one line in the plot's title row, above its curves: inside the view it covered the curves
+            # it names; the row is LEGEND_PX more than the others, so its curves keep as much height
+            plot.layout.setRowFixedHeight(0, LEGEND_PX)
+            legend = _OneLineLegend(offset=None, colCount=len(CONTACT_COLOURS) + 2, labelTextColor=INK,
+                                    labelTextSize="8pt", horSpacing=4, verSpacing=0, sampleType=_ShortSample)
+            legend.layout.setContentsMargins(0, 0, 0, 0)
+            legend.setParentItem(plot)
+            legend.anchor(itemPos=(1, 0), parentPos=(1, 0), offset=(-5, 0))
+            plot.legend = legend
         # small and short: it runs along a row 45 px high at 1280x800 (the tooltip spells it out)
         plot.setLabel("left", f"{label} {unit}" if unit else label, color="#282828", **{"font-size": "8pt"})
         for side in ("left", "bottom"):
@@ -177,7 +217,11 @@ class TimePlotStack(pg.GraphicsLayoutWidget):
         for key, plot in self.plots.items():
             # one time axis, under the lowest plot: the others share it
             plot.showAxis("bottom", key == keys[-1])
-        self.setMinimumHeight(ROW_PX * len(keys) + AXIS_PX)
+            # each plot's curves as high as the others': its legend's row and the time axis on top
+            plot.setPreferredHeight(ROW_PX + (LEGEND_PX if plot.legend is not None else 0)
+                                    + (AXIS_PX if key == keys[-1] else 0))
+        legends = sum(self.plots[key].legend is not None for key in keys)
+        self.setMinimumHeight(ROW_PX * len(keys) + AXIS_PX + LEGEND_PX * legends)
 
     def mark_lost(self, spans):
         """Shade the ``(start, stop)`` seconds of frames a damaged file lost on every row (none: clear)."""

@@ -832,3 +832,18 @@ def test_dragging_the_column_narrower_stops_at_its_widest_control(window, qtbot)
     window.resizeDocks([dock], [300], QtCore.Qt.Orientation.Horizontal)  # as a drag of the separator
     qtbot.wait(100)
     assert out_of_reach(window) == []
+
+
+def test_at_1280x800_the_longest_contact_note_is_shown_whole(opened, qtbot):
+    # before: "edge, no shear" was elided at this size: the note column had 80 px of the 96 it needs
+    from PyQt6 import QtWidgets
+
+    from tactile_viewer.qt.contacts_panel import COLUMNS
+
+    opened.resize(1280, 760)  # a 1280x800 screen less a title bar
+    qtbot.waitUntil(lambda: opened.height() == 760, timeout=5000)
+    qtbot.wait(100)  # the dock's layout follows the column's scroll bar
+    table = opened.contacts_panel.table
+    margin = 2 * table.style().pixelMetric(QtWidgets.QStyle.PixelMetric.PM_FocusFrameHMargin) + 2
+    needed = table.fontMetrics().horizontalAdvance("edge, no shear") + margin
+    assert table.horizontalHeader().sectionSize(len(COLUMNS) - 1) >= needed

@@ -450,3 +450,33 @@ def test_an_empty_window_says_where_the_plots_come_from_instead_of_empty_axes(wi
     with qtbot.waitSignal(window.ready, timeout=20000):
         assert window.open(SAMPLES / "hertz_static.npz")
     assert dock.graphics.isVisible() and not dock.placeholder.isVisible()
+
+
+def test_at_1280x800_the_legend_is_above_the_curves_and_the_direction_labels_apart(window, dock, qtbot):
+    # before: the legend lay over the Fz curves (and cut off below "estimate" in a row 45 px high),
+    # and the direction's five labels overlapped
+    from PyQt6 import QtGui
+
+    from tactile_viewer.io.files import load
+    from tactile_viewer.model.time_plot_rows import ANGLE_TICKS
+
+    window.resize(1280, 760)  # a 1280x800 screen less a title bar
+    qtbot.waitUntil(lambda: window.height() == 760, timeout=5000)
+    show(window, dock, qtbot, load(SAMPLES / "three_contacts.npz"))
+    qtbot.wait(100)  # laid out
+    plot = dock.graphics.plots["fz"]
+    legend = plot.legend
+    assert legend_names(plot) == ["estimate", "truth", "#1", "#2", "#3"]
+    names = legend.sceneBoundingRect()
+    assert legend.isVisible() and names.top() >= 0  # in view, whole
+    assert names.bottom() <= plot.getViewBox().sceneBoundingRect().top() + 1  # above the curves
+    assert not any(names.intersects(other.getViewBox().sceneBoundingRect()) for other in dock.graphics.plots.values()
+                   if other.scene() is not None)
+    label_height = max(label.boundingRect().height() for _, label in legend.items)
+    assert names.height() < 1.5 * label_height  # one line
+    direction = dock.graphics.plots["direction"].getViewBox()
+    (_, _), (low, high) = direction.viewRange()
+    labelled = sorted(value for value, _ in ANGLE_TICKS[0])
+    apart = min(b - a for a, b in zip(labelled, labelled[1:], strict=False)) / (high - low) * direction.height()
+    axis = dock.graphics.plots["direction"].getAxis("left")
+    assert apart > QtGui.QFontMetrics(axis.font()).height()
