@@ -241,10 +241,9 @@ def main(argv=None) -> int:
     """
     parser = _parser()
     args = parser.parse_args(argv)
-    if args.recover is not None:
-        _check(parser, args)
-        return _recover(args.recover, args.forces, overwrite=args.overwrite)
     settings = _check(parser, args)
+    if args.recover is not None:
+        return _recover(args.recover, args.forces, overwrite=args.overwrite)
     if args.forces is not None:
         for spool in leftover_spools(args.forces):
             print(f"{PROG}: a stream writing {args.forces} was stopped before it wrote it; its forces are in "
@@ -404,16 +403,23 @@ def _recover(spool: str, out: str | None, *, overwrite: bool) -> int:
               f"--forces names another file)", file=sys.stderr)
         return 2
     T = len(table.frames)
-    print(f"writing the forces of {T} frames from {spool} to {path} ...", flush=True)
-    try:
-        save_forces(table, path)
-    except OSError as exc:
-        print(f"{PROG}: --recover {spool}: cannot write {path}: {exc.strerror or exc}", file=sys.stderr)
+    if not _save(table, path, f" from {spool}", f"--recover {spool}: cannot write {path}"):
         return 1
     del table  # its forces are mapped from the spool
     shutil.rmtree(spool, ignore_errors=True)
     print(f"wrote the forces of {T} frames to {path}; removed {spool}", flush=True)
     return 0
+
+
+def _save(table, path, origin: str, failure: str) -> bool:
+    # the force table to its file, said before (a large take's takes a while) and when it fails
+    print(f"writing the forces of {len(table.frames)} frames{origin} to {path} ...", flush=True)
+    try:
+        save_forces(table, path)
+    except OSError as exc:
+        print(f"{PROG}: {failure}: {exc.strerror or exc}", file=sys.stderr, flush=True)
+        return False
+    return True
 
 
 def _write_forces(log: ForceLog, path: str) -> bool:
@@ -422,11 +428,7 @@ def _write_forces(log: ForceLog, path: str) -> bool:
     except ValueError as exc:
         print(f"{PROG}: --forces {path} not written: {exc}", file=sys.stderr, flush=True)
         return False
-    print(f"writing the forces of {len(log)} frames to {path} ...", flush=True)
-    try:
-        save_forces(table, path)
-    except OSError as exc:
-        print(f"{PROG}: --forces {path}: cannot write: {exc.strerror or exc}", file=sys.stderr, flush=True)
+    if not _save(table, path, "", f"--forces {path}: cannot write"):
         return False
     print(f"wrote the forces of {len(log)} frames to {path}", flush=True)
     if log.left_out:
