@@ -52,8 +52,9 @@ from solver.checks import whole_number
 
 from ..io.forces import ForceTable
 from ..sources.source import SourceFrame
+from .force_tables import CONTACT_FIELDS, contact_records, contact_slots
 
-__all__ = ["ForceLog", "recover", "leftover_spools", "ROW_FIELDS", "CONTACT_FIELDS",
+__all__ = ["ForceLog", "recover", "leftover_spools", "ROW_FIELDS",
            "QUEUE_FRAMES"]
 
 # Frames that may wait for the log's writer: 4 s of a 1 kHz board (a result is about 20 kB on a 16x16
@@ -62,8 +63,7 @@ QUEUE_FRAMES = 4096
 
 # one float64 each per frame, in this order
 ROW_FIELDS = ("frame", "t", "shear_ratio", "shear_direction", "efficiency", "residual", "condition")
-# one float64 each per contact: the row of its frame (0, 1, ... in the order kept), then the contact
-CONTACT_FIELDS = ("row", "identity", "Fx", "Fy", "Fz", "x", "y")
+# one float64 each per contact: CONTACT_FIELDS (force_tables), its row the frame's in the order kept
 
 
 # the spool's description of the skin and the solve, written when it is made
@@ -193,8 +193,7 @@ class ForceLog:
         step = max(1, index - self._last_index) if self._last_index is not None else 1
         numbered = self._tracker.update(result, step)
         self._last_index = index
-        contacts = np.array([(self._kept, c.identity, *c.total_force, *c.centre) for c in numbered.contacts],
-                            dtype=np.float64).reshape(-1, len(CONTACT_FIELDS))
+        contacts = contact_records(numbered.contacts, self._kept)
         row = np.array([index, t, result.shear_ratio, result.shear_direction, result.efficiency,
                         result.residual, result.condition], dtype=np.float64)
         try:
@@ -262,7 +261,7 @@ def _spool_table(spool: Path, about: dict, kept: int, contacts: int) -> ForceTab
     rows = np.fromfile(spool / "rows", dtype=np.float64, count=kept * len(ROW_FIELDS)).reshape(kept, -1)
     flat = np.fromfile(spool / "contacts", dtype=np.float64,
                        count=contacts * len(CONTACT_FIELDS)).reshape(-1, len(CONTACT_FIELDS))
-    identity, force, centre = _contact_arrays(flat[flat[:, 0] < kept], kept)
+    identity, force, centre = contact_slots(flat[flat[:, 0] < kept], kept)
     return ForceTable(forces=forces, frames=rows[:, 0].astype(np.int64), t=rows[:, 1],
                       shear_ratio=rows[:, 2], shear_direction=rows[:, 3], efficiency=rows[:, 4],
                       residual=rows[:, 5], condition=rows[:, 6], positions=positions,
@@ -270,22 +269,6 @@ def _spool_table(spool: Path, about: dict, kept: int, contacts: int) -> ForceTab
                       kernel=about["kernel"], mode=about["mode"], source=about["source"],
                       poisson_ratio=about["poisson_ratio"], sensor_size=about["sensor_size"],
                       contact_identity=identity, contact_force=force, contact_centre=centre)
-
-
-def _contact_arrays(flat: np.ndarray, T: int):
-    # the contacts as the force table's slots (force_tables.contact_arrays): largest normal force first
-    # in each frame, as the tracker returned them; identity 0 and nan in the empty slots
-    row = flat[:, 0].astype(np.int64)
-    counts = np.bincount(row, minlength=T)
-    width = int(counts.max(initial=0))
-    slot = np.arange(row.size) - np.repeat(np.cumsum(counts) - counts, counts)
-    identity = np.zeros((T, width), np.int64)
-    force = np.full((T, width, 3), np.nan)
-    centre = np.full((T, width, 2), np.nan)
-    identity[row, slot] = flat[:, 1].astype(np.int64)
-    force[row, slot] = flat[:, 2:5]
-    centre[row, slot] = flat[:, 5:7]
-    return identity, force, centre
 
 
 def recover(spool) -> tuple:

@@ -11,7 +11,8 @@ from ..io.forces import ForceTable
 from ..io.recording import Recording
 from .worker import Cancelled
 
-__all__ = ["reconstruct_frames", "force_table", "contact_arrays"]
+__all__ = ["reconstruct_frames", "force_table", "contact_arrays", "contact_records", "contact_slots",
+           "CONTACT_FIELDS"]
 
 
 def reconstruct_frames(recording: Recording, reconstructor: Reconstructor, frames=None, *,
@@ -78,6 +79,16 @@ def force_table(results, frames, t, grid, *, solver, mode: str, source: str = ""
                       **{name: np.array([getattr(r, name) for r in results], dtype=float) for name in fields})
 
 
+# one contact record: the row (frame) it is in, its identity, resultant (N) and centre (m)
+CONTACT_FIELDS = ("row", "identity", "Fx", "Fy", "Fz", "x", "y")
+
+
+def contact_records(contacts, row: int) -> np.ndarray:
+    """``(len(contacts), 7)`` records of one frame's contacts (:data:`CONTACT_FIELDS`), float64."""
+    return np.array([(row, c.identity, *c.total_force, *c.centre) for c in contacts],
+                    dtype=np.float64).reshape(-1, len(CONTACT_FIELDS))
+
+
 def contact_arrays(results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The contacts of solved frames as arrays: one row per frame, one slot per contact.
 
@@ -97,14 +108,30 @@ def contact_arrays(results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     centre : (T, K, 2) ndarray
         Each contact's centre, metres; nan in empty slots.
     """
-    count = len(results)
-    width = max((len(r.contacts) for r in results), default=0)
-    identity = np.zeros((count, width), np.int64)
-    force = np.full((count, width, 3), np.nan)
-    centre = np.full((count, width, 2), np.nan)
-    for row, result in enumerate(results):
-        for slot, contact in enumerate(result.contacts):
-            identity[row, slot] = contact.identity
-            force[row, slot] = contact.total_force
-            centre[row, slot] = contact.centre
+    records = [contact_records(r.contacts, row) for row, r in enumerate(results)]
+    return contact_slots(np.concatenate(records) if records else np.empty((0, len(CONTACT_FIELDS))),
+                         len(records))
+
+
+def contact_slots(records: np.ndarray, frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The arrays of :func:`contact_arrays` from contact records (:func:`contact_records`).
+
+    Parameters
+    ----------
+    records : (N, 7) ndarray
+        Every contact of ``frames`` frames, by frame and within a frame in the
+        result's order; each record's row below ``frames``.
+    frames : int
+        ``T``.
+    """
+    row = records[:, 0].astype(np.int64)
+    counts = np.bincount(row, minlength=frames)
+    width = int(counts.max(initial=0))
+    slot = np.arange(row.size) - np.repeat(np.cumsum(counts) - counts, counts)  # place within its frame
+    identity = np.zeros((frames, width), np.int64)
+    force = np.full((frames, width, 3), np.nan)
+    centre = np.full((frames, width, 2), np.nan)
+    identity[row, slot] = records[:, 1].astype(np.int64)
+    force[row, slot] = records[:, 2:5]
+    centre[row, slot] = records[:, 5:7]
     return identity, force, centre

@@ -19,7 +19,7 @@ from tactile_viewer.io.sidecar import (
     sidecar_path,
     write_sidecar,
 )
-from tactile_viewer.model.force_tables import force_table, reconstruct_frames
+from tactile_viewer.model.force_tables import contact_slots, force_table, reconstruct_frames
 from tactile_viewer.model.worker import Cancelled
 
 
@@ -185,6 +185,21 @@ def test_per_contact_totals_are_exported_and_read_back(two_fingers, tmp_path, na
     np.testing.assert_allclose(back["contact_force"], table.contact_force, rtol=1e-8, atol=1e-15)
     np.testing.assert_allclose(back["contact_centre"], table.contact_centre, rtol=1e-8, atol=1e-15)
     np.testing.assert_allclose(back["forces"], table.forces, rtol=1e-8, atol=1e-15)
+
+
+def test_contact_records_fill_their_frames_slots_in_order_and_leave_the_rest_empty():
+    # frames 0 (two contacts), 1 (none), 2 (one), 3 (none, after the last record)
+    records = np.array([[0, 4, 0.1, 0.2, 1.0, 1e-3, 2e-3],
+                        [0, 7, 0.0, 0.0, 0.5, 3e-3, 4e-3],
+                        [2, 7, -0.1, 0.0, 0.6, 5e-3, 6e-3]])
+    identity, force, centre = contact_slots(records, 4)
+    assert identity.tolist() == [[4, 7], [0, 0], [7, 0], [0, 0]]
+    np.testing.assert_array_equal(force[0], records[:2, 2:5])
+    np.testing.assert_array_equal(force[2, 0], records[2, 2:5])
+    np.testing.assert_array_equal(centre[2, 0], records[2, 5:7])
+    assert np.isnan(force[1]).all() and np.isnan(force[2, 1]).all() and np.isnan(centre[3]).all()
+    empty = contact_slots(np.empty((0, 7)), 2)
+    assert [a.shape for a in empty] == [(2, 0), (2, 0, 3), (2, 0, 2)]
 
 
 def test_an_npz_export_from_before_the_contacts_reads_back_with_none(two_fingers, tmp_path):
