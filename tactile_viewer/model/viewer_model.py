@@ -76,9 +76,13 @@ class ViewerModel:
         asked for it and the new frame reach the screen in one repaint
         instead of two, while a slow solve still leaves the window free.
     pace : bool, optional
-        Frames a live source pushes are taken only once the last result is
-        on screen (the window calls :meth:`shown`): a solve that could never
-        be drawn is not run. Default False.
+        Frames a live source pushes, and those a playing recording produces,
+        are taken only once the last result is on screen (the window calls
+        :meth:`shown`), the newest then: a solve that could never be drawn is
+        not run, and no solve runs beside the drawing of the one before.
+        Default False. (Playback paced too, three runs of each alternating,
+        under Xvfb: 25.2 to 27.0 frames drawn a second at 1x against 22.8 to
+        24.9; docs/efficiency.md.)
     """
 
     def __init__(self, *, dispatch=None, settle: float = 0.0, pace: bool = False):
@@ -105,8 +109,8 @@ class ViewerModel:
         self.settle = float(settle)
         self.pace = bool(pace)
         self._owner = threading.get_ident()
-        self._unshown = False  # a pushed frame's result is not on screen yet
-        self._waiting = False  # a pushed frame arrived meanwhile
+        self._unshown = False  # (pace) the last result is not on screen yet
+        self._waiting = False  # (pace) a frame arrived meanwhile
         self._generation = 0  # grows with each installed solver: results of older ones are dropped
         self._closed = False
         self._worker = None if dispatch is None else LatestWorker(self._work, name="tactile-solver")
@@ -258,18 +262,22 @@ class ViewerModel:
             self._dispatch(lambda: self.message.emit(level, title, text))
 
     def _frame_arrived(self):
-        # a source produced a frame: on our thread (a recording seeks) take it now; from a
-        # reader thread hand it over, then take the newest once the last result is shown
+        # a source produced a frame: on our thread (a recording seeks) take it, from a reader
+        # thread hand it over; either waits (pace) until the last result is shown
         if self._here():
-            self._take()
+            self._take_when_shown()
         elif not self._closed:
-            self._dispatch(self._take_pushed)
+            self._dispatch(self._take_when_shown)
 
-    def _take_pushed(self):
-        if self._unshown:
+    def _take_when_shown(self):
+        if self._unshown and self._paced():
             self._waiting = True
             return
         self._take()
+
+    def _paced(self) -> bool:
+        # (pace) frames now come at the source's pace, not the user's: a board, or playback
+        return self.pace and self.source is not None and (self.live or self.source.state == "playing")
 
     def _take(self) -> bool:
         # the source's newest frame becomes the one shown; False when none waits
@@ -423,7 +431,7 @@ class ViewerModel:
             return  # solved with a solver that has been replaced since
         solved = self._track(solved)
         self._show(solved)
-        self._unshown = self.pace and self.live
+        self._unshown = self._paced()
         self.solved.emit(solved)
 
     def _failed(self, job: SolveJob, message: str):

@@ -535,6 +535,33 @@ def test_with_pace_a_pushed_frame_waits_until_the_last_result_is_shown(recording
         model.close()
 
 
+def test_with_pace_a_playing_recording_waits_for_the_last_result_on_screen_and_a_paused_one_does_not(
+        recording, reconstructor):
+    posted = Posted()
+    model = ViewerModel(dispatch=posted, pace=True)
+    try:
+        played = RecordingSource(recording)
+        model.set_source(played, reconstructor)
+        played.play(now=0.0)
+        played.advance(now=0.0)  # frame 0
+        posted.run(model)
+        assert model.last.frame == 0
+        for k in (1, 2):  # two frames due before frame 0 reached the screen
+            played.advance(now=k * recording.t[1])
+        assert played.position == 2 and model.current.index == 0 and not model.solving
+        model.shown()  # frame 0 on screen: the newest is taken, the one between never solved
+        posted.run(model)
+        assert model.last.frame == 2 and model.worker_stats()["done"] == 2
+        played.pause()
+        played.seek(0)  # paused: a step is taken at once, though frame 2 is not on screen yet
+        posted.run(model)
+        assert model.last.frame == 0
+        played.seek(1)
+        assert model.current.index == 1
+    finally:
+        model.close()
+
+
 def test_a_new_source_stops_the_old_one_and_the_same_source_keeps_its_frame(recording, reconstructor):
     model = ViewerModel()
     board = Pushed(recording.grid)
