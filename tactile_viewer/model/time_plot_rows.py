@@ -29,7 +29,7 @@ MAX_CONTACT_CURVES = 8  # contacts drawn with curves of their own (those present
 ROWS = (
     ("fz", "Fz", "mN", lambda q: q.fz * 1e3),
     ("tangential", "|Ft|", "mN", lambda q: q.tangential * 1e3),
-    ("direction", "dir", "deg", lambda q: np.degrees(q.direction)),
+    ("direction", "dir", "°", lambda q: np.degrees(q.direction)),
     ("shear_ratio", "|Ft|/Fz", "", lambda q: q.shear_ratio),
     ("centroid_x", "x", "mm", lambda q: q.centroid_x * 1e3),
     ("centroid_y", "y", "mm", lambda q: q.centroid_y * 1e3),
@@ -38,7 +38,7 @@ ROWS = (
 ERROR_ROWS = (
     ("error", "error", "%", (("Fz, % of |Fz*|", lambda e: e.normal * 100),
                              ("Ft, % of |F*|", lambda e: e.tangential * 100))),
-    ("direction_error", "dir err", "deg", (("Ft direction", lambda e: e.direction_deg),)),
+    ("direction_error", "dir err", "°", (("Ft direction", lambda e: e.direction_deg),)),
 )
 TIPS = {
     "fz": "Total normal force (sum of Fz over the nodes), mN",

@@ -148,7 +148,7 @@ class TimePlotStack(pg.GraphicsLayoutWidget):
             legend.anchor(itemPos=(1, 0), parentPos=(1, 0), offset=(-5, 0))
             plot.legend = legend
         # small and short: it runs along a row 45 px high at 1280x800 (the tooltip spells it out)
-        plot.setLabel("left", f"{label} {unit}" if unit else label, color="#282828", **{"font-size": "8pt"})
+        plot.setLabel("left", f"{label} {unit}" if unit else label, color="#282828", **{"font-size": "7.5pt"})
         for side in ("left", "bottom"):
             plot.getAxis(side).setPen(INK)
             plot.getAxis(side).setTextPen(INK)

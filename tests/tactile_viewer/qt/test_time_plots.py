@@ -480,3 +480,22 @@ def test_at_1280x800_the_legend_is_above_the_curves_and_the_direction_labels_apa
     apart = min(b - a for a, b in zip(labelled, labelled[1:], strict=False)) / (high - low) * direction.height()
     axis = dock.graphics.plots["direction"].getAxis("left")
     assert apart > QtGui.QFontMetrics(axis.font()).height()
+
+
+def test_at_1280x800_the_rows_axis_names_stand_apart(window, dock, qtbot):
+    # before: "|Ft| mN" and "dir deg", each written along a row about 45 px high, touched their
+    # neighbours' names
+    from tactile_viewer.io.files import load
+
+    window.resize(1280, 760)  # a 1280x800 screen less a title bar
+    qtbot.waitUntil(lambda: window.height() == 760, timeout=5000)
+    show(window, dock, qtbot, load(SAMPLES / "three_contacts.npz"))
+    qtbot.wait(100)  # laid out
+    labels = [plot.getAxis("left").label for plot in dock.graphics.plots.values()
+              if plot.scene() is not None and plot.isVisible()]
+    # each name's text: its box less the text document's margin on every side
+    names = sorted(((rect := label.sceneBoundingRect()).top() + (margin := label.document().documentMargin()),
+                    rect.bottom() - margin) for label in labels)
+    assert len(names) >= 3  # Fz, |Ft| and the direction at least
+    gaps = [below[0] - above[1] for above, below in zip(names, names[1:], strict=False)]
+    assert min(gaps) >= 4, gaps
