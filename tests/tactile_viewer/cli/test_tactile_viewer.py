@@ -5,6 +5,7 @@ import dataclasses
 import re
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -250,3 +251,29 @@ def test_every_command_says_in_plain_words_what_each_option_is(module, capsys, m
     assert not regex.search(r"``|:(func|class|mod|data|meth):", text), text
     bare = [action.option_strings or action.dest for action in parsers[0]._actions if not action.help]
     assert not bare, f"options without a word of help: {bare}"
+
+
+def test_the_window_loads_the_solvers_code_on_a_thread_of_its_own_and_a_failure_is_only_logged(
+        monkeypatch, caplog):
+    import logging
+
+    import solver.warmup
+    from tactile_viewer.cli.tactile_viewer import warm_in_background
+
+    log = logging.getLogger("tactile_viewer.test_warm")
+    calls = []
+    monkeypatch.setattr(solver.warmup, "warm_up", lambda: calls.append(threading.current_thread().name))
+    with caplog.at_level(logging.INFO, logger=log.name):
+        thread = warm_in_background(log)
+        thread.join(30)
+    assert calls == ["solver warm-up"] and thread.daemon
+    assert "solver's compiled code loaded ahead in" in caplog.text
+
+    def broken():
+        raise RuntimeError("no numba cache")
+    monkeypatch.setattr(solver.warmup, "warm_up", broken)
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger=log.name):
+        warm_in_background(log).join(30)
+    assert "loading the solver's compiled code ahead failed" in caplog.text
+    assert "RuntimeError: no numba cache" in caplog.text  # with its traceback
