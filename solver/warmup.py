@@ -14,7 +14,7 @@ __all__ = ["warm_up"]
 def warm_up():
     """Compile (or load from numba's cache) every path of the contact fit and the large-skin
     windows: about 14 s the first time after an install or a change to :mod:`solver.search`,
-    0.2 s after. ``make`` runs it once when it installs; without it the first automatic solve
+    0.2 to 0.8 s after. ``make`` runs it once when it installs; without it the first automatic solve
     pays."""
     grid = SensorGrid.regular(6, 6, 1e-3, 1e-3)
     x, y = grid.positions.T

@@ -366,16 +366,15 @@ def warm_in_background(log) -> threading.Thread:
     """Load the solver's compiled core (:func:`solver.warmup.warm_up`) on a thread of its own while
     the window is built and a recording read; the thread is returned, started.
 
-    Without it the first frames paid the loading as they took each path of the solve for the first
-    time (three_contacts.npz, two launches: 66 and 48 ms, 90 and 13 ms among its first three frames,
-    then 2 to 5 ms); with it none of the first 25 took over 5.5 ms, and launch to first frame solved
-    stayed 2.7 to 3.5 s. A failure is logged (the solves then load what they need themselves).
+    Without it the first frames of a recording paid the loading as each took a path of the solve
+    for the first time (``docs/efficiency.md``). A failure is logged, never raised: the solves then
+    load what they need themselves.
     """
-    from solver.warmup import warm_up
-
     def run():
         start = time.perf_counter()
         try:
+            from solver.warmup import warm_up
+
             warm_up()
         except Exception:  # noqa: BLE001 (never fatal: the first solves load the code themselves)
             log.warning("loading the solver's compiled code ahead failed; the first solves load it",

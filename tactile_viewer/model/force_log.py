@@ -61,9 +61,9 @@ __all__ = ["ForceLog", "recover", "leftover_spools", "ROW_FIELDS",
 # skin, so at most about 80 MB), far longer than the write-back stalls measured (tens of ms).
 QUEUE_FRAMES = 4096
 
-# one float64 each per frame, in this order
+# one float64 each per frame, in this order (each contact: force_tables.CONTACT_FIELDS, its row the
+# frame's in the order kept)
 ROW_FIELDS = ("frame", "t", "shear_ratio", "shear_direction", "efficiency", "residual", "condition")
-# one float64 each per contact: CONTACT_FIELDS (force_tables), its row the frame's in the order kept
 
 
 # the spool's description of the skin and the solve, written when it is made

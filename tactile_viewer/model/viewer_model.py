@@ -79,10 +79,9 @@ class ViewerModel:
         Frames a live source pushes, and those a playing recording produces,
         are taken only once the last result is on screen (the window calls
         :meth:`shown`), the newest then: a solve that could never be drawn is
-        not run, and no solve runs beside the drawing of the one before.
-        Default False. (Playback paced too, three runs of each alternating,
-        under Xvfb: 25.2 to 27.0 frames drawn a second at 1x against 22.8 to
-        24.9; docs/efficiency.md.)
+        not run, and no solve runs beside the drawing of the one before
+        (measured in ``docs/efficiency.md``). A step while paused is taken at
+        once. Default False.
     """
 
     def __init__(self, *, dispatch=None, settle: float = 0.0, pace: bool = False):
@@ -203,6 +202,8 @@ class ViewerModel:
         self.recording_changed.emit()
         self.display_changed.emit()
         if isinstance(source, RecordingSource):
+            # a frame held back for the last paint (pace) is dropped, so the seek's own is announced
+            source.take_latest()
             source.seek(source.position if same else 0)
         elif not self._take() and same:
             self._schedule()  # a quiet board: its last frame again, with the new solver
@@ -292,7 +293,7 @@ class ViewerModel:
         return True
 
     def shown(self):
-        """The last result is on screen: a live frame that waited is taken now (with ``pace``)."""
+        """The last result is on screen: a frame that waited for it (``pace``) is taken now."""
         self._unshown = False
         if self._waiting:
             self._waiting = False

@@ -92,8 +92,8 @@ class MainWindow(QtWidgets.QMainWindow):
         self._place()
         self._dispatcher = Dispatcher(self)
         # the model solves on its own worker thread; a solve done within SETTLE_S is drawn in the
-        # same repaint as the slider or frame change that asked for it; live frames are taken
-        # once the last one is on screen
+        # same repaint as the slider or frame change that asked for it; live and playing frames are
+        # taken once the last one is on screen
         self.model = ViewerModel(dispatch=self._dispatcher.post, settle=SETTLE_S, pace=True)
         self.tasks = TaskRunner(self, self._error)
         self._first_frame = False  # a source was installed and its first frame is not drawn yet

@@ -26,6 +26,8 @@ SCRIPT = textwrap.dedent("""
     MainWindow.open_dialog = broken  # File > Open recording...
 
     app = QtWidgets.QApplication(sys.argv[:1])
+    warming = []  # the solver's code loaded ahead, on a thread of its own
+    entry.warm_in_background = lambda log, start=entry.warm_in_background: warming.append(start(log))
 
     def window():
         return next(w for w in app.topLevelWidgets() if isinstance(w, MainWindow))
@@ -41,6 +43,7 @@ SCRIPT = textwrap.dedent("""
 
     def check():
         print("alive", window().isVisible(), app.reporter.count, flush=True)
+        print("warming", [thread.name for thread in warming], flush=True)
         app.quit()
 
     QtCore.QTimer.singleShot(300, poke)
@@ -54,6 +57,7 @@ def test_an_error_in_a_slot_does_not_end_the_app(tmp_path):
                          timeout=120)
     assert run.returncode == 0, run.stderr
     assert "alive True 2" in run.stdout, run.stdout + run.stderr
+    assert "warming ['solver warm-up']" in run.stdout  # started by the app itself
     logged = (tmp_path / errors.LOG_NAME).read_text()
     assert "RuntimeError: injected fault in a slot" in logged  # with its traceback
     assert "Traceback" in logged and "OSError: injected fault in a thread" in logged
