@@ -36,7 +36,7 @@ from measurement.timing import machine
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "hertz_shear_turning.npz"
 
 
-def slider_latencies(window, app, count):
+def slider_latencies(window, count):
     """``(wall ms, CPU ms)`` lists from setting the frame slider to the render that shows the frame."""
     slider = window.playback.frame_slider
     frames = slider.maximum() + 1
@@ -45,7 +45,7 @@ def slider_latencies(window, app, count):
         target = (slider.value() + 7 + k % 5) % frames  # always another frame: each move renders
         cpu, start = time.process_time(), time.perf_counter()
         slider.setValue(target)
-        walls.append(1e3 * (_wait(app, window.rendered) - start))
+        walls.append(1e3 * (_wait(window.rendered) - start))
         cpus.append(1e3 * (time.process_time() - cpu))
         assert window.model.frame == target
     return walls, cpus
@@ -122,7 +122,7 @@ def measure(window, app, count, seconds, dock=None):
     from tactile_viewer.qt.playback_panel import SPEEDS
 
     _settle(app)
-    walls, cpus = slider_latencies(window, app, count)
+    walls, cpus = slider_latencies(window, count)
     rates = {speed: playback(window, app, SPEEDS.index(speed), seconds) for speed in (1.0, 4.0)}
     return dict(scene=tuple(window.plotter.window_size), wall=walls, cpu=cpus, playback=rates,
                 cursor=cursor_cost(dock, app) if dock is not None else None)
@@ -169,7 +169,7 @@ def run(path=SAMPLE, *, count=40, seconds=5.0, rounds=3, size=(1280, 820), out=N
         results["without the dock"].append(measure(window, app, count, seconds))
         dock.show()
         if dock.series is None or not dock.series.complete:
-            _wait(app, dock.computed, timeout=120)  # then complete: from here on only the cursor moves
+            _wait(dock.computed, timeout=120)  # then complete: from here on only the cursor moves
         _settle(app, 50)
         results["dock docked"].append(measure(window, app, count, seconds, dock))
         dock.setFloating(True)  # the scene gets its size back

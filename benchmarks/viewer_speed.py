@@ -69,37 +69,58 @@ def _open_window(path, size, program):
     window.resize(*size)
     window.show()
     window.open(path)
-    _wait(app, window.ready, timeout=60)
+    _wait(window.ready, timeout=60)
     return app, window
 
 
-def _wait(app, signal, timeout=10.0):
-    """Process events until ``signal`` fires once; returns the time it fired."""
+def _wait(signal, timeout=10.0):
+    """Run the event loop until ``signal`` fires once; returns the time it fired."""
+    from PyQt6 import QtCore
+
     fired = []
-    slot = lambda *_: fired.append(time.perf_counter())  # noqa: E731
+    loop = QtCore.QEventLoop()
+
+    def slot(*_):
+        fired.append(time.perf_counter())
+        loop.quit()
     signal.connect(slot)
-    deadline = time.perf_counter() + timeout
     try:
-        while not fired:
-            app.processEvents()
-            if time.perf_counter() > deadline:
-                raise TimeoutError(f"no {signal} within {timeout} s")
+        if not fired:
+            QtCore.QTimer.singleShot(int(1e3 * timeout), loop.quit)
+            loop.exec()
+        if not fired:
+            raise TimeoutError(f"no {signal} within {timeout} s")
     finally:
         signal.disconnect(slot)
     return fired[0]
 
 
-def latencies(window, app, action, count):
+def _run_events(seconds, until=None):
+    """Run the event loop as the app's own does, waiting for events (a loop calling
+    ``processEvents`` keeps a core busy, and took it from the solves timed beside it): for
+    ``seconds``, or until ``until()`` is true (asked every 5 ms) if sooner."""
+    from PyQt6 import QtCore
+
+    loop = QtCore.QEventLoop()
+    QtCore.QTimer.singleShot(int(1e3 * seconds), loop.quit)
+    if until is not None:
+        check = QtCore.QTimer()
+        check.timeout.connect(lambda: until() and loop.quit())
+        check.start(5)
+    loop.exec()
+
+
+def latencies(window, action, count):
     """Median-ready list of ms from ``action(k)`` to the render that shows it."""
     times = []
     for k in range(count):
         start = time.perf_counter()
         action(k)
-        times.append(1e3 * (_wait(app, window.rendered) - start))
+        times.append(1e3 * (_wait(window.rendered) - start))
     return times
 
 
-def playback_rate(window, app, speed_index, seconds):
+def playback_rate(window, speed_index, seconds):
     """Frames put on screen per wall-clock second while playing (looped): ``rendered`` fires when a
     solved frame's repaint is swapped to the window, so solves overtaken before a paint do not count."""
     drawn = []
@@ -109,8 +130,7 @@ def playback_rate(window, app, speed_index, seconds):
     window.playback.speed_box.setCurrentIndex(speed_index)
     window.playback.set_playing(True)
     start = time.perf_counter()
-    while time.perf_counter() - start < seconds:
-        app.processEvents()
+    _run_events(seconds)
     elapsed = time.perf_counter() - start
     window.playback.set_playing(False)
     window.rendered.disconnect(slot)
@@ -133,12 +153,12 @@ def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
           f"{recording.grid.shape[1]}x{recording.grid.shape[0]} grid, {len(recording)} frames", file=out)
 
     panel = window.parameters
-    ratio = latencies(window, app, lambda k: panel.ratio_slider.setValue(10 + (k * 37) % 130), count)
-    direction = latencies(window, app, lambda k: panel.direction_slider.setValue(-170 + (k * 47) % 340),
+    ratio = latencies(window, lambda k: panel.ratio_slider.setValue(10 + (k * 37) % 130), count)
+    direction = latencies(window, lambda k: panel.direction_slider.setValue(-170 + (k * 47) % 340),
                           count)
     window.parameters.auto_box.setChecked(True)
-    _wait(app, window.rendered)
-    stepped = latencies(window, app, lambda k: window.playback.step(1 if (k // 10) % 2 == 0 else -1), count)
+    _wait(window.rendered)
+    stepped = latencies(window, lambda k: window.playback.step(1 if (k // 10) % 2 == 0 else -1), count)
     print(f"{'slider to rendered frame':<42} {'median ms':>9} {'p90 ms':>7}", file=out)
     rows = (("shear ratio slider (manual)", ratio), ("shear direction slider (manual)", direction),
             ("frame step (auto parameters)", stepped))
@@ -147,7 +167,7 @@ def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     print(f"playback over {seconds:g} s, looped", file=out)
     rates = {}
     for speed in (1.0, 4.0):
-        rates[speed] = playback_rate(window, app, SPEEDS.index(speed), seconds)
+        rates[speed] = playback_rate(window, SPEEDS.index(speed), seconds)
         print(f"  {speed:g}x ({30 * speed:g} recording frames/s): {rates[speed]:5.1f} frames drawn "
               f"per second", file=out)
     solves = window.model.worker_stats()
@@ -200,19 +220,18 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
     try:
         if not window.live_panel.connect_live(str(folder / "board"), folder / "layout.json", fmt=fmt):
             raise SystemExit("could not connect to the simulated board")
-        deadline = time.perf_counter() + 60  # the board computes its contact first
-        while window.live_panel.reader is None or window.live_panel.reader.stats.received < 10:
-            app.processEvents()
-            if time.perf_counter() > deadline:
-                raise SystemExit("no frames from the simulated board")
+        def flowing():
+            return window.live_panel.reader is not None and window.live_panel.reader.stats.received >= 10
+        _run_events(60, until=flowing)  # the board computes its contact first
+        if not flowing():
+            raise SystemExit("no frames from the simulated board")
         drawn, solved = [], []
         window.rendered.connect(lambda: drawn.append(time.perf_counter()))  # on screen, not just solved
         window.model.solved.connect(lambda result: solved.append(result.frame))
         window.live_panel.start_recording(folder / "live.mcap")
         received = window.live_panel.reader.stats.received
         cpu, start = time.process_time(), time.perf_counter()
-        while time.perf_counter() - start < seconds:
-            app.processEvents()
+        _run_events(seconds)
         elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
         received = window.live_panel.reader.stats.received - received
         path = window.live_panel.stop_recording()
@@ -243,11 +262,14 @@ def live(seconds=60.0, rate=1000.0, fmt="binary", out=None):
 
 
 def busy_core():
-    """A process spinning on a core until the caller ends it (``terminate``, then ``wait``)."""
-    return subprocess.Popen([sys.executable, "-c", "while True:\n    pass"])
+    """A process spinning on a core until the caller ends it (``terminate``, then ``wait``), or ends
+    itself (a benchmark killed on the way left two spinning for 10 minutes)."""
+    spin = ("import os\nparent = os.getppid()\nwhile os.getppid() == parent:\n"
+            "    for _ in range(1000000):\n        pass")
+    return subprocess.Popen([sys.executable, "-c", spin])
 
 
-def _window_solves(window, app, seconds):
+def _window_solves(window, seconds):
     # the window's own automatic solves during 1x looped playback: each delivered frame's solve_ms
     # (wall, the model's) and stress, and the worker thread's CPU time of every solve it ran
     from tactile_viewer.qt.playback_panel import SPEEDS
@@ -269,15 +291,10 @@ def _window_solves(window, app, seconds):
         window.playback.loop_box.setChecked(True)
         window.playback.speed_box.setCurrentIndex(SPEEDS.index(1.0))
         window.playback.set_playing(True)
-        start = time.perf_counter()
-        while time.perf_counter() - start < seconds:
-            app.processEvents()
+        _run_events(seconds)
         window.playback.set_playing(False)
-        deadline = time.perf_counter() + 10
-        while not window.model.wait_idle(0.01) and time.perf_counter() < deadline:
-            app.processEvents()
-        for _ in range(20):  # the last result's delivery
-            app.processEvents()
+        _run_events(10, until=lambda: window.model.wait_idle(0))
+        _run_events(0.1)  # the last result's delivery
     finally:
         window.model.solved.disconnect(slot)
         del solver.solve
@@ -342,7 +359,7 @@ def solve_comparison(path, *, seconds=5.0, loads=LOADS, size=(1280, 820), wait_p
         settled = "not waited for"
         if wait_presets and grid.size <= PRESET_LIMIT:
             try:
-                _wait(app, window.presets.measured, timeout=300)
+                _wait(window.presets.measured, timeout=300)
                 settled = "measured before"
             except TimeoutError:
                 settled = "still measuring after 300 s"
@@ -363,7 +380,7 @@ def solve_comparison(path, *, seconds=5.0, loads=LOADS, size=(1280, 820), wait_p
             try:
                 if spinner is not None:
                     time.sleep(0.5)  # the spinner has started
-                window_ms, window_cpu, stress = _window_solves(window, app, seconds)
+                window_ms, window_cpu, stress = _window_solves(window, seconds)
                 plain_ms, plain_cpu = _plain_solves(plain, stress)
             finally:
                 if spinner is not None:
