@@ -75,30 +75,22 @@ def _open_window(path, size, program):
 
 def _wait(signal, timeout=10.0):
     """Run the event loop until ``signal`` fires once; returns the time it fired."""
-    from PyQt6 import QtCore
-
     fired = []
-    loop = QtCore.QEventLoop()
-
-    def slot(*_):
-        fired.append(time.perf_counter())
-        loop.quit()
-    signal.connect(slot)
+    record = lambda *_: fired.append(time.perf_counter())  # noqa: E731
+    signal.connect(record)  # before the loop's quit: connected slots are called in order
     try:
-        if not fired:
-            QtCore.QTimer.singleShot(int(1e3 * timeout), loop.quit)
-            loop.exec()
-        if not fired:
-            raise TimeoutError(f"no {signal} within {timeout} s")
+        _run_events(timeout, quit_on=signal)
     finally:
-        signal.disconnect(slot)
+        signal.disconnect(record)
+    if not fired:
+        raise TimeoutError(f"no {signal} within {timeout} s")
     return fired[0]
 
 
-def _run_events(seconds, until=None):
+def _run_events(seconds, *, until=None, quit_on=None):
     """Run the event loop as the app's own does, waiting for events (a loop calling
     ``processEvents`` keeps a core busy, and took it from the solves timed beside it): for
-    ``seconds``, or until ``until()`` is true (asked every 5 ms) if sooner."""
+    ``seconds``, or sooner until ``until()`` is true (asked every 5 ms) or ``quit_on`` fires."""
     from PyQt6 import QtCore
 
     loop = QtCore.QEventLoop()
@@ -107,7 +99,13 @@ def _run_events(seconds, until=None):
         check = QtCore.QTimer()
         check.timeout.connect(lambda: until() and loop.quit())
         check.start(5)
-    loop.exec()
+    if quit_on is not None:
+        quit_on.connect(loop.quit)
+    try:
+        loop.exec()
+    finally:
+        if quit_on is not None:
+            quit_on.disconnect(loop.quit)
 
 
 def latencies(window, action, count):
