@@ -26,9 +26,12 @@ It needs a display: under a headless machine run it through ``xvfb-run -a``.
 from __future__ import annotations
 
 import argparse
+import atexit
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -53,12 +56,27 @@ def _application():
     return _APP[0]
 
 
+def _own_settings():
+    """Settings of the benchmark's own, unless ``TACTILE_VIEWER_CONFIG`` names some; the folder.
+
+    The window is then laid out as a fresh install lays it out (the time plots docked), whatever
+    the user last did, and nothing a benchmark moves (``time_plots_cost`` floats the dock) is left
+    in the user's settings. The folder goes when the process ends.
+    """
+    if "TACTILE_VIEWER_CONFIG" not in os.environ:
+        folder = tempfile.mkdtemp(prefix="tactile-benchmark-settings-")
+        atexit.register(shutil.rmtree, folder, ignore_errors=True)
+        os.environ["TACTILE_VIEWER_CONFIG"] = folder
+    return Path(os.environ["TACTILE_VIEWER_CONFIG"])
+
+
 def _open_window(path, size, program):
     """``(app, window)``: the viewer's window at ``size`` showing ``path``'s first frame.
 
     ``program`` names the benchmark in the error when there is no display.
     """
     os.environ.setdefault("QT_API", "pyqt6")
+    _own_settings()
     from tactile_viewer.qt.main_window import MainWindow
 
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):

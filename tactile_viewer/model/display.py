@@ -47,15 +47,18 @@ class Display:
         Arrows of nodes with ``|F|`` below this many newtons are hidden
         (``|(Fx, Fy)|`` for in-plane arrows).
     auto_range : bool
-        Colour range follows each frame; otherwise ``0 .. range_max``.
+        Colour range follows each frame, ending on a round number at most 4/3
+        of its largest value (and of its most negative, below zero; see
+        ``tactile_viewer.render.scene.bar_top``); otherwise ``0 .. range_max``.
     range_max : float
         Upper end of the fixed colour range, pascals.
     colormap : str
         Colour map of the pressure or stress map, one of :attr:`COLORMAPS`
         (perceptually uniform, and ``gray`` for print).
     arrow_auto_range : bool
-        The arrows' colour range follows each frame (``0 ..`` its largest shown
-        force); otherwise ``0 .. arrow_range_max``, the same for every frame.
+        The arrows' colour range follows each frame (``0 ..`` a round number at
+        most 4/3 of its largest shown force); otherwise ``0 .. arrow_range_max``,
+        the same for every frame.
     arrow_range_max : float
         Upper end of the arrows' fixed colour range, newtons.
     in_plane : bool

@@ -47,6 +47,7 @@ from .presets import PresetMeasurer
 from .quick_help import HELP_HTML, about_text
 from .status_line import status_details, status_text
 from .tasks import Dispatcher, TaskRunner
+from .text_line import TextLine
 from .time_plots import TimePlotsDock
 
 log = logging.getLogger(__name__)
@@ -148,12 +149,10 @@ class MainWindow(QtWidgets.QMainWindow):
         dock.setWidget(ControlColumn(self._controls))
         self.addDockWidget(QtCore.Qt.DockWidgetArea.RightDockWidgetArea, dock)
         self._build_menus()
-        self.status = QtWidgets.QLabel("open a recording (File > Open) or connect a board (Live > Connect)")
         # a normal widget, not a permanent one: a passing message ("saved ...") replaces it for its
-        # few seconds instead of being drawn underneath it
-        # a long line is cut at the window's edge rather than widening the window
-        policy = QtWidgets.QSizePolicy.Policy
-        self.status.setSizePolicy(policy.Ignored, policy.Preferred)
+        # few seconds instead of being drawn underneath it; a long line is cut with an ellipsis
+        # rather than widening the window, and a new one (every frame) repaints only itself
+        self.status = TextLine("open a recording (File > Open) or connect a board (Live > Connect)")
         self.statusBar().addWidget(self.status, 1)
         # the taxel under the mouse (or pinned by a click), beside the frame's status
         self.readout_label = QtWidgets.QLabel("")

@@ -13,6 +13,7 @@ from PyQt6 import QtCore, QtGui, QtWidgets
 from ..model.viewer_model import ViewerModel
 from ..sources.source import RecordingSource
 from .number_fields import quietly
+from .text_line import TextLine
 
 __all__ = ["PlaybackPanel", "SPEEDS"]
 
@@ -50,7 +51,9 @@ class PlaybackPanel(QtWidgets.QFrame):
         self.speed_box.currentIndexChanged.connect(lambda _: self._follow_controls())
         self.loop_box = QtWidgets.QCheckBox("loop")
         self.loop_box.toggled.connect(lambda _: self._follow_controls())
-        self.time_label = QtWidgets.QLabel("-")
+        # room for the longest label, so that the slider does not jump as it changes; a new label
+        # (every frame) repaints only itself
+        self.time_label = TextLine("-", room_for="frame 0000 (of 0-0000),  t = 000.000 s")
         for widget, tip in ((back, "One frame back (Left)"), (forward, "One frame on (Right)"),
                             (self.play_button, "Play the recording in real time times the speed, or pause "
                                                "(Space); slow drawing skips frames, never slows time"),
@@ -61,9 +64,6 @@ class PlaybackPanel(QtWidgets.QFrame):
         for button in (back, forward):
             button.setFixedWidth(button.fontMetrics().horizontalAdvance("<") + 24)
         self.play_button.setFixedWidth(self.play_button.fontMetrics().horizontalAdvance("Pause") + 24)
-        # room for the longest label, so that the slider does not jump as it changes
-        self.time_label.setMinimumWidth(self.time_label.fontMetrics().horizontalAdvance(
-            "frame 0000 (of 0-0000),  t = 000.000 s"))
         for widget in (back, self.play_button, forward):
             row.addWidget(widget)
         row.addWidget(self.frame_slider, 1)

@@ -39,12 +39,43 @@ from .meshes import (
     taxel_numbers,
 )
 
-__all__ = ["Scene"]
+__all__ = ["Scene", "bar_top"]
 
 # with only two lights (see Scene), ambient light keeps faces turned from them readable
 SHADED = dict(ambient=0.35, diffuse=0.75, specular=0.1)
 MAP_TITLES = {"pressure": "pressure kPa", "stress": "stress kPa", "none": ""}
 RESULTANT_COLOUR = "#d62728"
+# an automatic colour range ends on one of these times a power of ten: each is four times a round
+# number, so the bar's five labels are round too, and the next is at most 4/3 of it
+BAR_TOPS = (1.0, 1.2, 1.6, 2.0, 2.4, 3.2, 4.0, 4.8, 6.0, 8.0)
+
+
+def bar_top(value: float) -> float:
+    """The automatic colour range's end for a frame whose largest value is ``value``.
+
+    Parameters
+    ----------
+    value : float
+        The largest magnitude shown, > 0 (any unit).
+
+    Returns
+    -------
+    float
+        The smallest of :data:`BAR_TOPS` times a power of ten at or above
+        ``value``: at most 4/3 of it.
+
+    Notes
+    -----
+    The range stays put while a frame's peak moves within a step, and so do
+    the bar's numbers: they are readable while a recording plays, and VTK
+    draws a colour bar's text again only when its range changes (about 4 ms
+    of the window's thread per frame under software rendering).
+    """
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"value must be finite and > 0, got {value!r}")
+    power = 10.0 ** math.floor(math.log10(value))
+    # rounding: a value that is a top already (1.2e-3) must not go up a step
+    return next(top * power for top in (*BAR_TOPS, 10.0) if top * power >= value * (1 - 1e-12))
 
 
 class Scene:
@@ -230,8 +261,9 @@ class Scene:
         values = np.asarray(solved.stress if display.map == "stress" else solved.pressure, dtype=float)
         self._map.cell_data["kPa"] = values / 1e3
         if display.auto_range:
-            high = max(float(values.max()) / 1e3, 1e-9)
+            high = bar_top(max(float(values.max()) / 1e3, 1e-9))
             low = min(float(values.min()) / 1e3, 0.0)
+            low = -bar_top(-low) if low < 0 else 0.0
         else:
             low, high = 0.0, max(display.range_max / 1e3, 1e-9)
         if display.colormap != self._colormap:
@@ -262,9 +294,9 @@ class Scene:
             template = self._flat_arrow if display.in_plane else \
                 (self._arrow_points, self._arrow_normals, self._arrow_triangles)
             self.arrows.copy_from(glyphs(template, tips - vectors, vectors, magnitude[shown] * 1e3))
-            top = float(magnitude[shown].max()) if display.arrow_auto_range else display.arrow_range_max
-            top *= 1e3
-            self._actors["arrows"].mapper.scalar_range = (0.0, max(top, 1e-9))
+            top = bar_top(float(magnitude[shown].max()) * 1e3) if display.arrow_auto_range \
+                else max(display.arrow_range_max * 1e3, 1e-9)
+            self._actors["arrows"].mapper.scalar_range = (0.0, top)
         else:
             self.arrows.copy_from(pv.PolyData())
         self.arrow_nodes = shown

@@ -88,3 +88,15 @@ def test_the_command_refuses_bad_solve_options(arguments, message, capsys):
     with pytest.raises(SystemExit):
         bench.main(arguments)
     assert re.search(message, capsys.readouterr().err)
+
+
+def test_a_benchmark_window_has_settings_of_its_own_unless_told(monkeypatch, tmp_path):
+    # the user's own settings (a floated dock, other rows) must neither shape the figures nor be
+    # changed by a benchmark
+    monkeypatch.delenv("TACTILE_VIEWER_CONFIG")
+    folder = bench._own_settings()
+    assert folder.is_dir() and folder.name.startswith("tactile-benchmark-settings-")
+    assert bench.os.environ["TACTILE_VIEWER_CONFIG"] == str(folder)
+    assert bench._own_settings() == folder  # one folder per process
+    monkeypatch.setenv("TACTILE_VIEWER_CONFIG", str(tmp_path))
+    assert bench._own_settings() == tmp_path  # given: used as it is

@@ -22,6 +22,7 @@ from solver import Reconstructor, SensorGrid
 from tactile_viewer.io.files import load
 from tactile_viewer.model.display import Display
 from tactile_viewer.model.solved import Solved
+from tactile_viewer.render.scene import BAR_TOPS, bar_top
 from tests.tactile_viewer.render.hertz_frames import (
     DIRECTION,
     MM,
@@ -77,7 +78,7 @@ def test_arrow_colours_are_the_force_in_millinewtons(scene, frame):
     # what is drawn is scene.arrows, coloured by "mN" from 0 to the largest shown force
     assert actor.mapper.dataset is scene.arrows and actor.GetVisibility()
     assert scene.arrows.active_scalars_name == "mN"
-    np.testing.assert_allclose(actor.mapper.scalar_range, (0.0, magnitude_mn.max()), rtol=1e-12)
+    np.testing.assert_allclose(actor.mapper.scalar_range, (0.0, bar_top(magnitude_mn.max())), rtol=1e-12)
 
 
 def test_arrow_length_follows_the_display_scale(scene, regular_frame):
@@ -164,7 +165,7 @@ def test_one_pitch_square_per_node_centred_on_it(scene, frame):
 
 
 @pytest.mark.parametrize("kind", ["pressure", "stress"])
-def test_auto_range_spans_zero_to_the_frame_maximum(scene, regular_frame, kind):
+def test_auto_range_spans_zero_to_the_frame_maximum_rounded_up(scene, regular_frame, kind):
     grid, stress, result = show(scene, regular_frame, Display(map=kind, auto_range=True))
     values = stress / 1e3 if kind == "stress" else result.forces[:, 2] / grid.pitch**2 / 1e3
     # both sides of the rule: the reconstructed pressure dips below zero (the range must reach down
@@ -173,7 +174,7 @@ def test_auto_range_spans_zero_to_the_frame_maximum(scene, regular_frame, kind):
         assert values.min() < 0 < values.max()
     else:
         assert values.min() > 0
-    expected = (min(values.min(), 0.0), values.max())
+    expected = (-bar_top(-values.min()) if values.min() < 0 else 0.0, bar_top(values.max()))
     np.testing.assert_allclose(scene._actors["map"].mapper.scalar_range, expected, rtol=1e-12)
 
 
@@ -513,10 +514,50 @@ def test_a_fixed_arrow_colour_range_holds_across_frames(scene, regular_frame):
     for r in (result, weaker):
         scene.update(Solved.of(grid, stress, r), fixed, render=False)
         np.testing.assert_allclose(scene._actors["arrows"].mapper.scalar_range, (0.0, 250.0), rtol=1e-12)
-    # automatic: each frame spans its own largest arrow
+    # automatic: each frame spans its own largest arrow, rounded up
     for r, peak in zip((result, weaker), peaks, strict=True):
         scene.update(Solved.of(grid, stress, r), Display(), render=False)
-        np.testing.assert_allclose(scene._actors["arrows"].mapper.scalar_range, (0.0, peak), rtol=1e-12)
+        np.testing.assert_allclose(scene._actors["arrows"].mapper.scalar_range, (0.0, bar_top(peak)),
+                                   rtol=1e-12)
+
+
+def test_an_automatic_range_stays_put_while_the_peak_moves_within_a_step(scene, regular_frame):
+    # a playing recording's peak moves a little from frame to frame: the bars' numbers must not
+    # (and VTK draws a bar's text again only when its lookup table changed)
+    grid, stress, result = regular_frame
+    scene.set_grid(grid)
+    frames = [Solved.of(grid, gain * stress, Reconstructor(grid).solve(
+        gain * stress, shear_ratio=RATIO, shear_direction=DIRECTION)) for gain in (1.0, 1.01)]
+    # both peaks within one step for these frames (checked, or the test proves nothing)
+    for peaks in ([float(np.max(f.pressure)) / 1e3 for f in frames],
+                  [float(np.linalg.norm(f.forces_drawn, axis=1).max()) * 1e3 for f in frames]):
+        assert peaks[1] > peaks[0] and bar_top(peaks[1]) == bar_top(peaks[0])
+    tables = [scene._actors[name].mapper.lookup_table for name in ("map", "arrows")]
+    scene.update(frames[0], Display(), render=True)
+    ranges = [scene._actors[name].mapper.scalar_range for name in ("map", "arrows")]
+    before = [table.GetMTime() for table in tables]
+    scene.update(frames[1], Display(), render=True)
+    assert [scene._actors[name].mapper.scalar_range for name in ("map", "arrows")] == ranges
+    assert [table.GetMTime() for table in tables] == before
+
+
+@pytest.mark.parametrize("value", [1e-9, 3e-7, 0.00119, 0.0012, 0.0013, 0.99, 1.0, 1.0000001, 2.2, 3.3,
+                                   7.9, 9.99, 12.5, 47.0, 1e6])
+def test_a_bar_top_is_a_round_number_at_or_just_above_the_value(value):
+    top = bar_top(value)
+    assert value <= top <= 4 / 3 * value * (1 + 1e-12)
+    mantissa = top / 10.0 ** math.floor(math.log10(top) + 1e-12)
+    assert min(abs(mantissa - step) for step in (*BAR_TOPS, 10.0)) < 1e-9
+    # a quarter of it (the bar's five labels are 0, top/4 .. top) has at most two significant digits
+    quarter = top / 4
+    assert float(f"{quarter:.2g}") == pytest.approx(quarter, rel=1e-12)
+    assert bar_top(top) == pytest.approx(top, rel=1e-15)  # a top stays where it is
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, math.nan, math.inf])
+def test_a_bar_top_needs_a_positive_finite_value(value):
+    with pytest.raises(ValueError, match=r"value must be finite and > 0, got"):
+        bar_top(value)
 
 
 @pytest.mark.parametrize("name", Display.COLORMAPS)
