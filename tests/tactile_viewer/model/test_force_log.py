@@ -60,6 +60,17 @@ def test_the_log_is_the_viewers_force_table_of_the_frames_published(frames, resu
     assert table.contact_identity.tolist() == [[1, 2]] * 6 or table.contact_identity.tolist() == [[2, 1]] * 6
     np.testing.assert_array_equal(table.contact_force, force)
     np.testing.assert_array_equal(table.contact_centre, centre)
+    # and read from each result itself, slot by slot (both sides above go through contact_slots)
+    for row, k in enumerate(kept):
+        contacts = results[k].contacts
+        for slot in range(table.contact_identity.shape[1]):
+            if slot < len(contacts):
+                np.testing.assert_array_equal(table.contact_force[row, slot], contacts[slot].total_force)
+                np.testing.assert_array_equal(table.contact_centre[row, slot], contacts[slot].centre)
+            else:
+                assert table.contact_identity[row, slot] == 0
+                assert np.isnan(table.contact_force[row, slot]).all()
+                assert np.isnan(table.contact_centre[row, slot]).all()
     for suffix in ("npz", "csv"):
         saved = load_forces(save_forces(table, tmp_path / f"take.forces.{suffix}"))
         np.testing.assert_allclose(saved["forces"], table.forces, rtol=1e-6)
