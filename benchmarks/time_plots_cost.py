@@ -79,11 +79,13 @@ def cursor_cost(dock, app, count=200):
     from PyQt6 import QtCore
 
     class Paints(QtCore.QObject):
-        count = 0
+        # a paint is no signal of its own: the filter makes one; the loop it ends quits once the
+        # paint is done (a quit takes effect when the event being delivered returns)
+        painted = QtCore.pyqtSignal()
 
-        def eventFilter(self, watched, event):
+        def eventFilter(self, watched, event):  # noqa: N802
             if event.type() == QtCore.QEvent.Type.Paint:
-                Paints.count += 1
+                self.painted.emit()
             return False
 
     paints = Paints()
@@ -91,19 +93,18 @@ def cursor_cost(dock, app, count=200):
     viewport.installEventFilter(paints)
     t = dock.model.recording.t
     walls, cpus = [], []
-    for k in range(count):
-        before = Paints.count
-        cpu, start = time.process_time(), time.perf_counter()
-        dock._move_lines(float(t[(dock.model.frame + 1 + k) % len(t)]))
-        deadline = start + 1.0
-        while Paints.count == before and time.perf_counter() < deadline:
-            app.processEvents()
-        if Paints.count == before:  # the plots were not repainted (not exposed): no figure, not a hang
-            viewport.removeEventFilter(paints)
-            return math.nan, math.nan
-        walls.append(1e3 * (time.perf_counter() - start))
-        cpus.append(1e3 * (time.process_time() - cpu))
-    viewport.removeEventFilter(paints)
+    try:
+        for k in range(count):
+            cpu, start = time.process_time(), time.perf_counter()
+            dock._move_lines(float(t[(dock.model.frame + 1 + k) % len(t)]))
+            try:
+                _wait(paints.painted, timeout=1.0)  # waiting for events, as the app does
+            except TimeoutError:  # the plots were not repainted (not exposed): no figure, not a hang
+                return math.nan, math.nan
+            walls.append(1e3 * (time.perf_counter() - start))
+            cpus.append(1e3 * (time.process_time() - cpu))
+    finally:
+        viewport.removeEventFilter(paints)
     dock._move_lines(float(t[dock.model.frame]))
     return float(np.median(walls)), float(np.median(cpus))
 
