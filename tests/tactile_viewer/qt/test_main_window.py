@@ -288,6 +288,29 @@ def test_playback_advances(opened, qtbot):
     qtbot.waitUntil(lambda: opened.playback.frame_slider.value() == opened.model.frame, timeout=5000)
 
 
+def test_while_playing_the_slider_moves_with_the_frame_drawn_and_paused_at_once(opened, qtbot):
+    # playing, a frame taken moves the slider only with its result, in that frame's repaint (moved
+    # before the solve, it cost the window a repaint of its own on every frame)
+    slider = opened.playback.frame_slider
+    at_take, at_solved = [], []
+    opened.model.frame_changed.connect(lambda index: at_take.append((index, slider.value())))
+    opened.model.solved.connect(lambda solved: at_solved.append((solved.frame, slider.value())))
+    opened.playback.speed_box.setCurrentIndex(2)  # 1x
+    opened.playback.set_playing(True)
+    qtbot.waitUntil(lambda: len(at_solved) >= 5 and len(at_take) >= 5, timeout=10000)
+    opened.playback.set_playing(False)
+    assert all(value != index for index, value in at_take)  # not yet moved when the frame is taken
+    assert all(value == frame for frame, value in at_solved)  # moved with its result
+    assert slider.value() == opened.model.frame  # paused: the frame taken, drawn or not
+    # paused, a step moves it at once, before the solve
+    at_take.clear()
+    target = (opened.model.frame + 7) % len(opened.model.recording)
+    opened.model.set_frame(target)
+    assert at_take == [(target, target)]
+    qtbot.waitUntil(lambda: opened.model.last.frame == target, timeout=10000)
+    assert slider.value() == target
+
+
 def test_step_and_kernel_switch(opened, qtbot):
     with qtbot.waitSignal(opened.rendered, timeout=5000):
         opened.playback.step(3)
