@@ -377,6 +377,30 @@ def test_the_contacts_table_lists_each_contact_with_its_own_resultant_and_parame
     assert table.item(0, 5).text() != table.item(1, 5).text() or table.item(0, 6).text() != table.item(1, 6).text()
 
 
+def test_the_contacts_table_tells_its_view_once_a_frame_and_its_columns_fit_the_new_numbers(window, qtbot):
+    open_sample(window, qtbot, SAMPLES / "two_contacts.npz")
+    with qtbot.waitSignal(window.model.solved, timeout=10000):
+        window.model.set_frame(len(window.model.recording) // 2)
+    panel, table = window.contacts_panel, window.contacts_panel.table
+    changes = []
+    table.model().dataChanged.connect(lambda first, last, roles: changes.append(
+        (first.row(), first.column(), last.row(), last.column())))
+    last = window.model.last
+    # a frame whose first contact presses 1000 times harder: wider numbers in the force columns
+    from dataclasses import replace as replaced
+
+    heavy = replaced(last.result, contacts=[replaced(last.result.contacts[0],
+                                                     total_force=1000 * last.result.contacts[0].total_force),
+                                            *last.result.contacts[1:]])
+    panel.follow(replaced(last, result=heavy))
+    assert changes == [(0, 0, 1, table.columnCount() - 1)]  # one change, every cell
+    QtWidgets.QApplication.processEvents()
+    text = table.item(0, 1).text()
+    assert float(text) == pytest.approx(1000 * last.result.contacts[0].total_force[2] * 1e3, rel=1e-3)
+    # the view followed: the column is as wide as its widest number
+    assert table.horizontalHeader().sectionSize(1) >= table.fontMetrics().horizontalAdvance(text)
+
+
 def test_a_normal_only_solve_lists_the_whole_frame(opened, qtbot):
     from solver.quality import Configuration
 
