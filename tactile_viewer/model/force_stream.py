@@ -7,8 +7,9 @@ automatic fit starts from the frame solved last, by any of them) and hands the
 frame and its :class:`solver.Reconstruction` to ``publish`` (an LSL outlet, a
 force log). With several threads, frames are solved side by side, out of
 order, on as many cores; ``publish`` still takes them one at a time, in frame
-order (a thread whose frame was solved before the one taken ahead of it waits
-for that one's turn).
+order: a frame solved before the one taken ahead of it waits, solved, while its
+thread goes on to the next frame, and the thread that solves the frame whose
+turn it is publishes it and every solved one after it.
 
 The reader never waits for the solver: it only appends to the queue, so the
 board is read and recorded at its own pace whatever the solver does. When the
@@ -151,9 +152,10 @@ class ForceStream:
         self._queue: deque = deque()
         self._lock = threading.Lock()
         self._ready = threading.Condition(self._lock)      # a frame queued, or stopping
-        self._in_order = threading.Condition(self._lock)   # a frame's turn to be published passed
         self._taken = 0                                    # frames taken from the queue so far
         self._turn = 0                                     # the frame (in order taken) published next
+        self._solved: dict[int, tuple] = {}                # solved frames waiting for their turn, by turn
+        self._publishing = False                           # a thread is publishing the solved frames in turn
         self._stopping = False
         self._threads: list[threading.Thread] = []
         self._counts = dict.fromkeys(("received", "solved", "published", "skipped", "failed"), 0)
@@ -220,31 +222,43 @@ class ForceStream:
 
     def _solve(self, frame: SourceFrame, turn: int) -> None:
         started = time.perf_counter()
-        error = None
+        result = error = None
         try:
             result = self.solver.solve(frame.stress, **self.parameters)
         except Exception as exc:  # noqa: BLE001 (one bad frame must not end the stream: counted, said)
             error = exc
-        solved = time.perf_counter()
-        with self._in_order:
-            while self._turn != turn:  # the frames taken before this one are published first
-                self._in_order.wait()
+        with self._lock:
+            self._solved[turn] = (frame, result, error, time.perf_counter() - started)
+            if self._publishing:
+                return  # the thread publishing takes it in its turn; this one solves the next frame
+            self._publishing = True
+        # Publish in order every solved frame whose turn has come. A thread that waited here for the
+        # frame taken ahead of its own could not solve meanwhile: with two threads, whenever the
+        # later frame was solved first, one of them stood still.
+        while True:
+            with self._lock:
+                waiting = self._solved.pop(self._turn, None)
+                if waiting is None:
+                    self._publishing = False
+                    return
+            self._publish(*waiting)
+
+    def _publish(self, frame: SourceFrame, result, error, solve_time: float) -> None:
         try:
             if error is None:
                 self.publish(frame, result)
-        except Exception as exc:  # noqa: BLE001 (as above)
+        except Exception as exc:  # noqa: BLE001 (as in _solve)
             error = exc
         latency = self.clock() - frame.t
-        with self._in_order:
+        with self._lock:
             self._turn += 1
-            self._in_order.notify_all()
             if error is not None:
                 self._counts["failed"] += 1
                 self.last_error = f"frame {frame.index}: {type(error).__name__}: {error}"
                 return
             self._counts["solved"] += 1
             self._counts["published"] += 1
-            self._solve_times.append(solved - started)
+            self._solve_times.append(solve_time)
             self._latencies.append(latency)
             self._histogram[np.searchsorted(_EDGES, latency)] += 1
 

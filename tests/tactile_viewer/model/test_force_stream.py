@@ -248,6 +248,44 @@ def test_a_failed_frame_among_several_solver_threads_keeps_the_others_in_order(f
     assert stream.last_error == "frame 4: ValueError: frame 4 is bad"
 
 
+class HeldFirst:
+    """Solves normal-only; frame 0 is held until the test releases it, and says which frames it solved."""
+
+    def __init__(self):
+        self.release, self.solved, self.lock = threading.Event(), [], threading.Lock()
+        self.alone = Reconstructor(GRID)
+        self.all_but_first = threading.Event()
+
+    def solve(self, stress, **_):
+        index = int(round(stress[0]))  # the test's frames carry their index in the first taxel
+        if index == 0:
+            assert self.release.wait(WAIT_S)
+        with self.lock:
+            self.solved.append(index)
+            if len(self.solved) == 3 and 0 not in self.solved:
+                self.all_but_first.set()
+        return self.alone.solve_normal(stress)
+
+
+def test_a_thread_whose_frame_was_solved_early_goes_on_to_the_next_frame(frames):
+    # frame 0 is held on one thread: the other solves frames 1, 2 and 3 meanwhile (before, it waited
+    # with frame 1 solved until frame 0 was published, and the stream had one thread for the time)
+    board, published, solver = FakeBoard(), Published(), HeldFirst()
+    stream = ForceStream(board, solver, published, solvers=2)
+    stream.start()
+    board.send(numbered(frames[:4]))
+    try:
+        assert solver.all_but_first.wait(WAIT_S), solver.solved
+        assert published.frames == []  # nothing before frame 0: publishing keeps the frames' order
+    finally:
+        solver.release.set()
+    published.wait(4)
+    stream.stop()
+    assert [f.index for f in published.frames] == [0, 1, 2, 3]
+    assert solver.solved == [1, 2, 3, 0]
+    assert stream.totals().published == 4
+
+
 @pytest.mark.parametrize(("options", "message"), [
     ({"queue_frames": 0}, "queue_frames must be a whole number >= 1, got 0"),
     ({"queue_frames": 2.5}, "queue_frames must be a whole number >= 1, got 2.5"),
