@@ -90,8 +90,9 @@ class DisplayPanel(QtWidgets.QGroupBox):
                                "area) or the stress the sensors measured, kPa"),
                 (self.colormap_box, "Colours of the map: perceptually uniform maps (equal steps look equal), "
                                     "cividis also for colour-blind readers, gray for print"),
-                (self.range_box, "The map's colours span 0 to this frame's largest value (on), or 0 to "
-                                 "the value beside on every frame (off)"),
+                (self.range_box, "The map's colours span 0 to this frame's largest value rounded up to a "
+                                 "round number (on: the bar's labels stay still while the peak moves a "
+                                 "little), or 0 to the value beside on every frame (off)"),
                 (self.range_spin, "Top of the map's fixed colour range, kPa (set from the recording's "
                                   "most loaded frame when it opens)"),
                 (self.arrows_box, "One arrow per taxel: the force on the skin there, its tip on the surface, "
@@ -104,9 +105,9 @@ class DisplayPanel(QtWidgets.QGroupBox):
                                       "(exponentially, over the frames' time) so that node forces stop "
                                       "flickering; they then lag the data by about this much. Off by "
                                       "default; never applied to exports, the read-out or the numbers"),
-                (self.arrow_range_box, "The arrows' colours span 0 to this frame's largest shown force (on), "
-                                       "or 0 to the value beside on every frame, so colours compare across "
-                                       "frames (off)"),
+                (self.arrow_range_box, "The arrows' colours span 0 to this frame's largest shown force "
+                                       "rounded up to a round number (on), or 0 to the value beside on every "
+                                       "frame, so colours compare across frames (off)"),
                 (self.arrow_range_spin, "Top of the arrows' fixed colour range, mN (set from the recording's "
                                         "loads when it opens); larger forces show in the top colour"),
                 (self.in_plane_box, "Arrows and resultants show only the in-plane force (Fx, Fy), flat on "
