@@ -7,7 +7,8 @@ Measures, in the real window (``QtInteractor``, whatever OpenGL the display offe
   parameters), and from stepping a frame to its render (automatic parameters);
 - playback frame rate: distinct frames drawn per second of wall clock while
   playing a looped recording at 1x (the recording's own 30 fps is the ceiling)
-  and at 4x (120 recording frames per second: the display's own ceiling);
+  and at 4x (120 recording frames per second: the display's own ceiling), and
+  how many times the window was composed per frame drawn (1 at best);
 - serial decoder throughput (frames per second, 256 values, binary and text);
 - with ``--live SECONDS``: the window on ``tactile-sim`` at 1 kHz through a
   pseudo-terminal, recording everything: frames lost in the recording, display
@@ -137,11 +138,18 @@ def latencies(window, action, count):
 
 
 def playback_rate(window, speed_index, seconds):
-    """Frames put on screen per wall-clock second while playing (looped): ``rendered`` fires when a
-    solved frame's repaint is swapped to the window, so solves overtaken before a paint do not count."""
-    drawn = []
+    """``(frames drawn a second, compositions per frame drawn)`` while playing (looped).
+
+    ``rendered`` fires when a solved frame's repaint is swapped to the window, so solves overtaken
+    before a paint do not count. A composition is any swap of the window (the 3-D view is a
+    ``QOpenGLWidget``: Qt composes the whole window through OpenGL whenever any widget repaints,
+    about 13 ms each under software rendering); 1 is the least a frame can cost.
+    """
+    drawn, swaps = [], []
     slot = lambda: drawn.append(time.perf_counter())  # noqa: E731
+    swapped = lambda: swaps.append(time.perf_counter())  # noqa: E731
     window.rendered.connect(slot)
+    window.plotter.interactor.frameSwapped.connect(swapped)
     window.playback.loop_box.setChecked(True)
     window.playback.speed_box.setCurrentIndex(speed_index)
     window.playback.set_playing(True)
@@ -150,7 +158,8 @@ def playback_rate(window, speed_index, seconds):
     elapsed = time.perf_counter() - start
     window.playback.set_playing(False)
     window.rendered.disconnect(slot)
-    return len(drawn) / elapsed
+    window.plotter.interactor.frameSwapped.disconnect(swapped)
+    return len(drawn) / elapsed, len(swaps) / max(len(drawn), 1)
 
 
 def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
@@ -181,15 +190,15 @@ def run(path=SAMPLE, *, count=40, seconds=5.0, size=(1280, 820), out=None):
     for label, times in rows:
         print(f"  {label:<40} {np.median(times):9.1f} {np.percentile(times, 90):7.1f}", file=out)
     print(f"playback over {seconds:g} s, looped", file=out)
-    rates = {}
+    rates, compositions = {}, {}
     for speed in (1.0, 4.0):
-        rates[speed] = playback_rate(window, SPEEDS.index(speed), seconds)
+        rates[speed], compositions[speed] = playback_rate(window, SPEEDS.index(speed), seconds)
         print(f"  {speed:g}x ({30 * speed:g} recording frames/s): {rates[speed]:5.1f} frames drawn "
-              f"per second", file=out)
+              f"per second, {compositions[speed]:.2f} window compositions per frame", file=out)
     solves = window.model.worker_stats()
     window.close()
     app.processEvents()
-    return dict(ratio=ratio, direction=direction, step=stepped, playback=rates,
+    return dict(ratio=ratio, direction=direction, step=stepped, playback=rates, compositions=compositions,
                 recording_fps=(len(recording) - 1) / float(recording.t[-1] - recording.t[0]), solves=solves)
 
 
