@@ -68,7 +68,7 @@ def playback(window, app, speed_index, seconds):
     return len(drawn) / elapsed, 1e3 * cpu / max(len(drawn), 1), 100 * cpu / elapsed
 
 
-def cursor_cost(dock, app, count=200):
+def cursor_cost(dock, count=200):
     """Medians ``(wall ms, CPU ms)`` of moving the dock's cursor to another frame and repainting it.
 
     What the dock adds to every frame of playback: moving its cursor lines (nothing else moves) and
@@ -125,7 +125,7 @@ def measure(window, app, count, seconds, dock=None):
     walls, cpus = slider_latencies(window, count)
     rates = {speed: playback(window, app, SPEEDS.index(speed), seconds) for speed in (1.0, 4.0)}
     return dict(scene=tuple(window.plotter.window_size), wall=walls, cpu=cpus, playback=rates,
-                cursor=cursor_cost(dock, app) if dock is not None else None)
+                cursor=cursor_cost(dock) if dock is not None else None)
 
 
 def row(label, figures, out):

@@ -31,6 +31,9 @@ TIPS = ("Contact number: it keeps it from frame to frame while the contact persi
         "shear is less certain; no shear: Auto found no shear signature on it")
 
 
+_NUMBERS = QtCore.Qt.AlignmentFlag.AlignRight | QtCore.Qt.AlignmentFlag.AlignVCenter  # the numeric columns
+
+
 def contact_rows(solved: Solved) -> list[tuple[str, ...]]:
     """The table's rows for ``solved``: one per contact; the whole frame when it has none.
 
@@ -98,7 +101,6 @@ class ContactsPanel(QtWidgets.QGroupBox):
     def follow(self, solved: Solved):
         rows = contact_rows(solved)
         self.table.setRowCount(len(rows))  # rows in or out: the view hears of it as usual
-        alignment = QtCore.Qt.AlignmentFlag.AlignRight | QtCore.Qt.AlignmentFlag.AlignVCenter
         # Every frame changes every cell. Cell by cell, the view and its header (which sizes the
         # columns to their contents) follow each change: 24 times a frame of three contacts, 3 ms of
         # the window's thread. The cells are filled unheard, then the view hears of all at once.
@@ -107,16 +109,19 @@ class ContactsPanel(QtWidgets.QGroupBox):
         try:
             for r, row in enumerate(rows):
                 for c, text in enumerate(row):
-                    item = self.table.item(r, c)
-                    if item is None:
-                        item = QtWidgets.QTableWidgetItem()
-                        if 0 < c < len(COLUMNS) - 1:
-                            item.setTextAlignment(alignment)
-                        self.table.setItem(r, c, item)
-                    item.setText(text)
-                    if c == len(COLUMNS) - 1:
-                        item.setToolTip(text)
+                    self._cell(r, c).setText(text)
+                self._cell(r, len(COLUMNS) - 1).setToolTip(row[-1])  # the note, whole however narrow
         finally:
             model.blockSignals(blocked)
         if rows:
             model.dataChanged.emit(model.index(0, 0), model.index(len(rows) - 1, len(COLUMNS) - 1), [])
+
+    def _cell(self, r: int, c: int) -> QtWidgets.QTableWidgetItem:
+        # the table's item at (r, c), made (numbers right-aligned) the first time the row is used
+        item = self.table.item(r, c)
+        if item is None:
+            item = QtWidgets.QTableWidgetItem()
+            if 0 < c < len(COLUMNS) - 1:
+                item.setTextAlignment(_NUMBERS)
+            self.table.setItem(r, c, item)
+        return item

@@ -262,8 +262,7 @@ class Scene:
         self._map.cell_data["kPa"] = values / 1e3
         if display.auto_range:
             high = bar_top(max(float(values.max()) / 1e3, 1e-9))
-            low = min(float(values.min()) / 1e3, 0.0)
-            low = -bar_top(-low) if low < 0 else 0.0
+            low = -bar_top(-float(values.min()) / 1e3) if values.min() < 0 else 0.0
         else:
             low, high = 0.0, max(display.range_max / 1e3, 1e-9)
         if display.colormap != self._colormap:
