@@ -135,7 +135,9 @@ class PlaybackPanel(QtWidgets.QFrame):
 
     def _on_solved(self, solved):
         if self.source is not None:
-            if solved.frame == self.model.frame:
+            # playing, the frame drawn, even when a later one was taken meanwhile (a slow solve);
+            # paused, only the frame shown: an older result does not move the slider back
+            if self.source.state == "playing" or solved.frame == self.model.frame:
                 self._show_frame(solved.frame)
             # numbered from 0, as in exports, sidecars, --frame and --report
             self.time_label.setText(f"frame {solved.frame} (of 0-{len(self.source) - 1}),  "
