@@ -80,8 +80,8 @@ class ViewerModel:
         are taken only once the last result is on screen (the window calls
         :meth:`shown`), the newest then: a solve that could never be drawn is
         not run, and no solve runs beside the drawing of the one before
-        (measured in ``docs/efficiency.md``). A step while paused is taken at
-        once. Default False.
+        (measured in ``docs/efficiency.md``). A pause takes the frame playback
+        stopped at, and a step while paused is taken at once. Default False.
     """
 
     def __init__(self, *, dispatch=None, settle: float = 0.0, pace: bool = False):
@@ -184,6 +184,7 @@ class ViewerModel:
         scales = None if same else display_scales(source, reconstructor)
         if old is not None and not same:
             old.frame_arrived.disconnect(self._frame_arrived)
+            old.state_changed.disconnect(self._state_changed)
             self._stop(old)  # its last news (a recording saved) still reaches the user
             old.message.disconnect(self._source_message)
         self.source = source
@@ -197,6 +198,7 @@ class ViewerModel:
             self.current = None
             self.display = replace(self.display, **scales)
             source.frame_arrived.connect(self._frame_arrived)
+            source.state_changed.connect(self._state_changed)
             source.message.connect(self._source_message)
         self._generation += 1
         self.recording_changed.emit()
@@ -269,6 +271,20 @@ class ViewerModel:
             self._take_when_shown()
         elif not self._closed:
             self._dispatch(self._take_when_shown)
+
+    def _state_changed(self):
+        # (pace) playback paused while a frame waited for the last paint: that frame is taken now.
+        # The source announces no new frame while one waits untaken, so a step after the pause
+        # would otherwise wait for that paint too (a paused step is taken at once).
+        if self._here():
+            self._take_waiting()
+        elif not self._closed:
+            self._dispatch(self._take_waiting)
+
+    def _take_waiting(self):
+        if self._waiting and not self._paced():
+            self._waiting = False
+            self._take()
 
     def _take_when_shown(self):
         if self._unshown and self._paced():
