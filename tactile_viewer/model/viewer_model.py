@@ -80,7 +80,8 @@ class ViewerModel:
         are taken only once the last result is on screen (the window calls
         :meth:`shown`), the newest then: a solve that could never be drawn is
         not run, and no solve runs beside the drawing of the one before
-        (measured in ``docs/efficiency.md``). A pause takes the frame playback
+        (measured in ``docs/efficiency.md``); a window that paints nothing
+        (hidden) calls :meth:`shown` itself. A pause takes the frame playback
         stopped at, and a step while paused is taken at once. Default False.
     """
 
@@ -282,7 +283,7 @@ class ViewerModel:
             self._dispatch(self._take_waiting)
 
     def _take_waiting(self):
-        if self._waiting and not self._paced():
+        if self._waiting and not self._paced() and not self._closed:
             self._waiting = False
             self._take()
 
@@ -309,9 +310,10 @@ class ViewerModel:
         return True
 
     def shown(self):
-        """The last result is on screen: a frame that waited for it (``pace``) is taken now."""
+        """The last result is on screen (or will not be: a hidden window): a frame that waited for
+        it (``pace``) is taken now. Nothing after :meth:`close`."""
         self._unshown = False
-        if self._waiting:
+        if self._waiting and not self._closed:
             self._waiting = False
             self._take()
 

@@ -365,6 +365,10 @@ class MainWindow(QtWidgets.QMainWindow):
         self.status.setText(status_text(solved, self.model))
         self.status.setToolTip(status_details(solved))
         self._draw()
+        if not self._paints():
+            # no paint will say the result is on screen: the next frame is taken after every slot of
+            # this result has run (playback, a live board and its LSL publishing go on while hidden)
+            QtCore.QTimer.singleShot(0, self.model.shown)
         if self._first_frame:
             self._first_frame = False
             self.ready.emit()
@@ -380,6 +384,16 @@ class MainWindow(QtWidgets.QMainWindow):
         # paint always renders, so an explicit render would draw every frame twice.
         self._drawing = True
         self.plotter.interactor.update()
+
+    def _paints(self) -> bool:
+        # hidden or minimized, the window paints nothing until it is shown again
+        return self.isVisible() and not self.isMinimized()
+
+    def hideEvent(self, event):
+        # hidden or minimized (a spontaneous hide) with a result not yet painted: a frame waiting
+        # for that paint (pace) is taken now, and the results that follow go on without one
+        super().hideEvent(event)
+        self.model.shown()
 
     def _frame_swapped(self):
         if self._drawing:

@@ -30,6 +30,16 @@ def test_the_window_shows_live_frames(live, qtbot):
     assert "lost 0" in live.live_panel.status.text()
 
 
+def test_a_hidden_window_goes_on_solving_live_frames(live, qtbot):
+    # no paint comes while hidden: each result counts as shown once the window has taken it (before,
+    # the board's frames waited for a paint and nothing more was solved or published)
+    live.hide()
+    solved = []
+    live.model.solved.connect(lambda result: solved.append(result.frame))
+    qtbot.waitUntil(lambda: len(set(solved)) >= 10, timeout=10000)
+    assert solved == sorted(solved)
+
+
 def test_injected_garbage_is_counted_and_no_frame_is_lost(live, qtbot):
     reader = live.live_panel.reader
     qtbot.waitUntil(lambda: reader.decoder.skipped_bytes > 0 and reader.stats.received > 200, timeout=10000)

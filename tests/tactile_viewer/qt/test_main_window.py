@@ -325,6 +325,23 @@ def test_while_playing_the_slider_moves_with_the_frame_drawn_and_paused_at_once(
     assert slider.value() == target
 
 
+def test_a_hidden_window_goes_on_solving_playback(opened, qtbot):
+    # a frame waits for the last result's paint (pace), and a hidden or minimized window paints
+    # nothing: before, playback (and a live board, with its forces published over LSL) stopped solving
+    # at the first frame while the window was hidden
+    solved = []
+    opened.hide()
+    opened.model.solved.connect(lambda result: solved.append(result.frame))
+    opened.playback.speed_box.setCurrentIndex(2)  # 1x
+    opened.playback.set_playing(True)
+    qtbot.waitUntil(lambda: len(set(solved)) >= 5, timeout=10000)
+    opened.playback.set_playing(False)
+    assert solved == sorted(solved)
+    opened.show()
+    with qtbot.waitSignal(opened.rendered, timeout=5000):  # shown again, it draws
+        opened.playback.step(1)
+
+
 def test_step_and_kernel_switch(opened, qtbot):
     with qtbot.waitSignal(opened.rendered, timeout=5000):
         opened.playback.step(3)
