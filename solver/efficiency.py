@@ -119,12 +119,19 @@ class ContactFit:
         load-decision frames, :func:`measurement.cases.load_decision_frames`;
         judged on seeds 11 to 13). ``-inf`` keeps every patch (0 still drops
         those that explain less than noise would).
+    min_split_evidence : float, optional
+        Smallest :meth:`split_evidence` for which a patch of two peaks with a
+        shallow dip between them (two contacts that touch) is fitted as two
+        contacts instead of one. Default 6 (chosen on the scenes' tuning set
+        and touching pinches, judged on the validation sets:
+        ``docs/efficiency.md``). ``inf``: never.
     """
 
     name = "contact_fit"
 
     def __init__(self, *, shrinkage: float = 2.0, model_error: float = 0.002,
-                 max_iterations: int = 12, tolerance: float = 1e-3, min_load_evidence: float = 10.0):
+                 max_iterations: int = 12, tolerance: float = 1e-3, min_load_evidence: float = 10.0,
+                 min_split_evidence: float = 10.0):
         self.shrinkage = real_number("shrinkage", shrinkage, rule="finite and >= 0",
                                      valid=lambda v: math.isfinite(v) and v >= 0)
         self.model_error = real_number("model_error", model_error, rule="finite and >= 0",
@@ -135,6 +142,9 @@ class ContactFit:
         self.min_load_evidence = real_number("min_load_evidence", min_load_evidence,
                                              rule="a number below inf (-inf keeps every patch)",
                                              valid=lambda v: not math.isnan(v) and v < math.inf)
+        self.min_split_evidence = real_number("min_split_evidence", min_split_evidence,
+                                              rule="a number, inf to never split",
+                                              valid=lambda v: not math.isnan(v))
 
     # -- the profile at given parameters ---------------------------------------------
 
@@ -248,6 +258,34 @@ class ContactFit:
         elif np.any(keep < 1):
             g, residual = self.fit(frame, pairs(p), support=g > 0)
         return self._choice(frame, pairs(p), g, residual, evidence, keep > 0, shear_free=g0)
+
+    def split_evidence(self, merged: Choice, split_frame: FunctionalInput, split: Choice,
+                       extra: int) -> float:
+        """F statistic of a frame's contacts split into ``extra`` more, on the same sensors.
+
+        ``F = ((rho_merged - rho_split) / (2 extra)) / max(rho_split / dof, (model_error * peak)^2)``:
+        the misfits ``rho = |A g - b|^2`` of the two automatic choices, each extra contact's
+        pair two parameters, ``dof`` the sensors less the split fit's positive sub-cells and
+        pairs, ``peak`` the largest stress. About 1 where the split explains only noise.
+
+        Parameters
+        ----------
+        merged : Choice
+            The automatic choice of the frame with fewer contacts.
+        split_frame : FunctionalInput
+            The frame with ``extra`` more contacts, on the same sensors.
+        split : Choice
+            Its automatic choice.
+        extra : int
+            Contacts more, at least 1.
+        """
+        rows = split_frame.stress.size
+        dof = rows - np.count_nonzero(split.profile > 0) - 2 * split_frame.contacts
+        floor = (self.model_error * float(np.abs(split_frame.stress).max(initial=0.0))) ** 2
+        variance = max(split.residual ** 2 / dof if dof > 0 else math.inf, floor)
+        if not variance > 0:
+            return 0.0
+        return (merged.residual ** 2 - split.residual ** 2) / (2 * extra) / variance
 
     @staticmethod
     def _shear_free_misfit(frame, held, g0, c):

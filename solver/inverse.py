@@ -42,6 +42,11 @@ __all__ = ["DenseSolver"]
 # total stands this many noise deviations out (chosen on the load-decision frames of seeds 1 to
 # 3, judged on 11 to 13: measurement.validation --load-decision).
 BROAD_EVIDENCE = 10.0
+# A patch whose two peaks are parted by a dip shallower than ``separation`` (two contacts that
+# touch: the normal-only solution's dip 0.65 to 0.69 of the peaks for two Hertz contacts side by
+# side, h / pitch 1) is tried split at this separation too, and kept split where the fit says so
+# (DenseSolver._split_if_better; docs/efficiency.md).
+SPLIT_SEPARATION = 0.75
 
 
 def _relative(misfit: np.ndarray, b: np.ndarray) -> float:
@@ -87,7 +92,10 @@ class DenseSolver:
         (:func:`solver.search.contact_labels`): a pinch, or two fingers a
         pitch or two apart. 0 never splits a patch. Default 0.6. Not used
         where the normal-only solve is damped (thick layers): there every
-        patch is one contact.
+        patch is one contact. With automatic parameters a patch is also
+        tried split at :data:`SPLIT_SEPARATION` (two contacts that touch)
+        and kept split where the fit says so
+        (:meth:`solver.efficiency.ContactFit.split_evidence`).
     subdivision : int, optional
         The contact fit splits each node's cell into ``s x s`` sub-cells so
         that a contact edge inside a cell is not read as shear (regular grids
@@ -256,8 +264,13 @@ class DenseSolver:
             return self._beyond_budget(b, seen, shear_ratio, shear_direction, exact, direction)
         if seen.frame is None:  # nothing compressive anywhere: no contact to fit
             return self._without_contact(b, exact, direction)
-        choice = start if solved_for == parameters else self.efficiency.choose(
-            seen.frame, shear_ratio=shear_ratio, shear_direction=shear_direction, start=start)
+        if solved_for == parameters:
+            choice = start
+        else:
+            choice = self.efficiency.choose(seen.frame, shear_ratio=shear_ratio,
+                                            shear_direction=shear_direction, start=start)
+            if solved_for is None and shear_ratio is None and shear_direction is None:
+                seen, choice = self._split_if_better(b, seen, choice, start)
         # one tuple, replaced whole: solves on other threads read either the old or the new one
         self._recent = (seen, choice, parameters)
         # the answer stays one force per node: the sum of its sub-cells
@@ -388,7 +401,34 @@ class DenseSolver:
         """Condition estimate of ``C C^T`` as inverted (damping included)."""
         return self._gram.condition
 
-    def contact_labels(self, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _split_if_better(self, b, seen, choice, start):
+        # A patch whose dip between two peaks is shallower than ``separation`` (two contacts that
+        # touch: a pinch closed on itself) is one contact, fitted with one pair, and opposite shears
+        # cancel. Split at SPLIT_SEPARATION instead, it is kept split where the fit explains the same
+        # sensors better by more than the extra pairs would by chance (ContactFit.split_evidence).
+        rule = getattr(self.efficiency, "split_evidence", None)
+        if rule is None or self._normal.shift != 0 or self.separation >= SPLIT_SEPARATION:
+            return seen, choice
+        normal = self._normal.solve(b)
+        labels, near = self.contact_labels(normal, separation=SPLIT_SEPARATION)
+        if near.shape[1] <= seen.frame.contacts:
+            return seen, choice
+        split = self._seen(b, normal, labels, near)
+        if split.frame is None or split.frame.contacts <= seen.frame.contacts or not np.array_equal(
+                split.frame.stress, seen.frame.stress):  # another budget's answer, or other sensors
+            return seen, choice
+        if split.at_edge.any():
+            # half a border contact's stress field is off the skin: a split there was taken for a
+            # shear ratio of 1.3 beside a contact at the border (the scenes' tuning set)
+            return seen, choice
+        split_choice = self.efficiency.choose(split.frame, start=start)
+        if rule(choice, split.frame, split_choice, split.frame.contacts - seen.frame.contacts) \
+                >= self.efficiency.min_split_evidence:
+            return split, split_choice
+        return seen, choice
+
+    def contact_labels(self, normal: np.ndarray, *, separation: float | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
         """Separate contacts of a normal-only solution, and the sensors near each.
 
         :func:`solver.search.contact_labels` with this reconstructor's
@@ -398,6 +438,9 @@ class DenseSolver:
         ----------
         normal : (m,) ndarray
             Normal-only force of each node, newtons.
+
+        separation : float or None, optional
+            Instead of the reconstructor's ``separation``.
 
         Returns
         -------
@@ -409,14 +452,19 @@ class DenseSolver:
         # a damped normal-only solve (a thick layer) blurs two loads into one and turns noise into
         # bumps: there every patch is one contact (split, single contacts came apart into pieces
         # given the largest shear ratio: measurement.cases.load_decision_frames, h / pitch 2 to 5)
-        separation = self.separation if self._normal.shift == 0 else 0.0
+        if separation is None:
+            separation = self.separation
+        if self._normal.shift != 0:
+            separation = 0.0
         return contact_labels(np.ascontiguousarray(normal, dtype=float), self.region_threshold,
                               separation, self.grid.positions, self._adjacent, self._margin, self._near)
 
     def _frame(self, b: np.ndarray) -> SeenFrame:
         # The frame's contacts, and the contact fit's view of it (SeenFrame.of)
         normal = self._normal.solve(b)
-        labels, near = self.contact_labels(normal)
+        return self._seen(b, normal, *self.contact_labels(normal))
+
+    def _seen(self, b, normal, labels, near) -> SeenFrame:
         return SeenFrame.of(b, normal, labels, near, grid=self.grid, normal_inverse=self._normal,
                             fit_budget=self.fit_budget, fit_columns=self._fit_columns,
                             subdivision=self.subdivision, whole_columns=self.matrix.T,
