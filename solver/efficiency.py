@@ -122,9 +122,10 @@ class ContactFit:
     min_split_evidence : float, optional
         Smallest :meth:`split_evidence` for which a patch of two peaks with a
         shallow dip between them (two contacts that touch) is fitted as two
-        contacts instead of one. Default 6 (chosen on the scenes' tuning set
-        and touching pinches, judged on the validation sets:
-        ``docs/efficiency.md``). ``inf``: never.
+        contacts instead of one. Default 10 (chosen on the scenes' tuning
+        set, touching pinches and random single contacts; judged on other
+        seeds and the validation sets: ``docs/efficiency.md``). ``inf``:
+        never.
     """
 
     name = "contact_fit"

@@ -438,7 +438,6 @@ class DenseSolver:
         ----------
         normal : (m,) ndarray
             Normal-only force of each node, newtons.
-
         separation : float or None, optional
             Instead of the reconstructor's ``separation``.
 

@@ -562,54 +562,50 @@ def test_with_pace_a_playing_recording_waits_for_the_last_result_on_screen_and_a
         model.close()
 
 
-def test_a_pause_while_a_playing_frame_waits_for_the_screen_takes_it_and_the_next_step_at_once(
-        recording, reconstructor):
+@pytest.fixture
+def held(recording, reconstructor):
+    """``(model, posted, played)``: paced playback with frame 1 solved and delivered but not on
+    screen yet, and frame 2 waiting for it."""
+    posted = Posted()
+    model = ViewerModel(dispatch=posted, pace=True)
+    try:
+        played = RecordingSource(recording)
+        model.set_source(played, reconstructor)
+        posted.run(model)
+        model.shown()
+        played.play(now=0.0)
+        played.advance(now=recording.t[1])  # frame 1, solved and delivered: not on screen yet
+        posted.run(model)
+        played.advance(now=recording.t[2])  # frame 2 waits for the screen
+        assert model.current.index == 1 and played.position == 2
+        yield model, posted, played
+    finally:
+        model.close()
+
+
+def test_a_pause_while_a_playing_frame_waits_for_the_screen_takes_it_and_the_next_step_at_once(held):
     # before: the waiting frame was left untaken at the pause, the source announced no later frame
     # while it waited, and a step after the pause was not taken until the last result's paint
-    posted = Posted()
-    model = ViewerModel(dispatch=posted, pace=True)
-    try:
-        played = RecordingSource(recording)
-        model.set_source(played, reconstructor)
-        played.play(now=0.0)
-        played.advance(now=recording.t[1])  # frame 1, solved and delivered: not on screen yet
-        posted.run(model)
-        played.advance(now=recording.t[2])  # frame 2 waits for the screen
-        assert model.current.index == 1 and played.position == 2
-        played.pause()
-        assert model.current.index == 2  # the frame playback stopped at
-        played.seek(0)  # a step, frame 1's result still not on screen
-        assert model.current.index == 0
-        posted.run(model)
-        assert model.last.frame == 0
-    finally:
-        model.close()
+    model, posted, played = held
+    played.pause()
+    assert model.current.index == 2  # the frame playback stopped at
+    played.seek(0)  # a step, frame 1's result still not on screen
+    assert model.current.index == 0
+    posted.run(model)
+    assert model.last.frame == 0
 
 
-def test_a_new_solver_while_a_playing_frame_waits_for_the_screen_shows_that_frame(recording, reconstructor):
+def test_a_new_solver_while_a_playing_frame_waits_for_the_screen_shows_that_frame(held, recording):
     # before: the held frame's notice was never renewed, and nothing was shown again (found in review)
-    posted = Posted()
-    model = ViewerModel(dispatch=posted, pace=True)
-    try:
-        played = RecordingSource(recording)
-        model.set_source(played, reconstructor)
-        posted.run(model)
-        model.shown()
-        played.play(now=0.0)
-        played.advance(now=recording.t[1])  # frame 1, solved and delivered: not on screen yet
-        posted.run(model)
-        played.advance(now=recording.t[2])  # frame 2 waits for the screen
-        assert model.current.index == 1 and played.position == 2
-        model.set_source(played, ViewerModel.build(recording.grid, "cell"))  # another kernel
-        posted.run(model)
-        assert model.current.index == 2 and model.last.frame == 2 and model.kernel == "cell"
-        played.pause()
-        model.shown()
-        played.seek(0)
-        posted.run(model)
-        assert model.last.frame == 0
-    finally:
-        model.close()
+    model, posted, played = held
+    model.set_source(played, ViewerModel.build(recording.grid, "cell"))  # another kernel
+    posted.run(model)
+    assert model.current.index == 2 and model.last.frame == 2 and model.kernel == "cell"
+    played.pause()
+    model.shown()
+    played.seek(0)
+    posted.run(model)
+    assert model.last.frame == 0
 
 
 def test_a_new_source_stops_the_old_one_and_the_same_source_keeps_its_frame(recording, reconstructor):
