@@ -409,11 +409,10 @@ class DenseSolver:
         rule = getattr(self.efficiency, "split_evidence", None)
         if rule is None or self._normal.shift != 0 or self.separation >= SPLIT_SEPARATION:
             return seen, choice
-        normal = self._normal.solve(b)
-        labels, near = self.contact_labels(normal, separation=SPLIT_SEPARATION)
+        labels, near = self.contact_labels(seen.normal, separation=SPLIT_SEPARATION)
         if near.shape[1] <= seen.frame.contacts:
             return seen, choice
-        split = self._seen(b, normal, labels, near)
+        split = self._seen(b, seen.normal, labels, near)
         if split.frame is None or split.frame.contacts <= seen.frame.contacts or not np.array_equal(
                 split.frame.stress, seen.frame.stress):  # another budget's answer, or other sensors
             return seen, choice

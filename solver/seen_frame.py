@@ -49,6 +49,7 @@ class SeenFrame:
     # looks at, and what every result of the frame repeats.
     key: bytes             # the stress's bytes
     frame: FunctionalInput | None    # the contact fit's view; None without a compressive contact
+    normal: np.ndarray     # (m,) read-only: the normal-only solution its contacts were found in
     labels: np.ndarray     # (m,) contact 1..K of each node, 0 outside every contact
     nodes: np.ndarray      # (K, m) bool, read-only: each contact's region (Contact.nodes)
     weights: np.ndarray    # (K, m) float: the same, to sum each contact's forces in one product
@@ -112,7 +113,7 @@ class SeenFrame:
             labels = np.concatenate([[0], np.cumsum(kept) * kept])[labels]
             near = np.ascontiguousarray(near[:, kept])
         nodes = labels == np.arange(1, near.shape[1] + 1)[:, None]  # (K, m)
-        seen = dict(key=b.tobytes(), labels=labels, nodes=read_only(nodes, bool),
+        seen = dict(key=b.tobytes(), normal=read_only(normal), labels=labels, nodes=read_only(nodes, bool),
                     weights=nodes.astype(float), at_edge=(nodes & grid.border).any(axis=1),
                     region=read_only(labels > 0, bool))
         if near.shape[1] == 0:
