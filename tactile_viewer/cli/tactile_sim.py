@@ -254,11 +254,15 @@ def main(argv=None) -> int:
             started = time.perf_counter()
             sent = port.write(data) == len(data)
             return sent, time.perf_counter() - started > BLOCKED_WRITE_S
+        room = None  # a port tells no room before a write
         print(f"writing to {args.url}", flush=True)
     else:
         master, slave, name = _open_pty(args.link)
         os.set_blocking(master, False)
-        write = lambda data: _write_all(master, data, stall=1.0)  # noqa: E731
+        # a write that found no room for BLOCKED_WRITE_S drops the rest of its frames: kept waiting,
+        # they went to the next reader after it had dropped its backlog, stamped as new
+        write = lambda data: _write_all(master, data, stall=BLOCKED_WRITE_S)  # noqa: E731
+        room = lambda: bool(select.select([], [master], [], BLOCKED_WRITE_S)[1])  # noqa: E731
 
         note = announce_board(device=name, link=str(args.link) if args.link else None,
                               layout=str(args.layout.resolve()) if args.layout else None, format=args.format,
@@ -273,21 +277,26 @@ def main(argv=None) -> int:
     total = math.ceil(args.duration * args.rate) if math.isfinite(args.duration) else math.inf
     unsent = unread = 0
     start = time.perf_counter()
-    blocked = unread_before = False
+    blocked = False
     try:
         while not stopping and board.seq < total:  # --duration: exactly its frames, however slow
+            if blocked and room is not None and not room():
+                # still nobody reads: no frame is made to wait for a reader (one made now and sent
+                # when a reader comes would reach it after it dropped its backlog: 435 frames
+                # "lost" between that stale frame and the present)
+                due = min(int((time.perf_counter() - start) * args.rate), total)
+                unread += max(0, due - board.seq)
+                board.seq = max(board.seq, due)
+                continue
             now = time.perf_counter() - start
             due = min(int(now * args.rate) + 1, total)
             # nobody read (the last write waited for room): as a real board's, the frames of that
-            # time are gone, not queued to arrive later in a burst a reader would stamp all at once.
-            # So too after the write that followed a blocked one: it waited for a reader to come,
-            # and one that came before BLOCKED_WRITE_S got the frames of its wait in a burst (180
-            # frames in 10 ms after opening the terminal, 300 frames a 1 kHz stream skipped)
-            if (blocked or unread_before) and due - board.seq > 1:
+            # time are gone, not queued to arrive later in a burst a reader would stamp all at once
+            # (180 frames in 10 ms after opening the terminal, 300 frames a 1 kHz stream skipped)
+            if blocked and due - board.seq > 1:
                 unread += due - 1 - board.seq
                 board.seq = due - 1
             chunk = b"".join(board.next_bytes() for _ in range(due - board.seq))
-            unread_before = blocked
             sent, blocked = write(chunk) if chunk else (True, False)
             unsent += not sent
             time.sleep(max(0.0, (board.seq / args.rate) - (time.perf_counter() - start)))
