@@ -31,7 +31,7 @@ from .efficiency import ContactFit
 from .geometry import SensorGrid, neighbours_within, patch_links
 from .kernels import stress_matrix
 from .results import Contact, Reconstruction, shear_direction_of
-from .search import contact_labels, template_misfit
+from .search import contact_labels, halved_labels, template_misfit
 from .seen_frame import WHOLE_CELLS, SeenFrame, noise_level
 from .symmetric import SymmetricInverse
 from .threads import one_blas_thread
@@ -47,6 +47,12 @@ BROAD_EVIDENCE = 10.0
 # side, h / pitch 1) is tried split at this separation too, and kept split where the fit says so
 # (DenseSolver._split_if_better; docs/efficiency.md).
 SPLIT_SEPARATION = 0.75
+# A contact with no such dip whose load spreads this many times as far along its long axis as across
+# it is tried halved across that axis, under the same test. Random touching pinches kept as two
+# contacts with opposite shears were the same from 1.1 to 1.8 (89 of 120), fewer at 2.2 (83); no
+# single contact was split at any of them, ellipses of aspect 1.5 to 2.5 included (seeds 101 and
+# 202; docs/efficiency.md). An elongated contact costs a second fit.
+SPLIT_ELONGATION = 1.5
 
 
 def _relative(misfit: np.ndarray, b: np.ndarray) -> float:
@@ -270,7 +276,7 @@ class DenseSolver:
             choice = self.efficiency.choose(seen.frame, shear_ratio=shear_ratio,
                                             shear_direction=shear_direction, start=start)
             if solved_for is None and shear_ratio is None and shear_direction is None:
-                seen, choice = self._split_if_better(b, seen, choice, start)
+                seen, choice = self._split_if_better(b, seen, choice)
         # one tuple, replaced whole: solves on other threads read either the old or the new one
         self._recent = (seen, choice, parameters)
         # the answer stays one force per node: the sum of its sub-cells
@@ -401,7 +407,7 @@ class DenseSolver:
         """Condition estimate of ``C C^T`` as inverted (damping included)."""
         return self._gram.condition
 
-    def _split_if_better(self, b, seen, choice, start):
+    def _split_if_better(self, b, seen, choice):
         # A patch whose dip between two peaks is shallower than ``separation`` (two contacts that
         # touch: a pinch closed on itself) is one contact, fitted with one pair, and opposite shears
         # cancel. Split at SPLIT_SEPARATION instead, it is kept split where the fit explains the same
@@ -411,7 +417,12 @@ class DenseSolver:
             return seen, choice
         labels, near = self.contact_labels(seen.normal, separation=SPLIT_SEPARATION)
         if near.shape[1] <= seen.frame.contacts:
-            return seen, choice
+            # no dip even at SPLIT_SEPARATION (a pinch closed so far that its two loads make one
+            # plateau): an elongated contact is tried halved across its long axis
+            labels, near = halved_labels(seen.normal, seen.labels, seen.at_edge, self.grid.positions,
+                                         SPLIT_ELONGATION, self._near)
+            if near.shape[1] <= seen.frame.contacts:
+                return seen, choice
         split = self._seen(b, seen.normal, labels, near)
         if split.frame is None or split.frame.contacts <= seen.frame.contacts or not np.array_equal(
                 split.frame.stress, seen.frame.stress):  # another budget's answer, or other sensors
@@ -420,7 +431,9 @@ class DenseSolver:
             # half a border contact's stress field is off the skin: a split there was taken for a
             # shear ratio of 1.3 beside a contact at the border (the scenes' tuning set)
             return seen, choice
-        split_choice = self.efficiency.choose(split.frame, start=start)
+        # from this frame's own choice: the same columns, so its shear-free fit (which does not
+        # depend on how the columns are grouped into contacts) starts on its optimal set
+        split_choice = self.efficiency.choose(split.frame, start=choice)
         if rule(choice, split.frame, split_choice, split.frame.contacts - seen.frame.contacts) \
                 >= self.efficiency.min_split_evidence:
             return split, split_choice

@@ -35,9 +35,10 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["contact_cores", "contact_labels", "fit_view", "template_misfit", "contact_stress",
-           "load_patches", "near_sums", "misfit_variance", "shear_evidence", "load_decision", "scipy_fit",
-           "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of", "BOTH", "RATIO", "DIRECTION"]
+__all__ = ["contact_cores", "contact_labels", "halved_labels", "fit_view", "template_misfit",
+           "contact_stress", "load_patches", "near_sums", "misfit_variance", "shear_evidence",
+           "load_decision", "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
+           "BOTH", "RATIO", "DIRECTION"]
 
 
 # Columns whose remaining norm after projecting out the set's columns is below this fraction
@@ -602,12 +603,96 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
                 count += 1
                 number[r] = count
             labels[i] = number[r]
+    return labels, _reach(labels, count, near)
+
+
+@numba.njit(cache=True, nogil=True)
+def _reach(labels, count, near):
+    # (m, count): the sensors within reach of each contact's nodes
+    m = labels.size
     reach = np.zeros((m, count), np.bool_)
     for i in range(m):
         if labels[i] > 0:
             for e in range(near[0][i], near[0][i + 1]):
                 reach[near[1][e], labels[i] - 1] = True
-    return labels, reach
+    return reach
+
+
+@numba.njit(cache=True, nogil=True)
+def halved_labels(normal, labels, at_edge, positions, elongation, near):
+    """Elongated contacts halved across their long axis, and the sensors near each contact.
+
+    A contact whose normal-only load (its positive part) spreads ``elongation`` times as far
+    along its long axis as across it (the square root of the ratio of its second moments'
+    eigenvalues) becomes two: its nodes on either side of the line through its centre of load
+    across that axis. Contacts at the skin's border and of fewer than 4 nodes stay whole.
+
+    Parameters
+    ----------
+    normal : (m,) ndarray
+        Normal-only force of each node, newtons.
+    labels : (m,) ndarray of int
+        Contact 1..K of each node, 0 outside every contact (:func:`contact_labels`).
+    at_edge : (K,) ndarray of bool
+        The contacts at the skin's border.
+    positions : (m, 2) ndarray
+        Node positions, metres.
+    elongation : float
+        At least 1.
+    near : tuple of two (.,) ndarrays of int
+        ``(indptr, indices)`` of a contact's reach, as for :func:`contact_labels`.
+
+    Returns
+    -------
+    labels : (m,) ndarray of int
+        Contacts 1..K as before, the second halves numbered from K + 1 (``labels`` itself
+        when none was halved).
+    near : (m, K') ndarray of bool
+        The sensors near each contact.
+    """
+    m, K = normal.size, at_edge.size
+    moments = np.zeros((K + 1, 7))  # nodes, sum of w, w x, w y, w x^2, w x y, w y^2
+    for i in range(m):
+        k = labels[i]
+        if k > 0:
+            w, x, y = max(normal[i], 0.0), positions[i, 0], positions[i, 1]
+            moments[k, 0] += 1
+            moments[k, 1] += w
+            moments[k, 2] += w * x
+            moments[k, 3] += w * y
+            moments[k, 4] += w * x * x
+            moments[k, 5] += w * x * y
+            moments[k, 6] += w * y * y
+    split = np.zeros(K + 1, np.int64)  # the label of the second half, 0 where whole
+    line = np.zeros((K + 1, 4))  # centre and long axis
+    count = K
+    for k in range(1, K + 1):
+        total = moments[k, 1]
+        if at_edge[k - 1] or moments[k, 0] < 4 or total <= 0:
+            continue
+        cx, cy = moments[k, 2] / total, moments[k, 3] / total
+        a = moments[k, 4] / total - cx * cx
+        b = moments[k, 5] / total - cx * cy
+        c = moments[k, 6] / total - cy * cy
+        half, gap = (a + c) / 2, math.sqrt(((a - c) / 2) ** 2 + b * b)
+        longest, shortest = half + gap, half - gap
+        if not (shortest > 0 and longest >= elongation * elongation * shortest):
+            continue
+        # the long axis: an eigenvector of [[a, b], [b, c]] for ``longest``, from the row that
+        # cannot vanish (elongated, so not isotropic)
+        vx, vy = (longest - c, b) if a >= c else (b, longest - a)
+        count += 1
+        split[k] = count
+        line[k, 0], line[k, 1], line[k, 2], line[k, 3] = cx, cy, vx, vy
+    if count == K:
+        return labels, _reach(labels, K, near)
+    halved = labels.copy()
+    for i in range(m):
+        k = labels[i]
+        if k > 0 and split[k] > 0:
+            if (positions[i, 0] - line[k, 0]) * line[k, 2] + (positions[i, 1] - line[k, 1]) * line[k, 3] > 0:
+                halved[i] = split[k]
+    return halved, _reach(halved, count, near)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -244,6 +244,56 @@ def test_a_pinch_whose_contacts_touch_is_two_contacts_shearing_towards_each_othe
         np.testing.assert_allclose(contact.total_force, truth, rtol=0, atol=0.03 * 0.6)
 
 
+def test_a_pinch_closed_to_one_plateau_is_halved_across_its_long_axis(monkeypatch):
+    # Closer still (h / pitch 0.5, radius 3.5 mm, noise-free): no dip is left even at SPLIT_SEPARATION,
+    # so the dip gives no candidate; the contact is twice as long as wide and is tried halved
+    # (solver.inverse.SPLIT_ELONGATION), and the fit explains the data far better as two
+    import solver.inverse as inverse
+
+    grid = SensorGrid.regular(16, 16, 2e-3, 1e-3, poisson_ratio=0.49)
+    radius = 3.5e-3
+    pinch = [loads.hertz((-radius, 0.5e-3), radius, 0.6, shear_ratio=0.3, shear_direction=0.0),
+             loads.hertz((radius, 0.5e-3), radius, 0.6, shear_ratio=0.3, shear_direction=math.pi)]
+    frame = loads.simulate(grid, pinch)
+    solver = DenseSolver(grid)
+    normal = solver._normal.solve(frame.stress)
+    assert solver.contact_labels(normal, separation=inverse.SPLIT_SEPARATION)[1].shape[1] == 1
+    monkeypatch.setattr(inverse, "SPLIT_ELONGATION", math.inf)
+    assert len(DenseSolver(grid).solve(frame.stress).contacts) == 1  # as before
+    monkeypatch.undo()
+    result = DenseSolver(grid).solve(frame.stress)
+    assert len(result.contacts) == 2
+    left, right = sorted(result.contacts, key=lambda c: c.centre[0])
+    for contact, direction in ((left, 0.0), (right, math.pi)):
+        assert contact.shear_ratio == pytest.approx(0.3, abs=0.02)
+        assert math.degrees(math.remainder(contact.shear_direction - direction, 2 * math.pi)) == \
+            pytest.approx(0, abs=3)
+        truth = frame.forces[contact.nodes].sum(axis=0)  # its own nodes' true resultant
+        np.testing.assert_allclose(contact.total_force, truth, rtol=0, atol=0.03 * 0.6)
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.6, 2.0])
+def test_an_elongated_contact_tried_halved_stays_one(angle):
+    # an ellipse twice as long as wide, with one shear: halved it is a candidate, and the fit does
+    # not explain it better as two
+    from solver.inverse import SPLIT_ELONGATION
+    from solver.search import halved_labels
+
+    grid = SensorGrid.regular(16, 16, 2e-3, 2e-3, poisson_ratio=0.49)
+    ellipse = loads.ellipse((0.3e-3, -0.2e-3), (5e-3, 2.5e-3), 1.0, angle=angle, shear_ratio=0.3,
+                            shear_direction=1.0)
+    frame = loads.simulate(grid, [ellipse], noise=0.01, rng=np.random.default_rng(1))  # fixed noise
+    solver = DenseSolver(grid)
+    seen = solver._frame(frame.stress)
+    assert seen.frame.contacts == 1
+    candidate = halved_labels(seen.normal, seen.labels, seen.at_edge, grid.positions, SPLIT_ELONGATION,
+                              solver._near)[1]
+    assert candidate.shape[1] == 2
+    result = solver.solve(frame.stress)
+    assert len(result.contacts) == 1
+    assert result.contacts[0].shear_ratio == pytest.approx(0.3, abs=0.07)
+
+
 def test_one_contact_is_not_split_for_noise():
     # A flat punch's rim gives its normal-only solution peaks with shallow dips between them: the
     # single-contact tuning set at 1% noise holds such split candidates, and each stays one contact

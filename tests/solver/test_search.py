@@ -11,6 +11,7 @@ from solver.inverse import DenseSolver
 from solver.search import (
     contact_labels,
     fit_view,
+    halved_labels,
     load_decision,
     load_patches,
     misfit_variance,
@@ -450,3 +451,62 @@ def test_a_node_between_two_contacts_goes_to_the_nearer(plain):
     # takes the other's core
     assert labels[row & np.isclose(x, -1)][0] == left and labels[row & np.isclose(x, 0)][0] == right
     assert labels[row & np.isclose(x, -4)][0] == left and labels[row & np.isclose(x, 3)][0] == right
+
+
+def _reach(solver, labels, count):
+    # brute force: a sensor is near a contact when it is within reach of one of its nodes
+    indptr, indices = solver._near
+    reach = np.zeros((labels.size, count), bool)
+    for i in np.flatnonzero(labels):
+        reach[indices[indptr[i]:indptr[i + 1]], labels[i] - 1] = True
+    return reach
+
+
+@pytest.fixture(scope="module")
+def square():
+    return DenseSolver(SensorGrid.regular(15, 15, 1e-3, 1e-3), kernel="cell")
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.5, 1.2, -2.0])
+def test_an_elongated_contact_is_halved_across_its_long_axis(square, angle):
+    grid = square.grid
+    x, y = (grid.positions / grid.pitch).T
+    u, v = np.cos(angle) * x + np.sin(angle) * y, -np.sin(angle) * x + np.cos(angle) * y
+    long_one = np.exp(-(u ** 2 / 10.0 + v ** 2 / 1.2))  # about 3 times as long as wide, centred inside
+    round_one = np.exp(-((x - 5) ** 2 + (y - 2) ** 2) / 1.5)
+    on_border = np.exp(-((x + 7) ** 2 + 3 * (y + 1) ** 2) / 2.0)  # elongated too, but on the left column
+    normal = long_one + round_one + on_border - 0.05  # a little negative load, which weighs nothing
+    labels = np.zeros(grid.size, np.int64)
+    labels[long_one > 0.1], labels[round_one > 0.1], labels[on_border > 0.1] = 1, 2, 3
+    at_edge = np.array([(labels == k)[grid.border].any() for k in (1, 2, 3)])
+    assert list(at_edge) == [False, False, True]
+    halved, near = halved_labels(normal, labels, at_edge, grid.positions, 1.5, square._near)
+    # the first contact's nodes on either side of the line through its centre of (positive) load
+    # across its long axis (the principal axis of the load's second moments)
+    mine = np.flatnonzero(labels == 1)
+    w = np.clip(normal[mine], 0, None)
+    centre = w @ grid.positions[mine] / w.sum()
+    offset = grid.positions[mine] - centre
+    axis = np.linalg.eigh((offset * w[:, None]).T @ offset)[1][:, 1]
+    assert abs(abs(axis @ [np.cos(angle), np.sin(angle)]) - 1) < 0.05  # the load's own long axis
+    beyond = offset @ axis > 0  # (the axis's sign is either)
+    halves = {frozenset(np.flatnonzero(halved == 1)), frozenset(np.flatnonzero(halved == 4))}
+    assert halves == {frozenset(mine[beyond]), frozenset(mine[~beyond])}
+    assert 0.3 < beyond.mean() < 0.7
+    # the round contact and the one on the border stay whole, nothing else moves
+    np.testing.assert_array_equal(halved[labels != 1], labels[labels != 1])
+    np.testing.assert_array_equal(near, _reach(square, halved, 4))
+
+
+def test_no_contact_long_enough_is_halved(plain):
+    grid = plain.grid
+    x, y = (grid.positions / grid.pitch).T
+    normal = np.exp(-(x ** 2 / 6.0 + y ** 2 / 1.5))  # second moments 4 : 1 where positive
+    labels = (normal > 0.1).astype(np.int64)
+    tiny = np.zeros(grid.size, np.int64)
+    tiny[np.argsort(-normal)[:3]] = 1  # three nodes: too few to halve, however long
+    for elongation, given in ((1.5, tiny), (2.5, labels), (np.inf, labels)):
+        halved, near = halved_labels(normal, given, np.array([False]), grid.positions, elongation, plain._near)
+        np.testing.assert_array_equal(halved, given)
+        np.testing.assert_array_equal(near, _reach(plain, given, 1))
+    assert halved_labels(normal, labels, np.array([False]), grid.positions, 1.5, plain._near)[1].shape[1] == 2
