@@ -31,7 +31,7 @@ from .efficiency import ContactFit
 from .geometry import SensorGrid, neighbours_within, patch_links
 from .kernels import stress_matrix
 from .results import Contact, Reconstruction, shear_direction_of
-from .search import contact_labels, halved_labels, template_misfit
+from .search import contact_labels, contact_reach, halved_labels, template_misfit
 from .seen_frame import WHOLE_CELLS, SeenFrame, noise_level
 from .symmetric import SymmetricInverse
 from .threads import one_blas_thread
@@ -412,8 +412,8 @@ class DenseSolver:
         # touch: a pinch closed on itself) is one contact, fitted with one pair, and opposite shears
         # cancel. Split at SPLIT_SEPARATION instead, it is kept split where the fit explains the same
         # sensors better by more than the extra pairs would by chance (ContactFit.split_evidence).
-        rule = getattr(self.efficiency, "split_evidence", None)
-        if rule is None or self._normal.shift != 0 or self.separation >= SPLIT_SEPARATION:
+        if getattr(self.efficiency, "split_evidence", None) is None or self._normal.shift != 0 \
+                or self.separation >= SPLIT_SEPARATION:
             return seen, choice
         labels, near = self.contact_labels(seen.normal, separation=SPLIT_SEPARATION)
         if near.shape[1] <= seen.frame.contacts:
@@ -423,21 +423,71 @@ class DenseSolver:
                                          SPLIT_ELONGATION, self._near)
             if near.shape[1] <= seen.frame.contacts:
                 return seen, choice
+        evidence, split, split_choice = self._split_test(b, seen, choice, labels, near)
+        if evidence >= self.efficiency.min_split_evidence:
+            return split, split_choice
+        return seen, choice
+
+    def _split_test(self, b, seen, choice, labels, near):
+        # (F, the split frame, its automatic choice): F nan where the split is not comparable
         split = self._seen(b, seen.normal, labels, near)
         if split.frame is None or split.frame.contacts <= seen.frame.contacts or not np.array_equal(
                 split.frame.stress, seen.frame.stress):  # another budget's answer, or other sensors
-            return seen, choice
+            return math.nan, split, None
         if split.at_edge.any():
             # half a border contact's stress field is off the skin: a split there was taken for a
             # shear ratio of 1.3 beside a contact at the border (the scenes' tuning set)
-            return seen, choice
+            return math.nan, split, None
         # from this frame's own choice: the same columns, so its shear-free fit (which does not
         # depend on how the columns are grouped into contacts) starts on its optimal set
         split_choice = self.efficiency.choose(split.frame, start=choice)
-        if rule(choice, split.frame, split_choice, split.frame.contacts - seen.frame.contacts) \
-                >= self.efficiency.min_split_evidence:
-            return split, split_choice
-        return seen, choice
+        extra = split.frame.contacts - seen.frame.contacts
+        return self.efficiency.split_evidence(choice, split.frame, split_choice, extra), split, split_choice
+
+    def split_statistic(self, stress, labels) -> float:
+        """How much better the frame's automatic fit is with its contacts as ``labels`` say.
+
+        The F statistic the automatic solve keeps a split by
+        (:meth:`solver.efficiency.ContactFit.split_evidence`, kept at ``min_split_evidence`` and
+        above): ``labels`` against the solver's own contacts, on the same sensors. For
+        measurements: a split the solver does not try (another axis, another cut) is scored as
+        it would score its own.
+
+        Parameters
+        ----------
+        stress : (m,) or (ny, nx) ndarray
+            Sensor stress, pascals.
+        labels : (m,) ndarray of int
+            Contact 1..K of each node, 0 outside every contact: more contacts than the solver
+            finds, on the nodes it finds.
+
+        Returns
+        -------
+        float
+            ``nan`` where the split is not comparable: no contact found, other nodes or other
+            sensors, a contact on the skin's border, or a damped layer.
+
+        Raises
+        ------
+        ValueError
+            For ``stress`` or ``labels`` of the wrong size, or labels not numbering contacts from 1.
+        """
+        b = check_stress(stress, self.grid)
+        labels = np.asarray(labels)
+        if (labels.shape != (self.grid.size,) or not np.issubdtype(labels.dtype, np.integer)
+                or labels.min() < 0):
+            raise ValueError(f"labels must be {self.grid.size} whole numbers >= 0 (the grid's nodes), got "
+                             f"shape {labels.shape} of {labels.dtype}")
+        count = int(labels.max())
+        if set(np.unique(labels[labels > 0])) != set(range(1, count + 1)):
+            raise ValueError(f"labels must number the contacts 1 to K with none left out, got "
+                             f"{sorted(set(np.unique(labels[labels > 0]).tolist()))}")
+        seen = self._frame(b)
+        if seen.frame is None or self._normal.shift != 0 or not np.array_equal(labels > 0, seen.labels > 0):
+            return math.nan
+        labels = labels.astype(np.int64)
+        choice = self.efficiency.choose(seen.frame)
+        return self._split_test(b, seen, choice, labels, contact_reach(labels, count, self._near))[0]
 
     def contact_labels(self, normal: np.ndarray, *, separation: float | None = None
                        ) -> tuple[np.ndarray, np.ndarray]:

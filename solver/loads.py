@@ -3,7 +3,7 @@
 A contact is a continuous surface traction: a normal pressure profile (Hertz,
 cone, flat punch, uniform ellipse, ring) of a given total force, plus a
 friction-like tangential traction ``shear_ratio * p`` in ``shear_direction``
-and an optional torsion. :func:`simulate` cuts the skin into sub-cells much
+and an optional torsion or squeeze. :func:`simulate` cuts the skin into sub-cells much
 smaller than the layer thickness and integrates the traction over each
 sub-cell (supersampled, so edges and clipped singularities are resolved). The
 true nodal forces are the sub-cell forces summed over each node's cell. The
@@ -82,6 +82,13 @@ class ContactLoad:
         Torque about the surface normal, newton metres (counter-clockwise
         positive), carried by a circumferential traction proportional to
         ``p(r) r``.
+    squeeze : float
+        Tangential over normal traction pushing the contact's two halves towards each other along
+        ``squeeze_direction`` (negative: apart, a stretch): on either side of the line through the
+        centre across that direction, ``squeeze * p`` towards the line. The halves' forces cancel;
+        any shear adds to it.
+    squeeze_direction : float
+        The axis the halves are pushed along, radians from +x.
     angle : float
         Orientation of the first semi-axis, radians from +x.
     inner_radius : float
@@ -98,6 +105,8 @@ class ContactLoad:
     shear_ratio: float = 0.0
     shear_direction: float = 0.0
     torsion: float = 0.0
+    squeeze: float = 0.0
+    squeeze_direction: float = 0.0
     angle: float = 0.0
     inner_radius: float = 0.0
     clip: float = 0.02
@@ -110,7 +119,7 @@ class ContactLoad:
             raise ValueError(f"center must be two finite coordinates in metres, got {self.center!r}")
         if len(axes) != 2 or not all(math.isfinite(a) and a > 0 for a in axes):
             raise ValueError(f"semi_axes must be two positive radii in metres, got {self.semi_axes!r}")
-        for name in ("force", "shear_direction", "torsion", "angle"):
+        for name in ("force", "shear_direction", "torsion", "squeeze", "squeeze_direction", "angle"):
             if not math.isfinite(float(getattr(self, name))):
                 raise ValueError(f"{name} must be finite, got {getattr(self, name)!r}")
         if not (math.isfinite(self.shear_ratio) and self.shear_ratio >= 0):
@@ -342,6 +351,11 @@ def simulate(grid: SensorGrid, contacts, *, noise: float = 0.0, rng=None,
             k = contact.torsion / (second_moment * contact.force / total)
             fx = fx - k * dyc * fz
             fy = fy + k * dxc * fz
+        if contact.squeeze:
+            ux, uy = math.cos(contact.squeeze_direction), math.sin(contact.squeeze_direction)
+            towards = -contact.squeeze * np.sign(dxc * ux + dyc * uy) * fz  # along u, towards the line
+            fx = fx + towards * ux
+            fy = fy + towards * uy
         np.add.at(forces, (owner, 0), fx)
         np.add.at(forces, (owner, 1), fy)
         np.add.at(forces, (owner, 2), fz)

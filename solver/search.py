@@ -35,7 +35,7 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["contact_cores", "contact_labels", "halved_labels", "fit_view", "template_misfit",
+__all__ = ["contact_cores", "contact_labels", "contact_reach", "halved_labels", "fit_view", "template_misfit",
            "contact_stress", "load_patches", "near_sums", "misfit_variance", "shear_evidence",
            "load_decision", "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
            "BOTH", "RATIO", "DIRECTION"]
@@ -603,12 +603,16 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
                 count += 1
                 number[r] = count
             labels[i] = number[r]
-    return labels, _reach(labels, count, near)
+    return labels, contact_reach(labels, count, near)
 
 
 @numba.njit(cache=True, nogil=True)
-def _reach(labels, count, near):
-    # (m, count): the sensors within reach of each contact's nodes
+def contact_reach(labels, count, near):
+    """(m, count) ndarray of bool: the sensors within reach of each contact's nodes.
+
+    ``labels`` (m,) numbers the contacts 1..count (0 outside them); ``near`` is the reach's CSR
+    ``(indptr, indices)``, as for :func:`contact_labels`.
+    """
     m = labels.size
     reach = np.zeros((m, count), np.bool_)
     for i in range(m):
@@ -685,14 +689,14 @@ def halved_labels(normal, labels, at_edge, positions, elongation, near):
         split[k] = count
         line[k, 0], line[k, 1], line[k, 2], line[k, 3] = cx, cy, vx, vy
     if count == K:
-        return labels, _reach(labels, K, near)
+        return labels, contact_reach(labels, K, near)
     halved = labels.copy()
     for i in range(m):
         k = labels[i]
         if k > 0 and split[k] > 0:
             if (positions[i, 0] - line[k, 0]) * line[k, 2] + (positions[i, 1] - line[k, 1]) * line[k, 3] > 0:
                 halved[i] = split[k]
-    return halved, _reach(halved, count, near)
+    return halved, contact_reach(halved, count, near)
 
 
 @numba.njit(cache=True, nogil=True)

@@ -523,3 +523,47 @@ def test_a_load_broader_than_the_fit_budget_gets_a_cheaper_member_and_says_so():
     assert m == 256
     template = r.solve(frame.stress, shear_ratio=0.3, shear_direction=0.5, exact=False)
     np.testing.assert_allclose(template.forces.T.ravel(), y, rtol=0, atol=1e-15)
+
+
+# -- the split test, for measurements ---------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def plateau_pinch():
+    # two Hertz contacts touching so closely that no dip is left (h / pitch 0.5): the solver halves
+    # the one contact across its long axis and keeps the halves (test_efficiency.py)
+    grid = SensorGrid.regular(16, 16, 2e-3, 1e-3, poisson_ratio=0.49)
+    pinch = [loads.hertz((-3.5e-3, 0.5e-3), 3.5e-3, 0.6, shear_ratio=0.3, shear_direction=0.0),
+             loads.hertz((3.5e-3, 0.5e-3), 3.5e-3, 0.6, shear_ratio=0.3, shear_direction=math.pi)]
+    return DenseSolver(grid), loads.simulate(grid, pinch).stress
+
+
+def test_the_split_statistic_scores_a_split_as_the_solver_scores_its_own(plateau_pinch):
+    solver, stress = plateau_pinch
+    region = solver.solve(stress).region
+    x = solver.grid.positions[:, 0]
+    labels = region.astype(int)
+    labels[region & (x > 0)] = 2  # the two fingers' halves
+    assert solver.split_statistic(stress, labels) >= solver.efficiency.min_split_evidence
+    # the same cut along the fingers' line (each half holds half of each finger): no better than one
+    y = solver.grid.positions[:, 1]
+    across = region.astype(int)
+    across[region & (y > 0.5e-3)] = 2
+    assert solver.split_statistic(stress, across) < solver.efficiency.min_split_evidence
+    # not comparable: the solver's own contacts (nothing split), or other nodes than it finds
+    assert math.isnan(solver.split_statistic(stress, region.astype(int)))
+    wider = labels.copy()
+    wider[np.flatnonzero(~region)[0]] = 1
+    assert math.isnan(solver.split_statistic(stress, wider))
+
+
+@pytest.mark.parametrize("labels, message", [
+    (np.zeros(255, int), r"labels must be 256 whole numbers >= 0 \(the grid's nodes\), got shape \(255,\) of int64"),
+    (np.zeros(256), r"labels must be 256 whole numbers >= 0 \(the grid's nodes\), got shape \(256,\) of float64"),
+    (np.full(256, -1), r"labels must be 256 whole numbers >= 0"),
+    (np.r_[np.ones(128, int), np.full(128, 3)], r"labels must number the contacts 1 to K with none left out, got \[1, 3\]"),
+], ids=["size", "float", "negative", "gap"])
+def test_the_split_statistic_refuses_bad_labels(plateau_pinch, labels, message):
+    solver, stress = plateau_pinch
+    with pytest.raises(ValueError, match=message):
+        solver.split_statistic(stress, labels)

@@ -41,6 +41,30 @@ def test_torsion_carries_the_torque_and_no_net_shear(grid):
     np.testing.assert_allclose(f[:, :2].sum(0), 0, atol=1e-12)
 
 
+@pytest.mark.parametrize("squeeze", [0.3, -0.2])
+def test_a_squeeze_pushes_the_halves_towards_each_other_with_no_net_force(grid, squeeze):
+    direction = 0.6
+    u = np.array([math.cos(direction), math.sin(direction)])
+    centre = np.array([0.3e-3, -0.5e-3])
+    frame = loads.simulate(grid, loads.hertz(tuple(centre), 5e-3, 1.0, shear_ratio=0.1, shear_direction=2.0,
+                                             squeeze=squeeze, squeeze_direction=direction))
+    still = loads.simulate(grid, loads.hertz(tuple(centre), 5e-3, 1.0, shear_ratio=0.1, shear_direction=2.0))
+    f = frame.forces - still.forces  # the squeeze's own traction, node by node
+    np.testing.assert_allclose(frame.forces[:, 2], still.forces[:, 2])
+    np.testing.assert_allclose(f[:, :2].sum(0), 0, atol=1e-3 * abs(squeeze))  # the halves cancel
+    # every node's squeeze force lies along u, pointing at the line through the centre (a node on
+    # the line holds sub-cells of both sides), squeeze times its normal force at most
+    along = f[:, :2] @ u
+    np.testing.assert_allclose(f[:, :2], along[:, None] * u, atol=1e-12)
+    side = (grid.positions - centre) @ u
+    away = side * np.sign(squeeze)
+    assert np.all(along[away > grid.pitch] <= 1e-12) and np.all(along[away < -grid.pitch] >= -1e-12)
+    np.testing.assert_array_less(np.abs(along), abs(squeeze) * frame.forces[:, 2] + 1e-12)
+    # away from the line, each node's is the whole squeeze of its normal force
+    far = np.abs(side) > grid.pitch
+    np.testing.assert_allclose(np.abs(along[far]), abs(squeeze) * frame.forces[far, 2], rtol=1e-9, atol=1e-12)
+
+
 # -- torsion is invisible (docs/torsion.md) ---------------------------------------------------------
 
 
@@ -153,7 +177,10 @@ def test_arrays_are_read_only(grid):
     (lambda: loads.ring((0.0, 0.0), 3e-3, 2e-3, 1.0), r"inner_radius must be in \[0, outer radius"),
     (lambda: loads.flat_punch((0.0, 0.0), 1e-3, 1.0, clip=1.5), r"clip must be in \(0, 1\)"),
     (lambda: loads.ContactLoad("blob", (0, 0), (1e-3, 1e-3), 1.0), "shape must be one of"),
-], ids=["radius", "center", "force", "shear", "ring", "clip", "shape"])
+    (lambda: loads.hertz((0.0, 0.0), 1e-3, 1.0, squeeze=math.nan), "squeeze must be finite, got nan"),
+    (lambda: loads.hertz((0.0, 0.0), 1e-3, 1.0, squeeze_direction=math.inf),
+     "squeeze_direction must be finite, got inf"),
+], ids=["radius", "center", "force", "shear", "ring", "clip", "shape", "squeeze", "squeeze_direction"])
 def test_invalid_contacts_are_rejected(make, message):
     with pytest.raises(ValueError, match=message):
         make()
