@@ -532,10 +532,10 @@ def test_a_load_broader_than_the_fit_budget_gets_a_cheaper_member_and_says_so():
 def plateau_pinch():
     # two Hertz contacts touching so closely that no dip is left (h / pitch 0.5): the solver halves
     # the one contact across its long axis and keeps the halves (test_efficiency.py)
+    from tests.solver.test_efficiency import touching_pinch
+
     grid = SensorGrid.regular(16, 16, 2e-3, 1e-3, poisson_ratio=0.49)
-    pinch = [loads.hertz((-3.5e-3, 0.5e-3), 3.5e-3, 0.6, shear_ratio=0.3, shear_direction=0.0),
-             loads.hertz((3.5e-3, 0.5e-3), 3.5e-3, 0.6, shear_ratio=0.3, shear_direction=math.pi)]
-    return DenseSolver(grid), loads.simulate(grid, pinch).stress
+    return DenseSolver(grid), touching_pinch(grid).stress
 
 
 def test_the_split_statistic_scores_a_split_as_the_solver_scores_its_own(plateau_pinch):
