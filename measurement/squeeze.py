@@ -141,23 +141,22 @@ def evaluate(cases, *, solvers=None) -> list[dict]:
     rows = []
     for case in cases:
         grid = case.frame.grid
-        solver = solvers.setdefault(grid.key, DenseSolver(grid))
+        if grid.key not in solvers:
+            solvers[grid.key] = DenseSolver(grid)
+        solver = solvers[grid.key]
         result = solver.solve(case.frame.stress)
-        # the oracle's halves: the solver's own contact nodes (when it finds one contact), cut across
-        # the squeeze's true axis through their centre of normal-only load
         statistic = math.nan
-        region = np.zeros(grid.size, bool)
-        for contact in result.contacts:
-            region |= contact.nodes
-        if len(result.contacts) == 1 or (len(result.contacts) == 2 and region.any()):
-            normal = np.clip(solver.solve_normal(case.frame.stress).forces[:, 2], 0, None) * region
+        if len(result.contacts) == 1:
+            # the oracle's halves: the contact's nodes cut across the squeeze's true axis through
+            # their centre of normal-only load
+            nodes = result.contacts[0].nodes
+            normal = np.clip(solver.solve_normal(case.frame.stress).forces[:, 2], 0, None) * nodes
             if normal.sum() > 0:
                 centre = normal @ grid.positions / normal.sum()
                 u = np.array([math.cos(case.axis), math.sin(case.axis)])
-                labels = region.astype(np.int64)
-                labels[region & ((grid.positions - centre) @ u > 0)] = 2
-                if len(result.contacts) == 1:
-                    statistic = solver.split_statistic(case.frame.stress, labels)
+                labels = nodes.astype(np.int64)
+                labels[nodes & ((grid.positions - centre) @ u > 0)] = 2
+                statistic = solver.split_statistic(case.frame.stress, labels)
         rows.append(dict(case=case.name, shape=case.shape, squeeze=case.squeeze, found=len(result.contacts),
                          halves=_halves_shear_right(result, case), ratio=result.contacts[0].shear_ratio
                          if result.contacts else math.nan, statistic=statistic,
