@@ -66,15 +66,20 @@ def test_a_1khz_recording_has_every_frame(window, board, qtbot, tmp_path):
     board.start("--rate", "1000", "--seed", "9")
     assert window.live_panel.connect_live(str(board.link), board.layout)
     qtbot.waitUntil(lambda: window.live_panel.reader is not None and window.live_panel.reader.stats.received > 100, timeout=20000)
+    reader = window.live_panel.reader
+    # frames the board dropped before the recording (the window's start-up starving the reader for
+    # over half a second on a loaded machine, as a board drops them when its host does not read)
+    # are not the recording's: it is judged from its first frame on
+    lost_before = reader.stats.lost
     assert window.live_panel.start_recording(tmp_path / "live.mcap")
-    recorder = window.live_panel.reader.recorder
+    recorder = reader.recorder
     qtbot.waitUntil(lambda: recorder.written >= 2000, timeout=20000)  # flushed every second
     path = window.live_panel.stop_recording()
     recording = load(path)
     assert len(recording) >= 2000
     np.testing.assert_array_equal(np.diff(recording.sequence()), 1)  # no gap, no repeat
     assert recording.grid.shape == (16, 16) and np.all(np.diff(recording.t) >= 0)
-    assert window.live_panel.reader.stats.lost == 0 and window.live_panel.reader.failures == 0
+    assert reader.stats.lost == lost_before and reader.failures == 0
 
 
 def test_recording_text_frames_while_the_display_skips(window, board, qtbot, tmp_path):
