@@ -164,21 +164,16 @@ def _open_pty(link: Path | None):
     return master, slave, name
 
 
-def _write_all(fd: int, frames, stall: float) -> tuple[bool, bool]:
-    """Write ``frames`` (bytes each) whole and in order, unless the reader leaves no room.
+def _write_all(fd: int, data: bytes, stall: float) -> tuple[bool, bool]:
+    """Write everything unless the reader stalls for ``stall`` seconds (then drop the rest).
 
     ``fd`` is non-blocking, so a reader that stops reading never blocks the board (or its
-    SIGTERM) for longer than ``stall``. Once a wait for room has lasted :data:`BLOCKED_WRITE_S`,
-    the frame being written is finished (waiting ``stall`` seconds in all at most: a reader that
-    fell behind gets it whole, not cut) and the frames after it are dropped, as a board's frames
-    of such a wait are gone. A frame none of whose bytes had gone out is dropped too: kept, it
-    would reach a reader that came meanwhile after that reader dropped its backlog, and pass for
-    a new one (then "lost" were the frames between it and the present).
+    SIGTERM) for longer than ``stall``.
 
     Returns
     -------
     sent : bool
-        Every frame was written.
+        Everything was written.
     blocked : bool
         The reader left no room for :data:`BLOCKED_WRITE_S` at a time, as the kernel saw it
         (``select`` timed out). A stall of this process (another thread holding the GIL, a busy
@@ -186,24 +181,20 @@ def _write_all(fd: int, frames, stall: float) -> tuple[bool, bool]:
         wall time of the whole write would count the stall too (a board computing its cycle
         ahead once skipped 514 frames of a reader that never waited more than 6 ms).
     """
+    view = memoryview(data)
     blocked, waited = False, 0.0
-    for k, frame in enumerate(frames):
-        view, started = memoryview(frame), False
-        while view:
-            _, writable, _ = select.select([], [fd], [], min(BLOCKED_WRITE_S, stall))
-            if not writable:
-                blocked = True
-                waited += min(BLOCKED_WRITE_S, stall)
-                if waited >= stall or not started:
-                    return False, True
-                continue
-            try:
-                written = os.write(fd, view)
-            except BlockingIOError:
-                continue
-            view, started = view[written:], started or written > 0
-        if blocked:
-            return k == len(frames) - 1, True
+    while view:
+        _, writable, _ = select.select([], [fd], [], min(BLOCKED_WRITE_S, stall))
+        if not writable:
+            blocked = True
+            waited += min(BLOCKED_WRITE_S, stall)
+            if waited >= stall:
+                return False, True
+            continue
+        try:
+            view = view[os.write(fd, view):]
+        except BlockingIOError:
+            continue
     return True, blocked
 
 
@@ -259,8 +250,8 @@ def main(argv=None) -> int:
         import serial
 
         port = serial.serial_for_url(args.url, baudrate=115200)
-        def write(frames):  # a port's write blocks: a write that took that long found no room
-            started, data = time.perf_counter(), b"".join(frames)
+        def write(data):  # a port's write blocks: a write that took that long found no room
+            started = time.perf_counter()
             sent = port.write(data) == len(data)
             return sent, time.perf_counter() - started > BLOCKED_WRITE_S
         room = None  # a port tells no room before a write
@@ -268,7 +259,9 @@ def main(argv=None) -> int:
     else:
         master, slave, name = _open_pty(args.link)
         os.set_blocking(master, False)
-        write = lambda frames: _write_all(master, frames, stall=1.0)  # noqa: E731
+        # a write that found no room for BLOCKED_WRITE_S drops the rest of its frames: kept waiting,
+        # they went to the next reader after it had dropped its backlog, stamped as new
+        write = lambda data: _write_all(master, data, stall=BLOCKED_WRITE_S)  # noqa: E731
         room = lambda: bool(select.select([], [master], [], BLOCKED_WRITE_S)[1])  # noqa: E731
 
         note = announce_board(device=name, link=str(args.link) if args.link else None,
@@ -303,7 +296,7 @@ def main(argv=None) -> int:
             if blocked and due - board.seq > 1:
                 unread += due - 1 - board.seq
                 board.seq = due - 1
-            chunk = [board.next_bytes() for _ in range(due - board.seq)]
+            chunk = b"".join(board.next_bytes() for _ in range(due - board.seq))
             sent, blocked = write(chunk) if chunk else (True, False)
             unsent += not sent
             time.sleep(max(0.0, (board.seq / args.rate) - (time.perf_counter() - start)))
