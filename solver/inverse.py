@@ -99,9 +99,10 @@ class DenseSolver:
         pitch or two apart. 0 never splits a patch. Default 0.6. Not used
         where the normal-only solve is damped (thick layers): there every
         patch is one contact. With automatic parameters a patch is also
-        tried split at :data:`SPLIT_SEPARATION` (two contacts that touch)
-        and kept split where the fit says so
-        (:meth:`solver.efficiency.ContactFit.split_evidence`).
+        tried split at :data:`SPLIT_SEPARATION` (two contacts that touch),
+        or, with no such dip, halved across its long axis when it is
+        :data:`SPLIT_ELONGATION` times as long as wide, and kept split where
+        the fit says so (:meth:`solver.efficiency.ContactFit.split_evidence`).
     subdivision : int, optional
         The contact fit splits each node's cell into ``s x s`` sub-cells so
         that a contact edge inside a cell is not read as shear (regular grids
