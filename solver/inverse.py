@@ -31,7 +31,7 @@ from .efficiency import ContactFit
 from .geometry import SensorGrid, neighbours_within, patch_links
 from .kernels import stress_matrix
 from .results import Contact, Reconstruction, shear_direction_of
-from .search import contact_labels, contact_reach, halved_labels, template_misfit
+from .search import contact_labels, contact_reach, faint_cores, halved_labels, template_misfit
 from .seen_frame import WHOLE_CELLS, SeenFrame, noise_level
 from .symmetric import SymmetricInverse
 from .threads import one_blas_thread
@@ -53,6 +53,14 @@ SPLIT_SEPARATION = 0.75
 # single contact was split at any of them, ellipses of aspect 1.5 to 2.5 included (seeds 101 and
 # 202; docs/efficiency.md). An elongated contact costs a second fit.
 SPLIT_ELONGATION = 1.5
+# A broad light load beside a sharp one (a palm beside a fingertip) carries less per node than
+# ``region_threshold`` of the frame's peak: the patches of the normal-only solution above this
+# fraction of the peak whose core holds less than half their load are candidates
+# (solver.search.faint_cores), contacts when their normal-only total stands BROAD_EVIDENCE noise
+# deviations out (noise's candidates reached 8.3, on 32x32 skins under 10% noise; such loads 6.4 to
+# 50 at 1%: the load-decision frames of seeds 1 to 3, and seed 7 of a light broad contact beside a
+# cone; docs/efficiency.md).
+FAINT_LEVEL = 0.05
 
 
 def _relative(misfit: np.ndarray, b: np.ndarray) -> float:
@@ -416,7 +424,7 @@ class DenseSolver:
         if getattr(self.efficiency, "split_evidence", None) is None or self._normal.shift != 0 \
                 or self.separation >= SPLIT_SEPARATION:
             return seen, choice
-        labels, near = self.contact_labels(seen.normal, separation=SPLIT_SEPARATION)
+        labels, near = self.contact_labels(seen.normal, separation=SPLIT_SEPARATION, faint=seen.faint)
         if near.shape[1] <= seen.frame.contacts:
             # no dip even at SPLIT_SEPARATION (a pinch closed so far that its two loads make one
             # plateau): an elongated contact is tried halved across its long axis
@@ -431,7 +439,7 @@ class DenseSolver:
 
     def _split_test(self, b, seen, choice, labels, near):
         # (F, the split frame, its automatic choice): F nan where the split is not comparable
-        split = self._seen(b, seen.normal, labels, near)
+        split = self._seen(b, seen.normal, labels, near, seen.faint)
         if split.frame is None or split.frame.contacts <= seen.frame.contacts or not np.array_equal(
                 split.frame.stress, seen.frame.stress):  # another budget's answer, or other sensors
             return math.nan, split, None
@@ -490,8 +498,8 @@ class DenseSolver:
         choice = self.efficiency.choose(seen.frame)
         return self._split_test(b, seen, choice, labels, contact_reach(labels, count, self._near))[0]
 
-    def contact_labels(self, normal: np.ndarray, *, separation: float | None = None
-                       ) -> tuple[np.ndarray, np.ndarray]:
+    def contact_labels(self, normal: np.ndarray, *, separation: float | None = None,
+                       faint: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Separate contacts of a normal-only solution, and the sensors near each.
 
         :func:`solver.search.contact_labels` with this reconstructor's
@@ -503,6 +511,9 @@ class DenseSolver:
             Normal-only force of each node, newtons.
         separation : float or None, optional
             Instead of the reconstructor's ``separation``.
+        faint : (m,) ndarray of bool or None, optional
+            Cores of loads below ``region_threshold`` of the peak that are
+            contacts all the same (:meth:`faint_contacts`). Default none.
 
         Returns
         -------
@@ -518,16 +529,56 @@ class DenseSolver:
             separation = self.separation
         if self._normal.shift != 0:
             separation = 0.0
+        faint = np.zeros(self.grid.size, bool) if faint is None else np.array(faint, dtype=bool)
         return contact_labels(np.ascontiguousarray(normal, dtype=float), self.region_threshold,
-                              separation, self.grid.positions, self._adjacent, self._margin, self._near)
+                              separation, self.grid.positions, self._adjacent, self._margin, self._near,
+                              faint)
+
+    def faint_contacts(self, stress: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        """The cores of loads too light per node for ``region_threshold`` that are load, not noise.
+
+        A broad light load beside a sharp one (a palm beside a fingertip, a
+        flat object beside a cone) carries less per node than
+        ``region_threshold`` of the frame's peak. The candidates of
+        :func:`solver.search.faint_cores` (patches above :data:`FAINT_LEVEL`
+        of the peak) are kept where their normal-only total stands
+        :data:`BROAD_EVIDENCE` noise deviations out. None where the
+        normal-only solve is damped (thick layers: there a real load's total
+        stands out no more than noise's).
+
+        Parameters
+        ----------
+        stress : (m,) ndarray
+            Sensor stress, pascals (its noise is read from it:
+            :func:`solver.seen_frame.noise_level`).
+        normal : (m,) ndarray
+            Its normal-only solution, newtons.
+
+        Returns
+        -------
+        (m,) ndarray of bool
+            The kept candidates' nodes (``contact_labels``' ``faint``).
+        """
+        labels = np.empty(self.grid.size, np.int64)
+        normal = np.ascontiguousarray(normal, dtype=float)
+        if self._normal.shift != 0 or faint_cores(normal, self.region_threshold, FAINT_LEVEL, self._adjacent,
+                                                  labels) == 0:
+            return np.zeros(self.grid.size, bool)
+        weights = (labels == np.arange(1, labels.max() + 1)[:, None]).astype(float)  # (J, m)
+        # a total's deviation under independent sensor noise sigma: sigma |Cz^-1 w|
+        spread = noise_level(stress, self.grid) * np.linalg.norm(self._normal.solve(weights.T), axis=0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            kept = (weights @ normal) / spread >= BROAD_EVIDENCE
+        return np.concatenate([[False], kept])[labels]
 
     def _frame(self, b: np.ndarray) -> SeenFrame:
         # The frame's contacts, and the contact fit's view of it (SeenFrame.of)
         normal = self._normal.solve(b)
-        return self._seen(b, normal, *self.contact_labels(normal))
+        faint = self.faint_contacts(b, normal)
+        return self._seen(b, normal, *self.contact_labels(normal, faint=faint), faint)
 
-    def _seen(self, b, normal, labels, near) -> SeenFrame:
-        return SeenFrame.of(b, normal, labels, near, grid=self.grid, normal_inverse=self._normal,
+    def _seen(self, b, normal, labels, near, faint) -> SeenFrame:
+        return SeenFrame.of(b, normal, labels, near, faint, grid=self.grid, normal_inverse=self._normal,
                             fit_budget=self.fit_budget, fit_columns=self._fit_columns,
                             subdivision=self.subdivision, whole_columns=self.matrix.T,
                             max_shear_ratio=self.max_shear_ratio, neighbours=self._neighbours)

@@ -35,10 +35,10 @@ import numba
 import numpy as np
 from scipy.optimize import lsq_linear, nnls
 
-__all__ = ["contact_cores", "contact_labels", "contact_reach", "halved_labels", "fit_view", "template_misfit",
-           "contact_stress", "load_patches", "near_sums", "misfit_variance", "shear_evidence",
-           "load_decision", "scipy_fit", "workspace", "lawson_hanson", "fit_at", "gauss_newton", "pairs_of",
-           "BOTH", "RATIO", "DIRECTION"]
+__all__ = ["contact_cores", "faint_cores", "laplacian_noise", "contact_labels", "contact_reach",
+           "halved_labels", "fit_view", "template_misfit", "contact_stress", "load_patches", "near_sums",
+           "misfit_variance", "shear_evidence", "load_decision", "scipy_fit", "workspace", "lawson_hanson",
+           "fit_at", "gauss_newton", "pairs_of", "BOTH", "RATIO", "DIRECTION"]
 
 
 # Columns whose remaining norm after projecting out the set's columns is below this fraction
@@ -421,6 +421,83 @@ def contact_cores(values, threshold, adjacent, labels):
     return kept
 
 
+@numba.njit(cache=True, nogil=True)
+def faint_cores(values, threshold, low, adjacent, labels):
+    """Loads the frame's core misses: a broad light contact beside a sharp one.
+
+    :func:`contact_cores` keeps the nodes above ``threshold`` of the frame's
+    peak; a flat or broad load whose nodes each carry less (a palm beside a
+    fingertip) keeps a node or none. Of the connected patches above ``low``
+    of the peak, one whose core nodes hold less than half of its load and
+    whose own peak is below the frame's is a candidate: its nodes above
+    ``threshold`` of its own peak. Whether it is load or noise is the
+    caller's to decide (:meth:`solver.inverse.DenseSolver.contact_labels`).
+
+    Parameters
+    ----------
+    values : (m,) ndarray
+        The normal-only solution, newtons.
+    threshold, low : float
+        Fractions of the peak: the core's, and the patches'.
+    adjacent : tuple of two (.,) ndarrays of int
+        As for :func:`contact_cores`.
+    labels : (m,) ndarray of int
+        Written: candidate 1..J of each of its nodes, 0 elsewhere.
+
+    Returns
+    -------
+    int
+        ``J``.
+    """
+    m = values.size
+    labels[:] = 0
+    peak = -np.inf
+    for i in range(m):
+        peak = max(peak, values[i])
+    if not peak > 0:
+        return 0
+    patches = np.empty(m, np.int64)
+    count = _components(np.where(values > low * peak, 0, -1), adjacent[0], adjacent[1], patches)
+    total, cored, top = np.zeros(count + 1), np.zeros(count + 1), np.zeros(count + 1)
+    for i in range(m):
+        p = patches[i]
+        if p > 0:
+            total[p] += values[i]
+            top[p] = max(top[p], values[i])
+            if values[i] > threshold * peak:
+                cored[p] += values[i]
+    number = np.zeros(count + 1, np.int64)
+    found = 0
+    for i in range(m):
+        p = patches[i]
+        if p > 0 and cored[p] < 0.5 * total[p] and top[p] < peak and values[i] > threshold * top[p]:
+            if number[p] == 0:
+                found += 1
+                number[p] = found
+            labels[i] = number[p]
+    return found
+
+
+@numba.njit(cache=True, nogil=True)
+def laplacian_noise(image):
+    """The sensors' noise deviation from one frame of a regular grid (:func:`solver.seen_frame.noise_level`).
+
+    ``image`` (ny, nx), both at least 3: the robust deviation (1.4826 times
+    the median absolute deviation) of the 5-point Laplacian at the inner
+    nodes, over the Laplacian's ``sqrt(20)`` gain on independent noise.
+    """
+    ny, nx = image.shape
+    laplacian = np.empty((ny - 2) * (nx - 2))
+    k = 0
+    for i in range(1, ny - 1):
+        for j in range(1, nx - 1):
+            laplacian[k] = (4 * image[i, j] - image[i - 1, j] - image[i + 1, j] - image[i, j - 1]
+                            - image[i, j + 1])
+            k += 1
+    middle = np.median(laplacian)
+    return 1.4826 * np.median(np.abs(laplacian - middle)) / math.sqrt(20.0)
+
+
 # Two touching pieces of load are two contacts only when the smaller's core carries at least
 # this share of the larger's. Chosen on the load-decision frames of seeds 1 to 3 (at 0, 5 of 30
 # single loads under 20% noise came apart, with pieces of 12-13% given the largest shear ratio;
@@ -514,7 +591,7 @@ def _separate(values, core, separation, adjacent, labels):
 
 
 @numba.njit(cache=True, nogil=True)
-def contact_labels(normal, threshold, separation, positions, adjacent, margin, near):
+def contact_labels(normal, threshold, separation, positions, adjacent, margin, near, faint):
     """The contacts of a normal-only solution and the sensors near each.
 
     The kept patches of :func:`contact_cores` are split where a patch holds
@@ -539,6 +616,10 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
     adjacent, margin, near : tuple of two (.,) ndarrays of int
         ``(indptr, indices)`` of the CSR neighbourhoods: nodes linked in a
         patch (8 neighbours on a grid), the margin, and a contact's reach.
+    faint : (m,) ndarray of bool
+        Nodes of loads below ``threshold`` of the frame's peak that are
+        contacts all the same (:func:`faint_cores` found them, the caller's
+        noise test kept them): cores besides the kept patches.
 
     Returns
     -------
@@ -553,6 +634,8 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
     for i in range(m):
         if not kept[core[i]]:
             core[i] = 0
+        if faint[i]:
+            core[i] = 1
     cores = np.zeros(m, np.int64)
     count = _separate(normal, core, separation, adjacent, cores)
     labels = np.zeros(m, np.int64)
@@ -571,9 +654,11 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
     # reach ``threshold / separation`` of the frame's. A lower or lighter piece (a noise spike
     # beside a contact, a lobe of a contact under heavy noise) joins its neighbour, as before.
     top, mass = np.zeros(count + 1), np.zeros(count + 1)
+    light = np.zeros(count + 1, np.bool_)  # a faint core: a load of its own, whatever its peak
     for i in range(m):
         top[cores[i]] = max(top[cores[i]], normal[i])
         mass[cores[i]] += normal[i]
+        light[cores[i]] |= faint[i]
     tallest = top[1:].max() if count > 0 else 0.0
     major = 0
     for k in range(1, count + 1):
@@ -590,8 +675,9 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
                 continue
             a, b = _root(parent, labels[i]), _root(parent, labels[j])
             p, q = labels[i], labels[j]
-            apart = (separation > 0 and separation * min(top[p], top[q]) >= threshold * tallest
-                     and min(mass[p], mass[q]) >= SEPARATE_MASS * max(mass[p], mass[q]))
+            apart = separation > 0 and (light[p] or light[q] or (
+                separation * min(top[p], top[q]) >= threshold * tallest
+                and min(mass[p], mass[q]) >= SEPARATE_MASS * max(mass[p], mass[q])))
             if a != b and not apart:
                 parent[max(a, b)] = min(a, b)
     number = np.zeros(count + 1, np.int64)

@@ -9,7 +9,6 @@ of sub-cells; beyond :data:`WHOLE_CELLS` times it there is no fit.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +16,7 @@ import numpy as np
 from .arrays import read_only
 from .functional import FunctionalInput
 from .geometry import SensorGrid
-from .search import fit_view
+from .search import fit_view, laplacian_noise
 
 __all__ = ["SeenFrame", "noise_level", "WHOLE_CELLS", "NOISE_EVIDENCE"]
 
@@ -36,10 +35,8 @@ def noise_level(b: np.ndarray, grid: SensorGrid) -> float:
     # sigma^2) but for a few edges, which the median's robust deviation ignores; elsewhere the
     # robust deviation of the stress itself (an overestimate where a load covers the skin).
     if grid.is_regular and min(grid.shape) >= 3:
-        image = b.reshape(grid.shape)
-        laplacian = (4 * image[1:-1, 1:-1] - image[:-2, 1:-1] - image[2:, 1:-1] - image[1:-1, :-2]
-                     - image[1:-1, 2:])
-        return 1.4826 * float(np.median(np.abs(laplacian - np.median(laplacian)))) / math.sqrt(20.0)
+        # a copy: numba compiles apart for the read-only frames of a recording
+        return float(laplacian_noise(np.array(b, dtype=float).reshape(grid.shape)))
     return 1.4826 * float(np.median(np.abs(b - np.median(b))))
 
 
@@ -55,11 +52,13 @@ class SeenFrame:
     weights: np.ndarray    # (K, m) float: the same, to sum each contact's forces in one product
     at_edge: np.ndarray    # (K,) bool: the region touches the skin's border
     region: np.ndarray     # (m,) bool, read-only: every contact's nodes
+    faint: np.ndarray      # (m,) bool, read-only: cores of light loads (DenseSolver.faint_contacts)
     over: int = 0          # the contacts' nodes when more than the fit's budget (then no frame)
     fallback: str = ""     # why the fit takes whole cells instead of sub-cells, if it does
 
     @classmethod
-    def of(cls, b: np.ndarray, normal: np.ndarray, labels: np.ndarray, near: np.ndarray, *, grid: SensorGrid,
+    def of(cls, b: np.ndarray, normal: np.ndarray, labels: np.ndarray, near: np.ndarray, faint: np.ndarray, *,
+           grid: SensorGrid,
            normal_inverse, fit_budget: int, fit_columns: np.ndarray, subdivision: int,
            whole_columns: np.ndarray, max_shear_ratio: float, neighbours: tuple) -> SeenFrame:
         """The frame's contacts, and the contact fit's view of it.
@@ -75,6 +74,10 @@ class SeenFrame:
             Its normal-only solution (``normal_inverse.solve(b)``), newtons.
         labels, near : ndarray
             Its contacts (:meth:`solver.inverse.DenseSolver.contact_labels`).
+        faint : (m,) ndarray of bool
+            The cores of light loads they were found with
+            (:meth:`solver.inverse.DenseSolver.faint_contacts`), kept for the
+            frame's other labellings.
         grid : SensorGrid
         normal_inverse : SymmetricInverse
             The inverse of ``Cz`` (:class:`solver.symmetric.SymmetricInverse`).
@@ -115,7 +118,7 @@ class SeenFrame:
         nodes = labels == np.arange(1, near.shape[1] + 1)[:, None]  # (K, m)
         seen = dict(key=b.tobytes(), normal=read_only(normal), labels=labels, nodes=read_only(nodes, bool),
                     weights=nodes.astype(float), at_edge=(nodes & grid.border).any(axis=1),
-                    region=read_only(labels > 0, bool))
+                    region=read_only(labels > 0, bool), faint=read_only(faint, bool))
         if near.shape[1] == 0:
             return cls(frame=None, **seen)
         covered = int(np.count_nonzero(labels))

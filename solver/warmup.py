@@ -7,6 +7,7 @@ import numpy as np
 from .geometry import SensorGrid
 from .inverse import DenseSolver
 from .region import RegionSolver
+from .seen_frame import noise_level
 
 __all__ = ["warm_up"]
 
@@ -39,3 +40,4 @@ def warm_up():
     pinch.setflags(write=False)
     pinching.solve(pinch)
     RegionSolver(grid).windows(stress)  # the large-skin path's windows
+    noise_level(stress, grid)  # read where a light load may be a contact (DenseSolver.faint_contacts)

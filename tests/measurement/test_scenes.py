@@ -7,6 +7,7 @@ import pytest
 
 from measurement.scenes import (
     KINDS,
+    STANDARD_KINDS,
     TUNING_SEED,
     VALIDATION_SEED,
     evaluate,
@@ -27,7 +28,14 @@ def pinches():
 def test_scenes_are_what_they_say(pinches):
     assert TUNING_SEED != VALIDATION_SEED
     scenes = scene_cases(seed=TUNING_SEED, repeats=1, thickness_ratios=(0.5,))
-    assert [s.kind for s in scenes] == list(KINDS)
+    assert [s.kind for s in scenes] == list(STANDARD_KINDS) == list(KINDS[:4])
+    beside = scene_cases(seed=TUNING_SEED, repeats=4, thickness_ratios=(1.0,), kinds=("beside",))
+    for scene in beside:
+        # a cone, and a broader, lighter load beside it
+        sharp, broad = scene.frame.contacts
+        assert sharp.shape == "cone" and broad.shape in ("flat_punch", "hertz")
+        assert broad.semi_axes[0] >= 2.0 * scene.frame.grid.pitch and broad.force < sharp.force
+    scenes += beside
     for scene in scenes + pinches:
         frame = scene.frame
         # each contact's own truth sums to the frame's, and contacts keep at least a pitch apart

@@ -45,7 +45,7 @@ def test_contacts_are_the_grown_patches_of_the_normal_solution(reconstructor, sh
         counts.append(expected.max())
         for r in (reconstructor, irregular):
             labels, near = search.contact_labels(normal, r.region_threshold, 0.0, r.grid.positions,
-                                                 r._adjacent, r._margin, r._near)
+                                                 r._adjacent, r._margin, r._near, np.zeros(r.grid.size, bool))
             np.testing.assert_array_equal(labels, expected)
             # near: the sensors within the fit's reach of each contact's nodes
             within = distance <= r._rings * grid.pitch * 1.0001

@@ -6,9 +6,10 @@ import math
 import numpy as np
 import pytest
 
+import solver.search as search
 from solver import Reconstructor, SensorGrid, loads
 from solver.efficiency import ContactFit
-from solver.inverse import DenseSolver
+from solver.inverse import FAINT_LEVEL, DenseSolver
 from solver.region import RegionSolver
 from solver.symmetric import SymmetricInverse
 
@@ -523,6 +524,67 @@ def test_a_load_broader_than_the_fit_budget_gets_a_cheaper_member_and_says_so():
     assert m == 256
     template = r.solve(frame.stress, shear_ratio=0.3, shear_direction=0.5, exact=False)
     np.testing.assert_allclose(template.forces.T.ravel(), y, rtol=0, atol=1e-15)
+
+
+# -- a light broad load beside a sharp one -----------------------------------------------------------
+
+
+def test_a_light_broad_load_beside_a_sharp_one_is_a_contact_of_its_own():
+    # a cone and, three pitches from it, a flat punch whose nodes each carry under a fifth of the
+    # cone's peak node: the frame's core (20% of its peak) missed the punch, and its 0.54 N were
+    # not reported at all
+    grid = SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3, poisson_ratio=0.49)
+    centre = np.array([-4.5e-3, 3.75e-3])
+    cone = loads.cone((6.25e-3, 4.2e-3), 2.6e-3, 0.82)
+    punch = loads.flat_punch(centre, 3.8e-3, 0.54, shear_ratio=0.4, shear_direction=-0.93)
+    truth = loads.simulate(grid, punch).forces
+    mine = np.linalg.norm(grid.positions - centre, axis=1) <= 3.8e-3 + grid.pitch
+    r = DenseSolver(grid)
+    for seed in range(3):  # fixed noise seeds
+        frame = loads.simulate(grid, [cone, punch], noise=0.01, rng=seed)
+        normal = r.solve_normal(frame.stress).forces[:, 2]
+        assert normal[mine].max() < r.region_threshold * normal.max()
+        faint = r.faint_contacts(frame.stress, normal)
+        assert faint.sum() >= 12 and faint[truth[:, 2] > 0].mean() > 0.5 and not faint[~mine].any()
+        result = r.solve(frame.stress)
+        assert len(result.contacts) == 2
+        found = min(result.contacts, key=lambda c: np.linalg.norm(c.centre - centre))
+        assert np.linalg.norm(found.centre - centre) < grid.pitch
+        assert found.total_force[2] == pytest.approx(truth[:, 2].sum(), rel=0.1)
+        assert found.shear_ratio < 1.0
+
+
+@pytest.mark.parametrize("ratio", [0.5, 1.0])
+def test_noise_beside_a_load_is_not_a_light_contact(ratio):
+    # one Hertz load under 10% and 20% noise (the load decision's frames, other seeds): light
+    # patches of the normal-only solution are candidates in most frames and stay noise
+    grid = SensorGrid.regular(16, 16, 2e-3, ratio * 2e-3)
+    clean = loads.simulate(grid, loads.hertz((0.5e-3, -0.3e-3), max(2.5, ratio) * 2e-3, 1.0)).stress
+    r = DenseSolver(grid)
+    rng = np.random.default_rng(21)  # fixed seed
+    candidates = 0
+    for _ in range(8):
+        for sigma in (0.1, 0.2):
+            stress = clean + rng.normal(0.0, sigma * clean.max(), grid.size)
+            normal = r.solve_normal(stress).forces[:, 2]
+            labels = np.empty(grid.size, np.int64)
+            candidates += search.faint_cores(normal, r.region_threshold, FAINT_LEVEL, r._adjacent, labels) > 0
+            assert not r.faint_contacts(stress, normal).any()
+    assert candidates >= 8
+
+
+def test_no_light_contact_where_the_normal_only_solve_is_damped():
+    # a thick layer: a damped solve's totals stand out no more than noise's (a 1 N load at 1% read
+    # 3.6 deviations), so only the fit's load decision tells load from noise
+    grid = SensorGrid.regular(16, 16, 1.5e-3, 3 * 1.5e-3)
+    r = DenseSolver(grid)
+    frame = loads.simulate(grid, [loads.cone((-6e-3, -1.5e-3), 3.6e-3, 1.07),
+                                  loads.flat_punch((4e-3, 3e-3), 4e-3, 0.64)], noise=0.01, rng=1)
+    normal = r.solve_normal(frame.stress).forces[:, 2]
+    labels = np.empty(grid.size, np.int64)
+    assert r._normal.shift > 0
+    assert search.faint_cores(normal, r.region_threshold, FAINT_LEVEL, r._adjacent, labels) > 0
+    assert not r.faint_contacts(frame.stress, normal).any()
 
 
 # -- the split test, for measurements ---------------------------------------------------------------

@@ -282,7 +282,10 @@ pinch = [loads.hertz((-3.75e-3, 0.0), 3e-3, 0.8, shear_ratio=0.3, shear_directio
          loads.hertz((3.75e-3, 0.0), 3e-3, 0.8, shear_ratio=0.3, shear_direction=np.pi)]
 three = [loads.hertz((-6e-3, -5e-3), 3e-3, 1.0, shear_ratio=0.2),
          loads.hertz((6e-3, -5e-3), 3e-3, 0.7), loads.hertz((0.0, 6e-3), 3e-3, 0.9, shear_ratio=0.4)]
-for contacts in (pinch, three):
+# a light broad load beside a sharp one: found by its own scale, after a test on the frame's noise
+beside = [loads.cone((-6e-3, -1.5e-3), 3.6e-3, 1.07, shear_ratio=0.2),
+          loads.flat_punch((3e-3, 3e-3), 3.5e-3, 0.64, shear_ratio=0.4)]
+for contacts in (pinch, three, beside):
     frame = loads.simulate(skin, contacts, noise=0.01, rng=np.random.default_rng(5)).stress
     assert len(DenseSolver(skin).solve(frame).contacts) == len(contacts)
 # the large-skin path finds its windows on the frame itself
@@ -319,9 +322,43 @@ def test_no_contact_when_nothing_is_above_the_threshold(threshold):
     assert labels.max() == 1 and near.shape == (16, 1) and near[15, 0]
 
 
+def test_faint_cores_are_light_loads_the_frame_core_misses():
+    grid = SensorGrid.regular(16, 16, 1e-3, 1e-3)
+    r = DenseSolver(grid, kernel="cell")
+    x, y = (grid.positions / grid.pitch).T
+    sharp = np.exp(-((x + 4) ** 2 + y ** 2) / 2)  # the frame's peak, 1
+    broad = 0.12 * ((x - 4) ** 2 + y ** 2 <= 9)  # a plateau below the core's 20%
+    labels = np.full(grid.size, -1, np.int64)
+    assert search.faint_cores(sharp + broad, 0.2, 0.05, r._adjacent, labels) == 1
+    np.testing.assert_array_equal(labels, (broad > 0).astype(int))
+    # its core at 20% of its own peak: a rim around a lighter middle is left out
+    rim = broad * (1 + 4 * ((x - 4) ** 2 + y ** 2 >= 4))  # 0.12 inside, 0.6 on the rim
+    assert search.faint_cores(sharp + 0.2 * rim, 0.2, 0.05, r._adjacent, labels) == 1
+    np.testing.assert_array_equal(labels > 0, 0.2 * rim > 0.2 * 0.2 * rim.max())
+    # none where the frame's core holds the load: the sharp load alone, a plateau at 30% of the
+    # peak, a light load joined to the peak's own patch, nothing compressive
+    for values in (sharp, sharp + 2.5 * broad, sharp + 0.12 * ((x + 1) ** 2 + y ** 2 <= 4),
+                   -sharp, np.zeros(grid.size)):
+        assert search.faint_cores(values, 0.2, 0.05, r._adjacent, labels) == 0 and not labels.any()
+    # two light loads: one candidate each, numbered in raster order
+    other = 0.1 * ((x - 4) ** 2 + (y + 6) ** 2 <= 2)
+    assert search.faint_cores(sharp + broad + other, 0.2, 0.05, r._adjacent, labels) == 2
+    assert set(labels[other > 0]) == {1} and set(labels[broad > 0]) == {2}
+
+
+def test_the_laplacian_noise_is_the_robust_deviation_of_the_laplacian():
+    rng = np.random.default_rng(3)  # fixed seed
+    image = rng.normal(0.0, 2.5, (40, 30)) + np.linspace(0, 50, 30)  # a linear trend has no Laplacian
+    laplacian = (4 * image[1:-1, 1:-1] - image[:-2, 1:-1] - image[2:, 1:-1] - image[1:-1, :-2]
+                 - image[1:-1, 2:])
+    expected = 1.4826 * np.median(np.abs(laplacian - np.median(laplacian))) / np.sqrt(20)
+    assert search.laplacian_noise(image) == pytest.approx(expected, rel=1e-12)
+    assert search.laplacian_noise(image) == pytest.approx(2.5, rel=0.1)
+
+
 def _labels(r, normal, *, threshold=0.2, separation=0.6):
     return contact_labels(np.asarray(normal, float), threshold, separation, r.grid.positions, r._adjacent,
-                          r._margin, r._near)
+                          r._margin, r._near, np.zeros(r.grid.size, bool))
 
 
 def _two_bumps(grid, dip):

@@ -215,12 +215,21 @@ def test_the_truth_is_drawn_beside_the_estimate_only_when_the_recording_has_one(
 
 
 def test_each_contact_has_curves_of_its_own_when_there_are_several(window, shown, qtbot):
+    from dataclasses import replace
+
+    from solver import loads
     from tactile_viewer.io.files import load
     from tactile_viewer.model.time_plot_rows import ROWS
 
     assert shown.series.identities == (1,) and shown.graphics.contact_curves == {}  # one contact: the totals say it
     assert legend_names(shown.graphics.plots["fz"]) == ["estimate", "truth"]
-    show(window, shown, qtbot, load(SAMPLES / "two_contacts.npz"))
+    two = load(SAMPLES / "two_contacts.npz")
+    # the sample's second press comes at frame 4: before it, the first press alone
+    alone = loads.simulate(two.grid, loads.hertz((-7e-3, -5e-3), 3.5e-3, 0.6, shear_ratio=0.3), noise=0.01,
+                           rng=0)  # fixed seed
+    frames, truth = np.array(two.frames), np.array(two.truth_forces)
+    frames[:4], truth[:4] = alone.stress, alone.forces
+    show(window, shown, qtbot, replace(two, frames=frames, truth_forces=truth))
     series = shown.series
     assert series.identities == (1, 2) and sorted(shown.graphics.contact_curves) == [1, 2]
     for identity in (1, 2):
@@ -230,7 +239,8 @@ def test_each_contact_has_curves_of_its_own_when_there_are_several(window, shown
         np.testing.assert_allclose(shown.graphics.contact_curves[identity]["fz"].yData, quantities.fz * 1e3)
         np.testing.assert_allclose(shown.graphics.contact_curves[identity]["centroid_x"].yData,
                                    quantities.centroid_x * 1e3)
-    assert np.isnan(shown.graphics.contact_curves[2]["fz"].yData[0])  # the second press is not there yet
+    second = shown.graphics.contact_curves[2]["fz"].yData
+    assert np.isnan(second[:4]).all() and not np.isnan(second[4:]).any()  # not there before it comes
     assert legend_names(shown.graphics.plots["fz"]) == ["estimate", "truth", "#1", "#2"]
     # the contacts table numbers the frame drawn as the curves do (both followed from frame 0)
     last = window.model.last
