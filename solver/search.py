@@ -378,6 +378,10 @@ def _components(kind, indptr, indices, labels):
     return count
 
 
+# A patch carrying less than this share of the largest core's load is a speck of noise, not a contact.
+_SPECK = 0.05
+
+
 @numba.njit(cache=True, nogil=True)
 def contact_cores(values, threshold, adjacent, labels):
     """The patches of a field that may be contacts: the one rule for finding them.
@@ -416,7 +420,7 @@ def contact_cores(values, threshold, adjacent, labels):
         if labels[i] > 0:
             mass[labels[i]] += values[i]
     largest = mass[1:].max() if count > 0 else 0.0
-    kept = mass >= 0.05 * largest
+    kept = mass >= _SPECK * largest
     kept[0] = False
     return kept
 
@@ -430,8 +434,10 @@ def faint_cores(values, threshold, low, adjacent, labels):
     fingertip) keeps a node or none. Of the connected patches above ``low``
     of the peak, one whose core nodes hold less than half of its load and
     whose own peak is below the frame's is a candidate: its nodes above
-    ``threshold`` of its own peak. Whether it is load or noise is the
-    caller's to decide (:meth:`solver.inverse.DenseSolver.contact_labels`).
+    ``threshold`` of its own peak, when they carry 5% of the largest core's
+    load or more (as :func:`contact_cores` keeps patches). Whether it is
+    load or noise is the caller's to decide
+    (:meth:`solver.inverse.DenseSolver.faint_contacts`).
 
     Parameters
     ----------
@@ -466,11 +472,18 @@ def faint_cores(values, threshold, low, adjacent, labels):
             top[p] = max(top[p], values[i])
             if values[i] > threshold * peak:
                 cored[p] += values[i]
+    own = np.zeros(count + 1)
+    for i in range(m):
+        p = patches[i]
+        if p > 0 and values[i] > threshold * top[p]:
+            own[p] += values[i]
+    largest = cored.max()
     number = np.zeros(count + 1, np.int64)
     found = 0
     for i in range(m):
         p = patches[i]
-        if p > 0 and cored[p] < 0.5 * total[p] and top[p] < peak and values[i] > threshold * top[p]:
+        if (p > 0 and cored[p] < 0.5 * total[p] and top[p] < peak and own[p] >= _SPECK * largest
+                and values[i] > threshold * top[p]):
             if number[p] == 0:
                 found += 1
                 number[p] = found

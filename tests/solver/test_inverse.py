@@ -557,7 +557,7 @@ def test_a_light_broad_load_beside_a_sharp_one_is_a_contact_of_its_own():
 @pytest.mark.parametrize("ratio", [0.5, 1.0])
 def test_noise_beside_a_load_is_not_a_light_contact(ratio):
     # one Hertz load under 10% and 20% noise (the load decision's frames, other seeds): light
-    # patches of the normal-only solution are candidates in most frames and stay noise
+    # patches of the normal-only solution are candidates in some frames and stay noise
     grid = SensorGrid.regular(16, 16, 2e-3, ratio * 2e-3)
     clean = loads.simulate(grid, loads.hertz((0.5e-3, -0.3e-3), max(2.5, ratio) * 2e-3, 1.0)).stress
     r = DenseSolver(grid)
@@ -570,21 +570,26 @@ def test_noise_beside_a_load_is_not_a_light_contact(ratio):
             labels = np.empty(grid.size, np.int64)
             candidates += search.faint_cores(normal, r.region_threshold, FAINT_LEVEL, r._adjacent, labels) > 0
             assert not r.faint_contacts(stress, normal).any()
-    assert candidates >= 8
+    assert candidates >= 3
 
 
-def test_no_light_contact_where_the_normal_only_solve_is_damped():
+def test_no_light_contact_where_the_normal_only_solve_is_damped(monkeypatch):
     # a thick layer: a damped solve's totals stand out no more than noise's (a 1 N load at 1% read
     # 3.6 deviations), so only the fit's load decision tells load from noise
+    import solver.inverse
+
     grid = SensorGrid.regular(16, 16, 1.5e-3, 3 * 1.5e-3)
     r = DenseSolver(grid)
     frame = loads.simulate(grid, [loads.cone((-6e-3, -1.5e-3), 3.6e-3, 1.07),
-                                  loads.flat_punch((4e-3, 3e-3), 4e-3, 0.64)], noise=0.01, rng=1)
+                                  loads.flat_punch((5e-3, 4e-3), 4e-3, 0.3)], noise=0.01, rng=1)
     normal = r.solve_normal(frame.stress).forces[:, 2]
     labels = np.empty(grid.size, np.int64)
     assert r._normal.shift > 0
-    assert search.faint_cores(normal, r.region_threshold, FAINT_LEVEL, r._adjacent, labels) > 0
+    assert search.faint_cores(normal, r.region_threshold, FAINT_LEVEL, r._adjacent, labels) == 1
+    # whatever its total: read against no noise at all it would stand out
+    monkeypatch.setattr(solver.inverse, "noise_level", lambda stress, grid: 1e-30)
     assert not r.faint_contacts(frame.stress, normal).any()
+    assert DenseSolver(SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3)).faint_contacts(frame.stress, normal).any()
 
 
 # -- the split test, for measurements ---------------------------------------------------------------
