@@ -45,9 +45,10 @@ from .skin_options import add_skin_arguments, skin_grid
 
 __all__ = ["Board", "main"]
 
-# A write that waited this long for room: nobody was reading, and the frames of that time are
-# skipped. A reader that falls behind for less (a busy machine) gets them late, as from a host's
-# buffer: at 0.1 s, a window starved by a loaded machine lost frames of a 1 kHz board.
+# A write that waited this long for room (by default: --drop-after): nobody was reading, and the
+# frames of that time are skipped. A reader that falls behind for less (a busy machine) gets them
+# late, as from a host's buffer: at 0.1 s, a window starved by a loaded machine lost frames of a
+# 1 kHz board.
 BLOCKED_WRITE_S = 0.5
 
 
@@ -165,7 +166,7 @@ def _open_pty(link: Path | None):
 
 
 def _write_all(fd: int, data: bytes, stall: float) -> tuple[bool, bool]:
-    """Write everything unless the reader stalls for ``stall`` seconds (then drop the rest).
+    """Write everything unless the reader leaves no room for ``stall`` seconds (then drop the rest).
 
     ``fd`` is non-blocking, so a reader that stops reading never blocks the board (or its
     SIGTERM) for longer than ``stall``.
@@ -175,27 +176,22 @@ def _write_all(fd: int, data: bytes, stall: float) -> tuple[bool, bool]:
     sent : bool
         Everything was written.
     blocked : bool
-        The reader left no room for :data:`BLOCKED_WRITE_S` at a time, as the kernel saw it
-        (``select`` timed out). A stall of this process (another thread holding the GIL, a busy
-        machine) is not one: ``select`` looks at the descriptor again when it wakes, while the
-        wall time of the whole write would count the stall too (a board computing its cycle
+        The reader left no room for ``stall`` seconds, as the kernel saw it (``select`` timed
+        out): the rest was dropped. A stall of this process (another thread holding the GIL, a
+        busy machine) is not one: ``select`` looks at the descriptor again when it wakes, while
+        the wall time of the whole write would count the stall too (a board computing its cycle
         ahead once skipped 514 frames of a reader that never waited more than 6 ms).
     """
     view = memoryview(data)
-    blocked, waited = False, 0.0
     while view:
-        _, writable, _ = select.select([], [fd], [], min(BLOCKED_WRITE_S, stall))
+        _, writable, _ = select.select([], [fd], [], stall)
         if not writable:
-            blocked = True
-            waited += min(BLOCKED_WRITE_S, stall)
-            if waited >= stall:
-                return False, True
-            continue
+            return False, True
         try:
             view = view[os.write(fd, view):]
         except BlockingIOError:
             continue
-    return True, blocked
+    return True, False
 
 
 def main(argv=None) -> int:
@@ -220,6 +216,11 @@ def main(argv=None) -> int:
     parser.add_argument("--unloaded", type=float, default=0.0, metavar="S",
                         help="send S seconds of noise alone, nothing touching, before the scene starts: "
                              "time to connect and tare (default 0)")
+    parser.add_argument("--drop-after", type=float, default=BLOCKED_WRITE_S, metavar="S",
+                        help="a write that finds no room for S seconds drops its frames, and the frames "
+                             "of the time nobody reads are skipped, as a board's whose host does not read "
+                             f"(default {BLOCKED_WRITE_S:g}); a reader held up for less gets every frame, "
+                             "late. Long: a test that must not lose a frame to a busy machine")
     parser.add_argument("--url", help="write to this pyserial URL instead of a pseudo-terminal")
     parser.add_argument("--link", type=Path, help="symlink to the pseudo-terminal (a stable device path)")
     parser.add_argument("--layout", type=Path, help="write the matching sensor layout JSON here")
@@ -235,6 +236,9 @@ def main(argv=None) -> int:
                      f"got --format {args.format}")
     if not (math.isfinite(args.unloaded) and args.unloaded >= 0):
         parser.error(f"--unloaded must be a finite number of seconds >= 0, got {args.unloaded:g}")
+    if not (math.isfinite(args.drop_after) and args.drop_after > 0):
+        parser.error(f"--drop-after must be a finite number of seconds > 0, got {args.drop_after:g}")
+    stall = args.drop_after
     for name in ("garbage", "dropout"):
         if not 0 <= getattr(args, name) <= 1:
             parser.error(f"--{name} must be a probability in [0, 1], got {getattr(args, name):g}")
@@ -253,16 +257,16 @@ def main(argv=None) -> int:
         def write(data):  # a port's write blocks: a write that took that long found no room
             started = time.perf_counter()
             sent = port.write(data) == len(data)
-            return sent, time.perf_counter() - started > BLOCKED_WRITE_S
+            return sent, time.perf_counter() - started > stall
         room = None  # a port tells no room before a write
         print(f"writing to {args.url}", flush=True)
     else:
         master, slave, name = _open_pty(args.link)
         os.set_blocking(master, False)
-        # a write that found no room for BLOCKED_WRITE_S drops the rest of its frames: kept waiting,
+        # a write that found no room for the stall drops the rest of its frames: kept waiting,
         # they went to the next reader after it had dropped its backlog, stamped as new
-        write = lambda data: _write_all(master, data, stall=BLOCKED_WRITE_S)  # noqa: E731
-        room = lambda: bool(select.select([], [master], [], BLOCKED_WRITE_S)[1])  # noqa: E731
+        write = lambda data: _write_all(master, data, stall=stall)  # noqa: E731
+        room = lambda: bool(select.select([], [master], [], stall)[1])  # noqa: E731
 
         note = announce_board(device=name, link=str(args.link) if args.link else None,
                               layout=str(args.layout.resolve()) if args.layout else None, format=args.format,

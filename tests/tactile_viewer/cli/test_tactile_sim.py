@@ -392,6 +392,7 @@ def test_cli_sigterm_exits_cleanly_and_removes_the_link(tmp_path, processes):
 @pytest.mark.parametrize("option, value", [
     ("--rate", "0"), ("--rate", "2000"), ("--rate", "nan"), ("--garbage", "1.5"), ("--dropout", "-0.1"),
     ("--nx", "0"), ("--ny", "-2"), ("--pitch", "0"), ("--format", "hex"), ("--units", "counts"),
+    ("--drop-after", "0"), ("--drop-after", "inf"), ("--drop-after", "nan"),
 ])
 def test_cli_rejects_bad_arguments(option, value, capsys, tmp_path):
     # argument errors come before the pseudo-terminal is opened, so main() can run in this process
@@ -755,6 +756,36 @@ def test_a_reader_coming_at_any_moment_gets_the_frames_at_the_boards_pace(tmp_pa
     process.terminate()
     process.communicate(timeout=10)
     assert max(excess) < 0.03, excess
+
+
+@pytest.mark.parametrize("drop_after", [None, "10"])
+def test_a_reader_held_up_loses_frames_only_past_drop_after(tmp_path, processes, drop_after):
+    # a reader that stops reading for 1.5 s while its port stays open (a busy machine): past
+    # --drop-after (0.5 s by default) the board drops that time's frames; given longer, every frame
+    # comes, late
+    process, link, _layout = run_sim(tmp_path, "--rate", "1000", "--noise", "0",
+                                     *(["--drop-after", drop_after] if drop_after else []))
+    processes.append(process)
+    process.stdout.readline()
+    decoder, received = BinaryDecoder(256), []  # 16x16
+    with serial.Serial(str(link), timeout=0.01) as port:
+        started = time.monotonic()
+        while len(received) < 100:
+            received += decoder.feed(port.read(1 << 20))
+            assert time.monotonic() - started < 60, "no frames from the simulator"
+        time.sleep(1.5)
+        count = len(received)
+        resumed = time.monotonic()
+        while len(received) < count + 1700 and time.monotonic() - resumed < 10:
+            received += decoder.feed(port.read(1 << 20))
+    process.terminate()
+    process.communicate(timeout=10)
+    gaps = np.diff([frame.seq for frame in received])
+    assert np.all(gaps >= 1)
+    if drop_after is None:
+        assert gaps.max() > 500  # the frames of the time past the wait are gone
+    else:
+        assert np.all(gaps == 1) and len(received) >= count + 1700  # all of them, late
 
 
 def test_a_write_is_blocked_only_when_the_reader_left_no_room():
