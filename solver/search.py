@@ -478,17 +478,12 @@ def faint_cores(values, threshold, low, adjacent, labels):
         if p > 0 and values[i] > threshold * top[p]:
             own[p] += values[i]
     largest = cored.max()
-    number = np.zeros(count + 1, np.int64)
-    found = 0
     for i in range(m):
         p = patches[i]
-        if (p > 0 and cored[p] < 0.5 * total[p] and top[p] < peak and own[p] >= _SPECK * largest
+        if not (p > 0 and cored[p] < 0.5 * total[p] and top[p] < peak and own[p] >= _SPECK * largest
                 and values[i] > threshold * top[p]):
-            if number[p] == 0:
-                found += 1
-                number[p] = found
-            labels[i] = number[p]
-    return found
+            patches[i] = 0
+    return _consecutive(patches, count + 1, labels)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -528,6 +523,21 @@ def _root(parent, k):
         parent[k] = parent[parent[k]]
         k = parent[k]
     return k
+
+
+@numba.njit(cache=True, nogil=True)
+def _consecutive(key, keys, labels):
+    # labels 1..K in raster order of each key's first node (key 0: none; keys bounds them, and
+    # labels may be key itself); returns K
+    number = np.zeros(keys, np.int64)
+    count = 0
+    for i in range(key.size):
+        k = key[i]
+        if k > 0 and number[k] == 0:
+            count += 1
+            number[k] = count
+        labels[i] = number[k] if k > 0 else 0
+    return count
 
 
 @numba.njit(cache=True, nogil=True)
@@ -589,18 +599,10 @@ def _separate(values, core, separation, adjacent, labels):
             for q in range(found):
                 parent[roots[q]] = highest
             piece[i] = highest
-    # consecutive numbers in raster order
-    number = np.zeros(m + 1, np.int64)
-    K = 0
-    labels[:] = 0
     for i in range(m):
         if piece[i] > 0:
-            r = _root(parent, piece[i])
-            if number[r] == 0:
-                K += 1
-                number[r] = K
-            labels[i] = number[r]
-    return K
+            piece[i] = _root(parent, piece[i])
+    return _consecutive(piece, m + 1, labels)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -693,15 +695,10 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
                 and min(mass[p], mass[q]) >= SEPARATE_MASS * max(mass[p], mass[q])))
             if a != b and not apart:
                 parent[max(a, b)] = min(a, b)
-    number = np.zeros(count + 1, np.int64)
-    count = 0
     for i in range(m):
         if labels[i] > 0:
-            r = _root(parent, labels[i])
-            if number[r] == 0:
-                count += 1
-                number[r] = count
-            labels[i] = number[r]
+            labels[i] = _root(parent, labels[i])
+    count = _consecutive(labels, count + 1, labels)
     return labels, contact_reach(labels, count, near)
 
 
