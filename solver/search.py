@@ -669,7 +669,9 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
     # reach ``threshold / separation`` of the frame's. A lower or lighter piece (a noise spike
     # beside a contact, a lobe of a contact under heavy noise) joins its neighbour, as before.
     top, mass = np.zeros(count + 1), np.zeros(count + 1)
-    light = np.zeros(count + 1, np.bool_)  # a faint core: a load of its own, whatever its peak
+    # a faint core is a load of its own beside others, whatever its peak; its pieces (a noisy plateau's
+    # bumps) are one load
+    light = np.zeros(count + 1, np.bool_)
     for i in range(m):
         top[cores[i]] = max(top[cores[i]], normal[i])
         mass[cores[i]] += normal[i]
@@ -690,7 +692,7 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
                 continue
             a, b = _root(parent, labels[i]), _root(parent, labels[j])
             p, q = labels[i], labels[j]
-            apart = separation > 0 and (light[p] or light[q] or (
+            apart = separation > 0 and (light[p] != light[q] or (
                 separation * min(top[p], top[q]) >= threshold * tallest
                 and min(mass[p], mass[q]) >= SEPARATE_MASS * max(mass[p], mass[q])))
             if a != b and not apart:

@@ -1,8 +1,9 @@
 """Simulated scenes for a virtual board: their contacts and frames, computed lazily by cycle. No Qt.
 
 A scene (:data:`SCENES`: a Hertzian contact circling the skin with turning shear, a pinch, two
-or three moving contacts, a broad press, a twist) gives the contacts of :mod:`solver.loads` as a
-function of its phase; :func:`scene_frame` takes them through the bonded layer.
+or three moving contacts, a broad press, a twist, a fingertip beside a light broad press) gives
+the contacts of :mod:`solver.loads` as a function of its phase; :func:`scene_frame` takes them
+through the bonded layer.
 
 A scene is one period of ``CYCLE`` frames that repeats. The frames are
 computed lazily (:class:`Cycle`): the first when it is first sent, the rest in
@@ -146,6 +147,19 @@ def _press(skin: _Skin, phase: float):
     return (loads.hertz((skin.cx, skin.cy), axes, force),)
 
 
+def _palm(skin: _Skin, phase: float):
+    _, _, long, short = skin.frame()
+    broad = min(3 * skin.pitch, 0.4 * long, 0.9 * short)
+    tip = min(1.75 * skin.pitch, 0.25 * long, 0.5 * short)
+    wander = min(skin.pitch, 0.1 * long)
+    angle = TAU * phase
+    press = loads.flat_punch(skin.point(-0.5 * long, 0.0), broad, 0.5 + 0.1 * math.sin(angle),
+                             shear_ratio=0.2, shear_direction=skin.heading(0.0))
+    finger = loads.cone(skin.point(0.45 * long + wander * math.cos(angle), wander * math.sin(angle)), tip,
+                        1.0, shear_ratio=0.3, shear_direction=skin.heading(angle))
+    return press, finger
+
+
 def _twist(skin: _Skin, phase: float):
     radius = min(2.5 * skin.pitch, 0.6 * skin.half)
     return (loads.hertz((skin.cx, skin.cy), radius, 1.0, torsion=TWIST * radius * math.sin(TAU * phase)),)
@@ -185,6 +199,9 @@ SCENES = {scene.name: scene for scene in (
                "no shear", _press),
     BoardScene("twist", 4.0, "a 1 N Hertzian press twisted back and forth about its axis (torsion only, no "
                "shear): invisible to normal-stress sensors, so the stream never changes", _twist),
+    BoardScene("palm", 2.0, "a fingertip (a 1 N cone, shear ratio 0.3 turning) circling beside a light "
+               "broad press (a flat punch of 0.4 to 0.6 N, radius 3 pitches, shear ratio 0.2 along the long "
+               "side), each of whose nodes carries a tenth of the fingertip's most loaded one", _palm),
 )}
 
 

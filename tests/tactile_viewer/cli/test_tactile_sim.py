@@ -659,7 +659,7 @@ def test_board_streams_the_scene_it_is_given(layout, scene):
 ])
 def test_an_unknown_scene_is_refused_naming_the_scenes(call):
     with pytest.raises(ValueError, match=r"scene must be one of \('circle', 'pinch', 'two', 'three', 'press', "
-                                         r"'twist'\), got '(squeeze|Pinch)'"):
+                                         r"'twist', 'palm'\), got '(squeeze|Pinch)'"):
         call(SensorGrid.regular(3, 2, 2e-3, 2e-3))
 
 
@@ -670,7 +670,7 @@ def test_cli_refuses_an_unknown_scene(value, capsys, tmp_path):
     assert info.value.code == 2
     last = capsys.readouterr().err.splitlines()[-1]
     assert last == (f"tactile-sim: error: argument --scene: invalid choice: '{value}' (choose from 'circle', "
-                    f"'pinch', 'two', 'three', 'press', 'twist')")
+                    f"'pinch', 'two', 'three', 'press', 'twist', 'palm')")
     assert not (tmp_path / "board").exists()
 
 
