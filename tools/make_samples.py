@@ -99,8 +99,9 @@ def make_all(outdir: Path) -> list[Path]:
             grid, _scene(grid, "palm", 2.0), 60,
             "A fingertip beside a palm (tactile-sim --scene palm, once in 2 s): a 1 N cone, radius 3.5 mm, "
             "circling 1.6 mm about a point 7.2 mm right of the centre with shear ratio 0.3 turning once, and "
-            "a flat punch, radius 6 mm, 8 mm left of the centre, 0.4 to 0.6 N with shear ratio 0.2 along +x: "
-            f"each of the punch's nodes carries about a tenth of the cone's most loaded one; {skin}", seed=9),
+            "a flat punch, radius 5 mm, 7.2 mm left of the centre, 0.4 to 0.6 N with shear ratio 0.2 along "
+            f"+x: each of the punch's nodes carries about a tenth of the cone's most loaded one; {skin}",
+            seed=9),
         "broad_press_32x32.npz": _record(
             large, _scene(large, "press", 6.0), 6,
             "Broad press (tactile-sim --scene press, once in 6 s, one frame a second): a Hertzian press of "

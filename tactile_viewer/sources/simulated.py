@@ -149,11 +149,11 @@ def _press(skin: _Skin, phase: float):
 
 def _palm(skin: _Skin, phase: float):
     _, _, long, short = skin.frame()
-    broad = min(3 * skin.pitch, 0.4 * long, 0.9 * short)
+    broad = min(2.5 * skin.pitch, 0.35 * long, 0.9 * short)
     tip = min(1.75 * skin.pitch, 0.25 * long, 0.5 * short)
     wander = min(skin.pitch, 0.1 * long)
     angle = TAU * phase
-    press = loads.flat_punch(skin.point(-0.5 * long, 0.0), broad, 0.5 + 0.1 * math.sin(angle),
+    press = loads.flat_punch(skin.point(-0.45 * long, 0.0), broad, 0.5 + 0.1 * math.sin(angle),
                              shear_ratio=0.2, shear_direction=skin.heading(0.0))
     finger = loads.cone(skin.point(0.45 * long + wander * math.cos(angle), wander * math.sin(angle)), tip,
                         1.0, shear_ratio=0.3, shear_direction=skin.heading(angle))
@@ -200,8 +200,8 @@ SCENES = {scene.name: scene for scene in (
     BoardScene("twist", 4.0, "a 1 N Hertzian press twisted back and forth about its axis (torsion only, no "
                "shear): invisible to normal-stress sensors, so the stream never changes", _twist),
     BoardScene("palm", 2.0, "a fingertip (a 1 N cone, shear ratio 0.3 turning) circling beside a light "
-               "broad press (a flat punch of 0.4 to 0.6 N, radius 3 pitches, shear ratio 0.2 along the long "
-               "side), each of whose nodes carries a tenth of the fingertip's most loaded one", _palm),
+               "broad press (a flat punch of 0.4 to 0.6 N, radius 2.5 pitches, shear ratio 0.2 along the "
+               "long side), each of whose nodes carries a tenth of the fingertip's most loaded one", _palm),
 )}
 
 

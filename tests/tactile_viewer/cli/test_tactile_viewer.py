@@ -101,7 +101,7 @@ def test_report_lists_each_frames_contacts_numbered_over_time(capsys):
 
 def test_report_finds_the_light_press_beside_the_fingertip(capsys):
     # each of the flat press's nodes carries about a tenth of the fingertip's most loaded one: below
-    # the 20% of the frame's peak that makes a node a contact's, it was not reported on any frame
+    # the 20% of the frame's peak that makes a node a contact's, it was reported on 1 frame of 60
     recording = load(SAMPLES / "palm.npz")
     left = recording.grid.positions[:, 0] < 0  # the press; the fingertip keeps right of the centre
     assert main([str(SAMPLES / "palm.npz"), "--report"]) == 0
@@ -113,15 +113,11 @@ def test_report_finds_the_light_press_beside_the_fingertip(capsys):
     errors = []
     for k, (start, stop) in enumerate(zip(frames, frames[1:] + [len(lines) - 1], strict=True)):
         matches = [contact.fullmatch(line) for line in lines[start + 1:stop]]
-        assert all(matches) and len(matches) in (1, 2), lines[start:stop]
-        press = [m for m in matches if float(m[6]) < 0]  # millimetres
-        assert all(float(m[6]) == pytest.approx(-8.0, abs=3.0) for m in press)
-        found = sum(float(m[2]) for m in press)
-        errors.append(abs(found / recording.truth_forces[k][left, 2].sum() - 1))
-    # found with its total on all but a few frames (one where noise broke it into two patches, each
-    # too weak for the noise test; one where the fingertip comes nearest and it reads a shear ratio of
-    # 1.5)
-    assert sum(e < 0.15 for e in errors) >= 57 and np.median(errors) < 0.05
+        assert len(matches) == 2 and all(matches), lines[start:stop]
+        press = min(matches, key=lambda m: float(m[6]))
+        assert float(press[6]) == pytest.approx(-7.2, abs=1.5)  # millimetres
+        errors.append(abs(float(press[2]) / recording.truth_forces[k][left, 2].sum() - 1))
+    assert max(errors) < 0.15 and np.median(errors) < 0.05  # its total, on every frame
 
 
 def test_report_with_given_parameters_on_one_frame(capsys):
