@@ -61,6 +61,14 @@ SPLIT_ELONGATION = 1.5
 # 50 at 1%: the load-decision frames of seeds 1 to 3, and seed 7 of a light broad contact beside a
 # cone; docs/efficiency.md).
 FAINT_LEVEL = 0.05
+# A patch picked for standing above a level has nodes that, under noise alone, average about one to
+# one and a half noise deviations each (a normal distribution's tail): its total's evidence grows as
+# the square root of its size (152 nodes of noise on a 32x32 skin at 10% read 14 deviations). A light
+# load's nodes stand out each: a candidate also needs this many deviations per square root of its
+# nodes (noise's candidates reached 1.94, the light loads kept at BROAD_EVIDENCE 2.37 and more: the
+# load-decision frames of seeds 1 to 3, a load on a 32x32 skin under 10% and 20% noise, the beside
+# scenes' tuning set).
+FAINT_NODE_EVIDENCE = 2.0
 
 
 def _relative(misfit: np.ndarray, b: np.ndarray) -> float:
@@ -95,7 +103,9 @@ class DenseSolver:
         Upper bound of the automatic shear-ratio search. Default 1.5.
     region_threshold : float, optional
         Fraction of the peak normal-only force above which a node is loaded.
-        Default 0.2.
+        Default 0.2. A light load whose nodes all stay below it (a palm
+        beside a fingertip) is found on its own scale where it stands out of
+        the noise (:meth:`faint_contacts`).
     region_margin : int, optional
         Pitches by which the contact region grows around the loaded nodes.
         Default 1. A node within the margin of two contacts goes to the
@@ -529,7 +539,12 @@ class DenseSolver:
             separation = self.separation
         if self._normal.shift != 0:
             separation = 0.0
-        faint = np.zeros(self.grid.size, bool) if faint is None else np.array(faint, dtype=bool)
+        m = self.grid.size
+        faint = np.zeros(m, bool) if faint is None else np.asarray(faint)
+        if faint.shape != (m,) or faint.dtype != bool:
+            raise ValueError(f"faint must be {m} booleans (one per node), got shape {faint.shape} of "
+                             f"{faint.dtype}")
+        faint = np.array(faint)  # writable: numba compiles apart for read-only arrays
         return contact_labels(np.ascontiguousarray(normal, dtype=float), self.region_threshold,
                               separation, self.grid.positions, self._adjacent, self._margin, self._near,
                               faint)
@@ -542,7 +557,10 @@ class DenseSolver:
         ``region_threshold`` of the frame's peak. The candidates of
         :func:`solver.search.faint_cores` (patches above :data:`FAINT_LEVEL`
         of the peak) are kept where their normal-only total stands
-        :data:`BROAD_EVIDENCE` noise deviations out. None where the
+        :data:`BROAD_EVIDENCE` noise deviations out, and
+        :data:`FAINT_NODE_EVIDENCE` times the square root of their nodes
+        (a patch of noise picked for standing high grows its total's
+        evidence with its size; a load's nodes stand out each). None where the
         normal-only solve is damped (thick layers: there a real load's total
         stands out no more than noise's).
 
@@ -568,7 +586,8 @@ class DenseSolver:
         # a total's deviation under independent sensor noise sigma: sigma |Cz^-1 w|
         spread = noise_level(stress, self.grid) * np.linalg.norm(self._normal.solve(weights.T), axis=0)
         with np.errstate(divide="ignore", invalid="ignore"):
-            kept = (weights @ normal) / spread >= BROAD_EVIDENCE
+            evidence = (weights @ normal) / spread
+        kept = (evidence >= BROAD_EVIDENCE) & (evidence >= FAINT_NODE_EVIDENCE * np.sqrt(weights.sum(axis=1)))
         return np.concatenate([[False], kept])[labels]
 
     def _frame(self, b: np.ndarray) -> SeenFrame:

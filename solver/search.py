@@ -477,7 +477,13 @@ def faint_cores(values, threshold, low, adjacent, labels):
         p = patches[i]
         if p > 0 and values[i] > threshold * top[p]:
             own[p] += values[i]
-    largest = cored.max()
+    # the largest core's load: of the connected patches above threshold, as contact_cores weighs them
+    cores = np.empty(m, np.int64)
+    found = _components(np.where(values > threshold * peak, 0, -1), adjacent[0], adjacent[1], cores)
+    mass = np.zeros(found + 1)
+    for i in range(m):
+        mass[cores[i]] += values[i] if cores[i] > 0 else 0.0
+    largest = mass[1:].max() if found > 0 else 0.0
     for i in range(m):
         p = patches[i]
         if not (p > 0 and cored[p] < 0.5 * total[p] and top[p] < peak and own[p] >= _SPECK * largest

@@ -9,8 +9,9 @@ import pytest
 import solver.search as search
 from solver import Reconstructor, SensorGrid, loads
 from solver.efficiency import ContactFit
-from solver.inverse import FAINT_LEVEL, DenseSolver
+from solver.inverse import BROAD_EVIDENCE, FAINT_LEVEL, FAINT_NODE_EVIDENCE, DenseSolver
 from solver.region import RegionSolver
+from solver.seen_frame import noise_level
 from solver.symmetric import SymmetricInverse
 
 KERNELS = ["cell", "point"]
@@ -571,6 +572,41 @@ def test_noise_beside_a_load_is_not_a_light_contact(ratio):
             candidates += search.faint_cores(normal, r.region_threshold, FAINT_LEVEL, r._adjacent, labels) > 0
             assert not r.faint_contacts(stress, normal).any()
     assert candidates >= 3
+
+
+def test_a_large_patch_of_noise_is_not_a_light_contact():
+    # a load on a 32x32 skin under 10% noise: the normal-only solution's noise above 5% of the peak
+    # makes patches of a hundred nodes whose totals stand over BROAD_EVIDENCE deviations out, for
+    # being picked high (one joined the load into a contact beyond the fit's budget, which then
+    # dropped it); their nodes stand out by about one deviation each
+    grid = SensorGrid.regular(32, 32, 1.5e-3, 1.5e-3)
+    r = DenseSolver(grid)
+    clean = loads.simulate(grid, loads.flat_punch((-0.012, 0.009), 3e-3, 1.0)).clean_stress
+    rng = np.random.default_rng(9)  # fixed seed
+    labels = np.empty(grid.size, np.int64)
+    large = 0
+    for _ in range(12):
+        stress = clean + rng.normal(0.0, 0.1 * clean.max(), grid.size)
+        normal = r.solve_normal(stress).forces[:, 2]
+        count = search.faint_cores(normal, r.region_threshold, FAINT_LEVEL, r._adjacent, labels)
+        weights = (labels == np.arange(1, count + 1)[:, None]).astype(float)
+        evidence = (weights @ normal) / (noise_level(stress, grid)
+                                         * np.linalg.norm(r._normal.solve(weights.T), axis=0))
+        standing = evidence >= BROAD_EVIDENCE
+        large += int(standing.any())
+        assert np.all(evidence[standing] < FAINT_NODE_EVIDENCE * np.sqrt(weights.sum(axis=1)[standing]))
+        assert not r.faint_contacts(stress, normal).any()
+    assert large >= 2  # the total's test alone would have taken them
+
+
+@pytest.mark.parametrize("faint, message", [
+    ([False], r"faint must be 256 booleans \(one per node\), got shape \(1,\) of bool$"),
+    (np.ones(256), r"faint must be 256 booleans \(one per node\), got shape \(256,\) of float64$"),
+])
+def test_contact_labels_refuse_faint_cores_not_one_per_node(faint, message):
+    r = DenseSolver(SensorGrid.regular(16, 16, 1.5e-3, 1.5e-3), kernel="cell")
+    with pytest.raises(ValueError, match=message):
+        r.contact_labels(np.zeros(256), faint=faint)
 
 
 def test_no_light_contact_where_the_normal_only_solve_is_damped(monkeypatch):

@@ -340,6 +340,17 @@ def test_faint_cores_are_light_loads_the_frame_core_misses():
     for values in (sharp, sharp + 2.5 * broad, sharp + 0.12 * ((x + 1) ** 2 + y ** 2 <= 4),
                    -sharp, np.zeros(grid.size)):
         assert search.faint_cores(values, 0.2, 0.05, r._adjacent, labels) == 0 and not labels.any()
+    # 5% of the largest core's load: of a core patch, even where two cores share one patch at 5%
+    column, row = np.arange(grid.size) % 16, np.arange(grid.size) // 16
+    bridged = np.zeros(grid.size)
+    bridged[(row == 2) & ((column == 2) | (column == 8))] = 1.0
+    bridged[(row == 2) & (column > 2) & (column < 8)] = 0.06
+    light = (row == 12) & (column == 12)
+    bridged[light] = 0.07  # 7% of one core's load, 3.5% of both's
+    assert search.faint_cores(bridged, 0.2, 0.05, r._adjacent, labels) == 1
+    np.testing.assert_array_equal(labels, light.astype(int))
+    bridged[light] = 0.04  # 4%: a speck
+    assert search.faint_cores(bridged, 0.2, 0.05, r._adjacent, labels) == 0
     # two light loads: one candidate each, numbered in raster order
     other = 0.1 * ((x - 4) ** 2 + (y + 6) ** 2 <= 2)
     assert search.faint_cores(sharp + broad + other, 0.2, 0.05, r._adjacent, labels) == 2
