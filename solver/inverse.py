@@ -57,9 +57,9 @@ SPLIT_ELONGATION = 1.5
 # ``region_threshold`` of the frame's peak: the patches of the normal-only solution above this
 # fraction of the peak whose core holds less than half their load are candidates
 # (solver.search.faint_cores), contacts when their normal-only total stands BROAD_EVIDENCE noise
-# deviations out (noise's candidates reached 8.3, on 32x32 skins under 10% noise; such loads 6.4 to
-# 50 at 1%: the load-decision frames of seeds 1 to 3, and seed 7 of a light broad contact beside a
-# cone; docs/efficiency.md).
+# deviations out (noise's candidates reached 8.3 on the load-decision frames of seeds 1 to 3, on
+# 32x32 skins under 10% noise; light loads 3.5 to 55 on the beside scenes' tuning set at 1%, those
+# under 10 at h / pitch 1.5; docs/efficiency.md).
 FAINT_LEVEL = 0.05
 # A patch picked for standing above a level has nodes that, under noise alone, average about one to
 # one and a half noise deviations each (a normal distribution's tail): its total's evidence grows as
@@ -531,6 +531,11 @@ class DenseSolver:
             Contact 1..K of each node, 0 outside every contact.
         near : (m, K) ndarray of bool
             The sensors within the fit's reach of each contact.
+
+        Raises
+        ------
+        ValueError
+            If ``faint`` is not one boolean per node.
         """
         # a damped normal-only solve (a thick layer) blurs two loads into one and turns noise into
         # bumps: there every patch is one contact (split, single contacts came apart into pieces
