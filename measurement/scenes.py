@@ -32,7 +32,7 @@ from solver.checks import one_of, real_number
 from solver.geometry import SensorGrid
 
 from .bounds import contact_bounds
-from .tables import Column, format_table, value
+from .tables import Column, format_table, print_report, value
 
 __all__ = ["ContactScene", "KINDS", "STANDARD_KINDS", "TUNING_SEED", "VALIDATION_SEED", "scene_cases",
            "evaluate", "summarize", "format_scenes", "format_summary", "main"]
@@ -371,11 +371,8 @@ def main(argv=None):
     seed = VALIDATION_SEED if args.set == "validation" else TUNING_SEED
     scenes = scene_cases(seed=seed, noise=args.noise, kinds=args.kinds, repeats=args.repeats)
     rows = evaluate(scenes, bounds=args.noise > 0)
-    if not args.quiet:
-        print(format_scenes(rows))
-        print()
-    print(f"{args.set} set (seed {seed}), noise {args.noise:g}")
-    print(format_summary(summarize(rows)))
+    print_report(format_scenes(rows), f"{args.set} set (seed {seed}), noise {args.noise:g}",
+                 format_summary(summarize(rows)), quiet=args.quiet)
 
 
 if __name__ == "__main__":

@@ -37,7 +37,7 @@ from solver.checks import real_number
 from solver.geometry import SensorGrid
 from solver.inverse import DenseSolver
 
-from .tables import Column, format_table, value
+from .tables import Column, format_table, print_report, value
 
 __all__ = ["SqueezeCase", "SHAPES", "SQUEEZES", "squeeze_cases", "evaluate", "summarize", "format_cases",
            "format_summary", "main"]
@@ -214,11 +214,8 @@ def main(argv=None):
     parser.add_argument("--quiet", action="store_true", help="the summary only")
     args = parser.parse_args(argv)
     rows = evaluate(squeeze_cases(seed=args.seed, noise=args.noise))
-    if not args.quiet:
-        print(format_cases(rows))
-        print()
-    print(f"seed {args.seed}, noise {args.noise:g}")
-    print(format_summary(summarize(rows)))
+    print_report(format_cases(rows), f"seed {args.seed}, noise {args.noise:g}",
+                 format_summary(summarize(rows)), quiet=args.quiet)
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
-__all__ = ["Column", "format_table", "value", "NORMAL", "TANGENTIAL", "DIRECTION"]
+__all__ = ["Column", "format_table", "value", "print_report", "NORMAL", "TANGENTIAL", "DIRECTION"]
 
 
 @dataclass(frozen=True)
@@ -46,6 +46,15 @@ def format_table(rows, columns, *, header: bool = True) -> str:
     lines = [_line([c.header for c in columns], columns)] if header else []
     lines += [_line([c.cell(row) for c in columns], columns) for row in rows]
     return "\n".join(lines)
+
+
+def print_report(cases: str, title: str, summary: str, *, quiet: bool = False) -> None:
+    """Print a set's per-case table (unless ``quiet``), then the line naming the set and its summary."""
+    if not quiet:
+        print(cases)
+        print()
+    print(title)
+    print(summary)
 
 
 def _line(cells, columns) -> str:
