@@ -8,7 +8,10 @@ dense-product floor measured in the same run, and the set-up time of
 of the same ``(m, 3m)`` matrix, as a ratio from the same run.
 
 Then the frames of several contacts (:func:`multi_contact`: one, two and three
-contacts on a 16x16 skin of the bonded layer, ``--contacts``) and the broad
+contacts on a 16x16 skin of the bonded layer, ``--contacts``; each frame
+unrelated to the one before, as a touch's first frame), the same counts in
+motion (:func:`moving_contacts`: frames in order, each solve starting from the
+frame before's, as in playback and live mode; ``--moving-frames``), and the broad
 press (:func:`broad_press`: one load over most of the skin, ``--press-sizes``,
 32x32 by default; 64x64 takes minutes and gigabytes), each as the median and
 95th percentile of every timed automatic solve, wall and CPU.
@@ -17,6 +20,7 @@ press (:func:`broad_press`: one load over most of the skin, ``--press-sizes``,
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import resource
 import time
@@ -33,8 +37,8 @@ from solver.threads import one_blas_thread
 
 from .timing import fastest_in_rounds, machine, median_ms, spread, timed_in_rounds
 
-__all__ = ["per_frame", "contact_frames", "multi_contact", "press_frames", "broad_press", "layer_tables",
-           "setup", "main"]
+__all__ = ["per_frame", "contact_frames", "multi_contact", "moving_contact_frames", "moving_contacts",
+           "press_frames", "broad_press", "layer_tables", "setup", "main"]
 
 # the skin of the multi-contact frames and of the broad press: pitch 1.5 mm, h / pitch 1, nu 0.49
 PITCH = 1.5e-3
@@ -228,6 +232,72 @@ def multi_contact(counts=CONTACT_COUNTS, *, n=16, frames=20, repeat=5):
     return out
 
 
+
+def moving_contact_frames(count, frames, *, n=16, seed=_CONTACT_SEED):
+    """Frames in order of ``count`` contacts in motion, as playback and a live board give them.
+
+    The contacts are placed as in :func:`contact_frames` (their own draw of
+    the same kinds), then each circles its place at half a pitch, one turn
+    over the frames from a phase of its own (about 0.02 mm a frame at 200
+    frames: a finger moving 2 mm/s on a 100 Hz board), so that the last frame
+    leads into the first again; 1% noise drawn anew each frame.
+
+    Parameters
+    ----------
+    count, frames, n, seed
+        As :func:`contact_frames`.
+
+    Returns
+    -------
+    grid : SensorGrid
+    stress : list of (n * n,) ndarray
+        Pascals, in order.
+    """
+    if count < 1 or frames < 1:
+        raise ValueError(f"count and frames must be at least 1, got {count} and {frames}")
+    if n < 8:
+        raise ValueError(f"n must be at least 8 (a contact of 2.4 pitches and a pitch around it), got {n}")
+    grid = _skin(n)
+    rng = np.random.default_rng([seed, count, 1])
+    placed = _placed(count, (n - 1) / 2 * PITCH, rng)
+    phases = rng.uniform(0, 2 * math.pi, count)
+    out = []
+    with one_blas_thread():  # (_QUIET)
+        for k in range(frames):
+            turn = 2 * math.pi * k / frames
+            moved = [dataclasses.replace(c, center=(c.center[0] + 0.5 * PITCH * math.cos(turn + a),
+                                                    c.center[1] + 0.5 * PITCH * math.sin(turn + a)))
+                     for c, a in zip(placed, phases, strict=True)]
+            out.append(loads.simulate(grid, moved, noise=0.01, rng=rng).stress)
+    return grid, out
+
+
+def moving_contacts(counts=CONTACT_COUNTS, *, n=16, frames=100, repeat=3):
+    """Automatic solves of contacts in motion, each frame after the one before it.
+
+    :func:`moving_contact_frames` solved in order by one
+    :class:`solver.Reconstructor`, as the viewer's playback and live mode
+    solve them: each solve starts from the frame before's (where
+    :func:`multi_contact`'s frames are unrelated, the worst case of a touch's
+    first frame). One untimed turn, then ``repeat`` timed turns.
+
+    Returns
+    -------
+    dict of int to dict
+        Per count: ``wall``, ``wall_p95``, ``cpu``, ``cpu_p95`` (milliseconds),
+        ``solves``, ``frames`` and ``found`` (median contacts found a frame).
+    """
+    out = {}
+    for count in counts:
+        grid, stress = moving_contact_frames(count, frames, n=n)
+        with one_blas_thread():  # (_QUIET) its factorization too
+            solver = Reconstructor(grid)
+        found = [len(solver.solve(b).contacts) for b in stress]  # the untimed turn
+        wall, cpu, _ = timed_in_rounds(solver.solve, stress, repeat)
+        out[count] = dict(spread(wall, cpu), solves=wall.size, frames=len(stress),
+                          found=float(np.median(found)))
+    return out
+
 def press_frames(n, frames, *, seed=_PRESS_SEED):
     """Noisy frames of a broad press on an ``n x n`` skin of the bonded layer.
 
@@ -396,6 +466,9 @@ def main(argv=None):
                              "(default 1 2 3; none: skip)")
     parser.add_argument("--contact-frames", type=int, default=20,
                         help="frames per contact count, each timed in 5 rounds (default 20)")
+    parser.add_argument("--moving-frames", type=int, default=100,
+                        help="frames of one turn of the contacts in motion, per contact count (default "
+                             "100; 0: skip)")
     parser.add_argument("--press-sizes", type=int, nargs="*", default=[32],
                         help="skins (n x n) solved under a broad press (default 32; 64 takes minutes and "
                              "gigabytes; none: skip)")
@@ -408,6 +481,8 @@ def main(argv=None):
         parser.error(f"--sizes must be at least 1 each, got {' '.join(map(str, args.sizes))}")
     if any(count not in CONTACT_COUNTS for count in args.contacts):
         parser.error(f"--contacts must be 1, 2 or 3 each, got {' '.join(map(str, args.contacts))}")
+    if args.moving_frames < 0:
+        parser.error(f"--moving-frames must be 0 or more, got {args.moving_frames}")
     if args.contact_frames < 1:
         parser.error(f"--contact-frames must be at least 1, got {args.contact_frames}")
     if any(n < 8 for n in args.press_sizes):
@@ -443,6 +518,16 @@ def main(argv=None):
               f"{t['frames']} frames: wall median {t['wall']:.3f} p95 {t['wall_p95']:.3f}, "
               f"CPU median {t['cpu']:.3f} p95 {t['cpu_p95']:.3f}; each frame's fastest, median "
               f"{t['fastest']:.3f} ({t['fastest_cpu']:.3f}); contacts found, median {t['found']:g}",
+              flush=True)
+    if args.contacts and args.moving_frames:
+        print(f"16x16 contacts in motion ({skin}; each circling its place at half a pitch, one turn over "
+              f"{args.moving_frames} frames solved in order, as playback and a live board; one untimed turn, "
+              f"then 3):", flush=True)
+    for count in args.contacts if args.moving_frames else ():
+        t = moving_contacts([count], frames=args.moving_frames)[count]
+        print(f"16x16 {count} contact{'s' if count > 1 else ' '} in motion, automatic solve ms, "
+              f"{t['solves']} solves: wall median {t['wall']:.3f} p95 {t['wall_p95']:.3f}, "
+              f"CPU median {t['cpu']:.3f} p95 {t['cpu_p95']:.3f}; contacts found, median {t['found']:g}",
               flush=True)
     for n in args.press_sizes:
         print(f"{n}x{n} broad press ({skin}; a Hertzian load of radius 0.4 of the side; "

@@ -669,11 +669,13 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
                 if d < distance[j]:
                     distance[j] = d
                     labels[j] = cores[i]
-    # Grown contacts that touch stay two only when both peaks stand out and the smaller carries
-    # SEPARATE_MASS of the larger's core load: the dip between two cores is below ``threshold``
-    # of the peak, so that is a dip of at most ``separation`` of the lower peak when both peaks
-    # reach ``threshold / separation`` of the frame's. A lower or lighter piece (a noise spike
-    # beside a contact, a lobe of a contact under heavy noise) joins its neighbour, as before.
+    # Grown contacts that touch stay two only when the highest path between their cores sinks to
+    # at most ``separation`` of the lower peak (the rule that splits a patch, _separate) and the
+    # smaller carries SEPARATE_MASS of the larger's core load. A lighter piece (a noise spike
+    # beside a contact) or one a shallow dip sets off (a lobe of a contact under heavy noise)
+    # joins its neighbour. (Until 2026-11-28 the dip was taken as deep enough only when both
+    # peaks reached ``threshold / separation`` of the frame's: a flat punch, whose peak is low for
+    # its load, merged with a load two pitches from it behind a dip to 3% of the frame's peak.)
     top, mass = np.zeros(count + 1), np.zeros(count + 1)
     # a faint core is a load of its own beside others, whatever its peak; its pieces (a noisy plateau's
     # bumps) are one load
@@ -689,6 +691,7 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
     if major > SEPARATE_MOST:  # bumps all over the skin: noise, not that many contacts
         separation = 0.0
     parent = np.arange(count + 1)
+    saddle = np.empty((0, 0))
     for i in range(m):
         if labels[i] == 0:
             continue
@@ -698,16 +701,90 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
                 continue
             a, b = _root(parent, labels[i]), _root(parent, labels[j])
             p, q = labels[i], labels[j]
-            apart = separation > 0 and (light[p] != light[q] or (
-                separation * min(top[p], top[q]) >= threshold * tallest
-                and min(mass[p], mass[q]) >= SEPARATE_MASS * max(mass[p], mass[q])))
+            apart = separation > 0 and light[p] != light[q]
+            heavy = min(mass[p], mass[q]) >= SEPARATE_MASS * max(mass[p], mass[q])
+            if not apart and separation > 0 and heavy and not light[p]:  # (light pieces are one load)
+                if saddle.shape[0] == 0:  # found once, when first needed
+                    saddle = _saddles(normal, cores, count, adjacent)
+                apart = saddle[p, q] <= separation * min(top[p], top[q])
             if a != b and not apart:
                 parent[max(a, b)] = min(a, b)
     for i in range(m):
         if labels[i] > 0:
             labels[i] = _root(parent, labels[i])
     count = _consecutive(labels, count + 1, labels)
+    _fill_holes(labels, normal, adjacent)
     return labels, contact_reach(labels, count, near)
+
+
+@numba.njit(cache=True, nogil=True)
+def _saddles(values, cores, count, adjacent):
+    # (count + 1, count + 1): for two cores, the highest level a path from one to the other keeps
+    # to (the merge tree of every node in decreasing order of value: the level at which their
+    # components first meet); -inf where no path joins them
+    m = values.size
+    saddle = np.full((count + 1, count + 1), -np.inf)
+    parent = np.arange(m)
+    holds = np.zeros((m, count + 1), np.bool_)  # the cores in each component, by its root
+    seen = np.zeros(m, np.bool_)
+    for i in np.argsort(-values):
+        seen[i] = True
+        holds[i, cores[i]] = cores[i] > 0
+        for e in range(adjacent[0][i], adjacent[0][i + 1]):
+            j = adjacent[1][e]
+            if not seen[j]:
+                continue
+            a, b = _root(parent, i), _root(parent, j)
+            if a == b:
+                continue
+            for p in range(1, count + 1):
+                if holds[a, p]:
+                    for q in range(1, count + 1):
+                        if holds[b, q] and saddle[p, q] == -np.inf:
+                            saddle[p, q] = saddle[q, p] = values[i]
+            parent[b] = a
+            for p in range(1, count + 1):
+                holds[a, p] |= holds[b, p]
+    return saddle
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_holes(labels, normal, adjacent):
+    # A contact's region has no holes that hold load: nodes outside every contact that no path of
+    # such nodes links to the skin's outer nodes (those with fewer neighbours than the most any
+    # node has), that touch one contact only and whose normal-only load adds up to compression,
+    # join it. (The interior of a flat punch on a thin layer falls below the threshold while its
+    # rim stands above; without its load inside, the fit of the rim alone bent the contact's
+    # shear. A hole of noise sums to about nothing and is left out: filled, the holes of a load
+    # under heavy noise took its region past the fit's budget.)
+    m = labels.size
+    indptr, indices = adjacent
+    widest = 0
+    for i in range(m):
+        widest = max(widest, indptr[i + 1] - indptr[i])
+    pieces = np.zeros(m, np.int64)
+    count = _components(np.where(labels == 0, 0, -1), indptr, indices, pieces)
+    owner = np.zeros(count + 1, np.int64)  # the one contact a piece touches; -1: outer or several
+    for i in range(m):
+        k = pieces[i]
+        if k == 0 or owner[k] < 0:
+            continue
+        if indptr[i + 1] - indptr[i] < widest:
+            owner[k] = -1
+            continue
+        for e in range(indptr[i], indptr[i + 1]):
+            c = labels[indices[e]]
+            if c > 0:
+                if owner[k] == 0:
+                    owner[k] = c
+                elif owner[k] != c:
+                    owner[k] = -1
+    load = np.zeros(count + 1)
+    for i in range(m):
+        load[pieces[i]] += normal[i]
+    for i in range(m):
+        if pieces[i] > 0 and owner[pieces[i]] > 0 and load[pieces[i]] > 0:
+            labels[i] = owner[pieces[i]]
 
 
 @numba.njit(cache=True, nogil=True)

@@ -39,6 +39,7 @@ def test_the_command_prints_each_kernel_against_the_floor(capsys):
     (["--contacts", "1", "4"], r"--contacts must be 1, 2 or 3 each, got 1 4"),
     (["--contacts", "0"], r"--contacts must be 1, 2 or 3 each, got 0"),
     (["--contact-frames", "0"], r"--contact-frames must be at least 1, got 0"),
+    (["--moving-frames", "-1"], r"--moving-frames must be 0 or more, got -1"),
     (["--press-sizes", "32", "4"], r"--press-sizes must be at least 8 each, got 32 4"),
     (["--press-frames", "0"], r"--press-frames must be at least 1, got 0"),
     (["--kernels", "fem"], r"argument --kernels: invalid choice: 'fem'"),
@@ -82,6 +83,30 @@ def test_multi_contact_times_each_count_wall_and_cpu_median_and_p95():
         assert t["wall_p95"] >= t["wall"] and t["cpu_p95"] >= t["cpu"]
 
 
+
+def test_moving_contact_frames_follow_each_other_and_close_their_turn():
+    grid, frames = bench.moving_contact_frames(2, 8)
+    assert grid.shape == (16, 16) and len(frames) == 8
+    _, again = bench.moving_contact_frames(2, 8)
+    assert all(np.array_equal(a, b) for a, b in zip(frames, again, strict=True))  # fixed seed
+    # the contacts move a little each frame, and the last frame leads into the first: the stress
+    # changes from a frame to the next by much less than between two unrelated frames
+    step = [np.linalg.norm(frames[(k + 1) % 8] - frames[k]) for k in range(8)]
+    _, unrelated = bench.contact_frames(2, 2)
+    assert max(step) < 0.5 * np.linalg.norm(unrelated[1] - unrelated[0])
+    with pytest.raises(ValueError, match=r"count and frames must be at least 1, got 1 and 0"):
+        bench.moving_contact_frames(1, 0)
+    with pytest.raises(ValueError, match=r"n must be at least 8 .*got 6"):
+        bench.moving_contact_frames(1, 2, n=6)
+
+
+def test_moving_contacts_time_each_count_in_order():
+    times = bench.moving_contacts([2], frames=3, repeat=2)
+    t = times[2]
+    assert set(t) == {"wall", "wall_p95", "cpu", "cpu_p95", "solves", "frames", "found"}
+    assert t["solves"] == 6 and t["frames"] == 3 and t["found"] == 2
+    assert t["wall_p95"] >= t["wall"] > 0 and t["cpu_p95"] >= t["cpu"]
+
 def test_press_frames_load_most_of_the_skin():
     grid, frames = bench.press_frames(12, 2)
     assert grid.shape == (12, 12) and len(frames) == 2
@@ -107,7 +132,7 @@ def test_broad_press_gives_set_up_solves_and_peak_memory():
 
 def test_the_command_prints_the_multi_contact_frames_and_the_broad_press(capsys):
     bench.main(["--kernels", "--sizes", "--contacts", "1", "3", "--contact-frames", "2", "--press-sizes", "8",
-                "--press-frames", "2"])
+                "--press-frames", "2", "--moving-frames", "2"])
     out = capsys.readouterr().out
     assert out.startswith("machine: ")
     assert "solve median wall (CPU) ms" not in out and "set-up: DenseSolver" not in out
@@ -116,6 +141,9 @@ def test_the_command_prints_the_multi_contact_frames_and_the_broad_press(capsys)
                        rf"p95 {x}, CPU median {x} p95 {x}; each frame's fastest, median {x} \({x}\); "
                        rf"contacts found, median {x}$", out, re.M)
     assert lines == ["1", "3"]
+    moving = re.findall(rf"^16x16 (\d) contacts? +in motion, automatic solve ms, 6 solves: wall median {x} "
+                        rf"p95 {x}, CPU median {x} p95 {x}; contacts found, median {x}$", out, re.M)
+    assert moving == ["1", "3"]
     assert re.search(rf"^8x8 broad press: set-up \(DenseSolver\) {x} s \(CPU {x} s\); first solve {x} s "
                      rf"\(CPU {x} s\); automatic solve s, 2 solves: wall median {x} p95 {x}, CPU median {x} "
                      rf"p95 {x}; contacts found, median {x}; cheaper fallback on [0-2] of 2(: .+)?; "

@@ -483,6 +483,78 @@ def test_light_pieces_and_noise_all_over_the_skin_join_their_neighbours(plain):
     assert _labels(plain, field)[0].max() == _labels(plain, field, separation=0.0)[0].max()
 
 
+
+def _saddle_by_level_sets(grid, values, cores, p, q):
+    # brute force: the highest level at which p's and q's cores share a component of {v >= level}
+    image, structure = values.reshape(grid.shape), np.ones((3, 3))
+    for level in np.sort(values)[::-1]:
+        parts = ndimage.label(image >= level, structure=structure)[0].ravel()
+        if set(parts[cores == p]) & set(parts[cores == q]) - {0}:
+            return level
+    return -np.inf
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_saddle_of_two_cores_is_the_highest_level_a_path_between_them_keeps_to(plain, seed):
+    rng = np.random.default_rng(seed)  # one field per seed
+    grid = plain.grid
+    x, y = (grid.positions / grid.pitch).T
+    values = 0.05 * rng.standard_normal(grid.size)
+    for _ in range(4):
+        cx, cy = rng.uniform(-7, 7), rng.uniform(-4, 4)
+        values += rng.uniform(0.3, 1.0) * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / rng.uniform(0.5, 2.0))
+    cores = np.zeros(grid.size, np.int64)
+    count = search._components(np.where(values > 0.3 * values.max(), 0, -1), *plain._adjacent, cores)
+    saddle = search._saddles(values, cores, count, plain._adjacent)
+    assert saddle.shape == (count + 1, count + 1)
+    for p_ in range(1, count + 1):
+        for q in range(p_ + 1, count + 1):
+            assert saddle[p_, q] == saddle[q, p_] == _saddle_by_level_sets(grid, values, cores, p_, q)
+
+
+def test_touching_contacts_stay_apart_by_the_dip_between_them_not_by_the_frames_peak(plain):
+    grid = plain.grid
+    x, y = (grid.positions / grid.pitch).T
+    bump = lambda cx, cy, height, width=1.0: height * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / width)  # noqa: E731
+    # a tall contact far off, and two lower ones 3 pitches apart whose grown regions touch: the
+    # lower's peak (0.3) is under threshold / separation (1/3) of the frame's, but the dip between
+    # them sinks to nearly nothing, far below 0.6 of it
+    apart = np.maximum.reduce([bump(6, 3, 1.0), bump(-5, -1, 0.45), bump(-2, -1, 0.3)])
+    labels, _ = _labels(plain, apart)
+    assert labels.max() == 3
+    assert labels[np.argmin(np.hypot(x + 5, y + 1))] != labels[np.argmin(np.hypot(x + 2, y + 1))]
+    # the same two with a ridge between them that stays above 0.6 of the lower peak: one contact
+    ridge = 0.2 * np.exp(-((y + 1) ** 2) / 0.3) * ((x >= -5) & (x <= -2))
+    labels, _ = _labels(plain, np.maximum(apart, ridge))
+    assert labels.max() == 2
+    assert labels[np.argmin(np.hypot(x + 5, y + 1))] == labels[np.argmin(np.hypot(x + 2, y + 1))]
+
+
+def test_a_hole_holding_load_in_a_contact_joins_it(plain):
+    grid = plain.grid
+    x, y = (grid.positions / grid.pitch).T
+    r = np.hypot(x + 2, y)
+    # a ring of load (a flat punch's rim on a thin layer) around a centre under the threshold; the
+    # centre's nodes within a pitch of the hole's middle are beyond the margin of the ring
+    middle = r <= 1.0
+    for centre, joins in ((0.1, True), (-0.1, False)):
+        normal = np.where(r <= 3.3, 1.0, -0.01)
+        normal[r <= 2.1] = centre
+        labels, near = _labels(plain, normal)
+        assert labels.max() == 1 == near.shape[1]
+        assert (labels[middle] == 1).all() if joins else (labels[middle] == 0).all()
+    # a ring open to the skin's outer nodes encloses nothing: its middle on the border stays out
+    normal = np.where(np.hypot(x + 7, y) <= 2.3, 1.0, -0.01)
+    normal[np.hypot(x + 7, y) <= 1.1] = 0.1
+    labels, _ = _labels(plain, normal)
+    assert labels.max() == 1 and labels[np.isclose(x, -7) & np.isclose(y, 0)] == 0
+    # a gap enclosed by two contacts belongs to neither
+    pair = np.maximum(np.where((np.abs(x + 3) <= 1) & (np.abs(y) <= 3), 1.0, -0.01),
+                      np.where((np.abs(x - 1) <= 1) & (np.abs(y) <= 3), 0.9, -0.01))
+    pair[(np.abs(x + 1) <= 0.1) & (np.abs(y) <= 3)] = 0.1  # the gap between them, under the threshold
+    labels, _ = _labels(plain, pair, separation=0.6)
+    assert labels.max() == 2
+
 def test_a_node_between_two_contacts_goes_to_the_nearer(plain):
     grid = plain.grid
     x = grid.positions[:, 0] / grid.pitch
