@@ -520,6 +520,12 @@ SEPARATE_MASS = 0.25
 # A frame with more pieces than this that could stand apart is noise, not that many touches
 # (pure noise on the same frames: 9 to 53 pieces); its touching pieces join, as before.
 SEPARATE_MOST = 4
+# Two touching pieces whose cores a dip to at most this fraction of the lower peak sets apart are
+# two contacts whatever their height (a flat punch, whose peak is low for its load, two pitches
+# from a Hertz load: a dip to 0.12 of its peak). Looser splits (SPLIT_SEPARATION) are left to the
+# split test's evidence, where the two lobes of a sheared ring beside a cone (a dip to 0.71 of
+# the lower) came apart with ratios 1.2 in opposite directions.
+SEPARATE_DIP = 0.6
 
 
 @numba.njit(cache=True, nogil=True)
@@ -669,12 +675,13 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
                 if d < distance[j]:
                     distance[j] = d
                     labels[j] = cores[i]
-    # Grown contacts that touch stay two only when the highest path between their cores sinks to
-    # at most ``separation`` of the lower peak (the rule that splits a patch, _separate) and the
-    # smaller carries SEPARATE_MASS of the larger's core load. A lighter piece (a noise spike
-    # beside a contact) or one a shallow dip sets off (a lobe of a contact under heavy noise)
-    # joins its neighbour. (Until 2026-11-28 the dip was taken as deep enough only when both
-    # peaks reached ``threshold / separation`` of the frame's: a flat punch, whose peak is low for
+    # Grown contacts that touch stay two when the smaller carries SEPARATE_MASS of the larger's core
+    # load and the dip between them is deep: both peaks reach ``threshold / separation`` of the
+    # frame's (the dip between two cores is below ``threshold`` of the peak, so that is a dip of at
+    # most ``separation`` of the lower peak), or the highest path between their cores sinks to at
+    # most SEPARATE_DIP (or ``separation``, if less) of the lower peak. A lighter piece (a noise
+    # spike beside a contact) or one a shallow dip sets off (a lobe of a contact under heavy noise)
+    # joins its neighbour. (Until 2026-11-28 only the first: a flat punch, whose peak is low for
     # its load, merged with a load two pitches from it behind a dip to 3% of the frame's peak.)
     top, mass = np.zeros(count + 1), np.zeros(count + 1)
     # a faint core is a load of its own beside others, whatever its peak; its pieces (a noisy plateau's
@@ -685,35 +692,43 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
         mass[cores[i]] += normal[i]
         light[cores[i]] |= faint[i]
     tallest = top[1:].max() if count > 0 else 0.0
-    major = 0
-    for k in range(1, count + 1):
-        major += separation * top[k] >= threshold * tallest
-    if major > SEPARATE_MOST:  # bumps all over the skin: noise, not that many contacts
-        separation = 0.0
-    parent = np.arange(count + 1)
+    standing = separation * top >= threshold * tallest
+    standing[0] = False
+    # the touching pairs of pieces that stay two contacts, and the pieces that stand apart from one
+    apart = np.zeros((count + 1, count + 1), np.bool_)
+    dip = min(separation, SEPARATE_DIP)
     saddle = np.empty((0, 0))
     for i in range(m):
-        if labels[i] == 0:
-            continue
         for e in range(adjacent[0][i], adjacent[0][i + 1]):
-            j = adjacent[1][e]
-            if labels[j] == 0 or labels[j] == labels[i]:
+            p, q = labels[i], labels[adjacent[1][e]]
+            if separation <= 0 or p == 0 or q == 0 or p == q or apart[p, q]:
                 continue
-            a, b = _root(parent, labels[i]), _root(parent, labels[j])
-            p, q = labels[i], labels[j]
-            apart = separation > 0 and light[p] != light[q]
-            heavy = min(mass[p], mass[q]) >= SEPARATE_MASS * max(mass[p], mass[q])
-            if not apart and separation > 0 and heavy and not light[p]:  # (light pieces are one load)
-                if saddle.shape[0] == 0:  # found once, when first needed
-                    saddle = _saddles(normal, cores, count, adjacent)
-                apart = saddle[p, q] <= separation * min(top[p], top[q])
-            if a != b and not apart:
+            if light[p] != light[q]:
+                apart[p, q] = apart[q, p] = True
+            elif not light[p] and min(mass[p], mass[q]) >= SEPARATE_MASS * max(mass[p], mass[q]):
+                if standing[p] and standing[q]:
+                    apart[p, q] = apart[q, p] = True
+                else:
+                    if saddle.shape[0] == 0:  # found once, when first needed
+                        saddle = _saddles(normal, cores, count, adjacent)
+                    if saddle[p, q] <= dip * min(top[p], top[q]):
+                        apart[p, q] = apart[q, p] = standing[p] = standing[q] = True
+    if np.count_nonzero(standing) > SEPARATE_MOST:  # bumps all over the skin: noise, not that many contacts
+        apart[:] = False
+    parent = np.arange(count + 1)
+    for i in range(m):
+        for e in range(adjacent[0][i], adjacent[0][i + 1]):
+            p, q = labels[i], labels[adjacent[1][e]]
+            if p == 0 or q == 0 or apart[p, q]:
+                continue
+            a, b = _root(parent, p), _root(parent, q)
+            if a != b:
                 parent[max(a, b)] = min(a, b)
     for i in range(m):
         if labels[i] > 0:
             labels[i] = _root(parent, labels[i])
     count = _consecutive(labels, count + 1, labels)
-    _fill_holes(labels, normal, adjacent)
+    _fill_holes(labels, normal, positions, adjacent)
     return labels, contact_reach(labels, count, near)
 
 
@@ -749,28 +764,78 @@ def _saddles(values, cores, count, adjacent):
 
 
 @numba.njit(cache=True, nogil=True)
-def _fill_holes(labels, normal, adjacent):
+def _outer(i, positions, indptr, indices):
+    # whether node i is on the skin's outline: its neighbours leave a side open (a gap of more than
+    # 120 deg between the directions to them, or fewer than three). Every node of a grid's border;
+    # none inside a grid, a hexagonal layout or one whose nodes are a tenth of a pitch off place
+    # (whose diagonal neighbours may fall out of reach: a count of neighbours was fooled by that)
+    angles = np.empty(indptr[i + 1] - indptr[i])
+    k = 0
+    for e in range(indptr[i], indptr[i + 1]):
+        j = indices[e]
+        if j != i:
+            angles[k] = math.atan2(positions[j, 1] - positions[i, 1], positions[j, 0] - positions[i, 0])
+            k += 1
+    if k < 3:
+        return True
+    angles = np.sort(angles[:k])
+    gap = angles[0] + 2 * math.pi - angles[k - 1]
+    for t in range(1, k):
+        gap = max(gap, angles[t] - angles[t - 1])
+    return gap > 2 * math.pi / 3
+
+
+@numba.njit(cache=True, nogil=True)
+def _fill_holes(labels, normal, positions, adjacent):
     # A contact's region has no holes that hold load: nodes outside every contact that no path of
-    # such nodes links to the skin's outer nodes (those with fewer neighbours than the most any
-    # node has), that touch one contact only and whose normal-only load adds up to compression,
-    # join it. (The interior of a flat punch on a thin layer falls below the threshold while its
-    # rim stands above; without its load inside, the fit of the rim alone bent the contact's
-    # shear. A hole of noise sums to about nothing and is left out: filled, the holes of a load
-    # under heavy noise took its region past the fit's budget.)
+    # such nodes links to the skin's outline (_outer), that touch one contact only and whose
+    # normal-only load adds up to compression, join it. (The interior of a flat punch on a thin
+    # layer falls below the threshold while its rim stands above; without its load inside, the
+    # fit of the rim alone bent the contact's shear. A hole of noise sums to about nothing and is
+    # left out: filled, the holes of a load under heavy noise took its region past the fit's budget.)
     m = labels.size
     indptr, indices = adjacent
-    widest = 0
+    if m == 0 or labels.max() == 0:
+        return
+    # The nodes outside the contacts link only to their nearest (within 1.25 of the layout's
+    # typical spacing: a grid's four, not its diagonals, which a contact's diagonal edge does not
+    # block; the contacts' nodes link to their eight)
+    nearest = np.full(m, np.inf)
     for i in range(m):
-        widest = max(widest, indptr[i + 1] - indptr[i])
+        if labels[i] == 0:  # (the contacts' nodes are enough to tell the spacing, and cheaper)
+            continue
+        for e in range(indptr[i], indptr[i + 1]):
+            j = indices[e]
+            if j != i:
+                dx, dy = positions[j, 0] - positions[i, 0], positions[j, 1] - positions[i, 1]
+                nearest[i] = min(nearest[i], math.sqrt(dx * dx + dy * dy))
+    reach2 = (1.25 * np.median(nearest[np.isfinite(nearest)])) ** 2 if np.isfinite(nearest).any() else 0.0
     pieces = np.zeros(m, np.int64)
-    count = _components(np.where(labels == 0, 0, -1), indptr, indices, pieces)
-    owner = np.zeros(count + 1, np.int64)  # the one contact a piece touches; -1: outer or several
+    stack = np.empty(m, np.int64)
+    count = 0
+    for seed in range(m):
+        if labels[seed] != 0 or pieces[seed] > 0:
+            continue
+        count += 1
+        pieces[seed] = count
+        stack[0] = seed
+        top = 1
+        while top > 0:
+            top -= 1
+            here = stack[top]
+            for e in range(indptr[here], indptr[here + 1]):
+                there = indices[e]
+                if labels[there] != 0 or pieces[there] != 0:
+                    continue
+                dx, dy = positions[there, 0] - positions[here, 0], positions[there, 1] - positions[here, 1]
+                if dx * dx + dy * dy <= reach2:
+                    pieces[there] = count
+                    stack[top] = there
+                    top += 1
+    owner = np.zeros(count + 1, np.int64)  # the one contact a piece touches; -1: outline or several
     for i in range(m):
         k = pieces[i]
         if k == 0 or owner[k] < 0:
-            continue
-        if indptr[i + 1] - indptr[i] < widest:
-            owner[k] = -1
             continue
         for e in range(indptr[i], indptr[i + 1]):
             c = labels[indices[e]]
@@ -779,6 +844,8 @@ def _fill_holes(labels, normal, adjacent):
                     owner[k] = c
                 elif owner[k] != c:
                     owner[k] = -1
+        if owner[k] >= 0 and _outer(i, positions, indptr, indices):
+            owner[k] = -1
     load = np.zeros(count + 1)
     for i in range(m):
         load[pieces[i]] += normal[i]

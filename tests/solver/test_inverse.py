@@ -553,6 +553,24 @@ def test_a_flat_punch_whose_middle_reads_below_the_threshold_keeps_its_shear():
         assert found.shear_ratio == pytest.approx(load.shear_ratio, abs=0.05)
         assert abs(math.remainder(found.shear_direction - load.shear_direction, 2 * math.pi)) < math.radians(5)
 
+
+def test_the_two_lobes_of_a_sheared_ring_beside_a_cone_stay_one_contact():
+    # a ring whose shear leaves two lobes above the threshold, a dip to 0.71 of the lower between
+    # them: apart at the split test's separation (0.75) they were kept split, with ratios 1.18 and
+    # 1.26 in nearly opposite directions (a review's case, 2026-11-28)
+    pitch = 1.5e-3
+    grid = SensorGrid.regular(24, 24, pitch, 0.75 * pitch)
+    centre = np.array([3.97, -0.12]) * pitch
+    stress = loads.simulate(grid, [
+        loads.cone(np.array([-3.59, -0.41]) * pitch, 1.93 * pitch, 1.0, shear_ratio=0.3,
+                   shear_direction=math.radians(139)),
+        loads.ring(centre, 1.55 * pitch, 2.58 * pitch, 0.72, shear_ratio=0.3,
+                   shear_direction=math.radians(-86))]).stress
+    result = Reconstructor(grid).solve(stress)
+    assert len(result.contacts) == 2
+    ring = min(result.contacts, key=lambda c: np.linalg.norm(c.centre - centre))
+    assert np.linalg.norm(ring.centre - centre) < 1.5 * pitch
+
 # -- a light broad load beside a sharp one -----------------------------------------------------------
 
 

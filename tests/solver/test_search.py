@@ -4,9 +4,11 @@ import numpy as np
 import pytest
 from scipy import ndimage, sparse
 from scipy.optimize import nnls
+from scipy.spatial import cKDTree
 
 import solver.search as search
 from solver import SensorGrid
+from solver.geometry import neighbours_within
 from solver.inverse import DenseSolver
 from solver.search import (
     contact_labels,
@@ -554,6 +556,52 @@ def test_a_hole_holding_load_in_a_contact_joins_it(plain):
     pair[(np.abs(x + 1) <= 0.1) & (np.abs(y) <= 3)] = 0.1  # the gap between them, under the threshold
     labels, _ = _labels(plain, pair, separation=0.6)
     assert labels.max() == 2
+
+
+def _lattice_field(low):
+    # one tall narrow load and a lattice of broad low bumps (``low`` of its peak) 4 pitches apart,
+    # each touching its neighbours once grown, on a 24 x 24 grid of unit pitch
+    n = 24
+    ix, iy = np.meshgrid(np.arange(n), np.arange(n))
+    positions = np.column_stack([ix.ravel(), iy.ravel()]).astype(float)
+    x, y = positions.T
+    field = np.full(n * n, -0.01)
+    for cx in range(2, n, 4):
+        for cy in range(2, n, 4):
+            field = np.maximum(field, low * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / 4.0))
+    return positions, np.maximum(field, np.exp(-((x - 12) ** 2 + (y - 12) ** 2) / 0.3))
+
+
+@pytest.mark.parametrize("low", [0.26, 0.30, 0.34, 0.6])
+def test_bumps_all_over_the_skin_join_whatever_sets_them_apart(low):
+    # pieces a deep dip sets apart count towards SEPARATE_MOST as the tall ones do: a lattice of
+    # low bumps (36 of them) is noise, not 36 touches, below threshold / separation (1/3) too
+    positions, field = _lattice_field(low)
+    tree = cKDTree(positions)
+    adjacent, margin, near = (neighbours_within(tree, d) for d in (1.5, 1.0001, 3.0001))
+    labels, _ = contact_labels(field, 0.2, 0.6, positions, adjacent, margin, near, np.zeros(field.size, bool))
+    assert labels.max() == 1
+
+
+@pytest.mark.parametrize("jitter", [0.0, 0.05, 0.1])
+def test_a_hole_is_filled_on_a_layout_whose_nodes_are_off_place(jitter):
+    # the outline is where a node's neighbours leave a side open, not where it has fewer of them:
+    # with nodes a tenth of a pitch off place, diagonal neighbours fall out of reach inside too
+    rng = np.random.default_rng(4)  # fixed layouts
+    ix, iy = np.meshgrid(np.arange(15), np.arange(15))
+    for _ in range(5):
+        positions = np.column_stack([ix.ravel(), iy.ravel()]).astype(float)
+        positions += rng.uniform(-jitter, jitter, positions.shape)
+        r = np.hypot(*(positions - 7).T)
+        field = np.where(r <= 4.3, 1.0, -0.01)
+        field[r <= 3.1] = 0.1  # a rim above the threshold around a middle below it
+        tree = cKDTree(positions)
+        adjacent, margin, near = (neighbours_within(tree, d) for d in (1.5, 1.0001, 3.0001))
+        labels, _ = contact_labels(field, 0.2, 0.6, positions, adjacent, margin, near,
+                                   np.zeros(field.size, bool))
+        assert labels.max() == 1 and (labels[r <= 4.3] == 1).all()
+        # the skin's own border is the outline: the background around the ring stays out
+        assert (labels[r > 5.5] == 0).all()
 
 def test_a_node_between_two_contacts_goes_to_the_nearer(plain):
     grid = plain.grid
