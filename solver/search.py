@@ -355,6 +355,12 @@ def _components(kind, indptr, indices, labels):
     # connected components of the nodes of kind >= 0, linked over the CSR adjacency when of the
     # same kind: labels 1..K in the order of each component's first node (raster order on a
     # grid), 0 elsewhere; returns K
+    return _linked_components(kind, indptr, indices, np.empty((0, 2)), np.inf, labels)
+
+
+@numba.njit(cache=True, nogil=True)
+def _linked_components(kind, indptr, indices, positions, reach2, labels):
+    # _components, linking only nodes at most sqrt(reach2) apart (no test when reach2 is inf)
     m = kind.size
     stack = np.empty(m, np.int64)
     count = 0
@@ -371,10 +377,16 @@ def _components(kind, indptr, indices, labels):
             here = stack[top]
             for e in range(indptr[here], indptr[here + 1]):
                 there = indices[e]
-                if kind[there] == kind[seed] and labels[there] == 0:
-                    labels[there] = count
-                    stack[top] = there
-                    top += 1
+                if kind[there] != kind[seed] or labels[there] != 0:
+                    continue
+                if reach2 < np.inf:
+                    dx = positions[there, 0] - positions[here, 0]
+                    dy = positions[there, 1] - positions[here, 1]
+                    if dx * dx + dy * dy > reach2:
+                        continue
+                labels[there] = count
+                stack[top] = there
+                top += 1
     return count
 
 
@@ -811,27 +823,7 @@ def _fill_holes(labels, normal, positions, adjacent):
                 nearest[i] = min(nearest[i], math.sqrt(dx * dx + dy * dy))
     reach2 = (1.25 * np.median(nearest[np.isfinite(nearest)])) ** 2 if np.isfinite(nearest).any() else 0.0
     pieces = np.zeros(m, np.int64)
-    stack = np.empty(m, np.int64)
-    count = 0
-    for seed in range(m):
-        if labels[seed] != 0 or pieces[seed] > 0:
-            continue
-        count += 1
-        pieces[seed] = count
-        stack[0] = seed
-        top = 1
-        while top > 0:
-            top -= 1
-            here = stack[top]
-            for e in range(indptr[here], indptr[here + 1]):
-                there = indices[e]
-                if labels[there] != 0 or pieces[there] != 0:
-                    continue
-                dx, dy = positions[there, 0] - positions[here, 0], positions[there, 1] - positions[here, 1]
-                if dx * dx + dy * dy <= reach2:
-                    pieces[there] = count
-                    stack[top] = there
-                    top += 1
+    count = _linked_components(np.where(labels == 0, 0, -1), indptr, indices, positions, reach2, pieces)
     owner = np.zeros(count + 1, np.int64)  # the one contact a piece touches; -1: outline or several
     for i in range(m):
         k = pieces[i]
