@@ -639,6 +639,10 @@ def contact_labels(normal, threshold, separation, positions, adjacent, margin, n
     keeps apart), and each contact grows by the margin; a node within the
     margin of several contacts goes to the one whose core is nearest, so
     contacts that touch stay apart and are fitted with their own parameters.
+    Grown contacts that touch join unless a deep dip between their cores
+    sets them apart (:data:`SEPARATE_DIP`, :data:`SEPARATE_MASS`); nodes a
+    contact encloses whose normal-only load sums to compression (the middle
+    of a flat punch on a thin layer) join it.
 
     Parameters
     ----------
