@@ -148,6 +148,13 @@ def _placed(count, half, rng):
                      f"{half / PITCH:g} pitches")
 
 
+def _check_frames(count, frames, n):
+    if count < 1 or frames < 1:
+        raise ValueError(f"count and frames must be at least 1, got {count} and {frames}")
+    if n < 8:
+        raise ValueError(f"n must be at least 8 (a contact of 2.4 pitches and a pitch around it), got {n}")
+
+
 def contact_frames(count, frames, *, n=16, seed=_CONTACT_SEED):
     """Noisy frames of ``count`` separate contacts on an ``n x n`` skin of the bonded layer.
 
@@ -179,10 +186,7 @@ def contact_frames(count, frames, *, n=16, seed=_CONTACT_SEED):
         For fewer than one contact or frame, a skin under 8 x 8, or contacts
         that do not fit apart on it.
     """
-    if count < 1 or frames < 1:
-        raise ValueError(f"count and frames must be at least 1, got {count} and {frames}")
-    if n < 8:
-        raise ValueError(f"n must be at least 8 (a contact of 2.4 pitches and a pitch around it), got {n}")
+    _check_frames(count, frames, n)
     grid = _skin(n)
     rng = np.random.default_rng([seed, count])
     half = (n - 1) / 2 * PITCH
@@ -221,15 +225,21 @@ def multi_contact(counts=CONTACT_COUNTS, *, n=16, frames=20, repeat=5):
     """
     out = {}
     for count in counts:
-        grid, stress = contact_frames(count, frames, n=n)
-        with one_blas_thread():  # (_QUIET) its factorization too
-            solver = Reconstructor(grid)
-        found = [len(solver.solve(b).contacts) for b in stress]  # the untimed round
-        wall, cpu, _ = timed_in_rounds(solver.solve, stress, repeat)
+        wall, cpu, found = _solved_in_rounds(*contact_frames(count, frames, n=n), repeat)
         out[count] = dict(spread(wall, cpu), fastest=1e3 * float(np.median(wall.min(axis=0))),
                           fastest_cpu=1e3 * float(np.median(cpu.min(axis=0))), solves=wall.size,
-                          frames=len(stress), found=float(np.median(found)))
+                          frames=frames, found=found)
     return out
+
+
+def _solved_in_rounds(grid, stress, repeat):
+    # automatic solves of the frames by the skin's Reconstructor: one untimed round (compilation,
+    # caches), then ``repeat`` timed rounds (timed_in_rounds); the median contacts found a frame
+    with one_blas_thread():  # (_QUIET) its factorization too
+        solver = Reconstructor(grid)
+    found = [len(solver.solve(b).contacts) for b in stress]
+    wall, cpu, _ = timed_in_rounds(solver.solve, stress, repeat)
+    return wall, cpu, float(np.median(found))
 
 
 
@@ -253,10 +263,7 @@ def moving_contact_frames(count, frames, *, n=16, seed=_CONTACT_SEED):
     stress : list of (n * n,) ndarray
         Pascals, in order.
     """
-    if count < 1 or frames < 1:
-        raise ValueError(f"count and frames must be at least 1, got {count} and {frames}")
-    if n < 8:
-        raise ValueError(f"n must be at least 8 (a contact of 2.4 pitches and a pitch around it), got {n}")
+    _check_frames(count, frames, n)
     grid = _skin(n)
     rng = np.random.default_rng([seed, count, 1])
     placed = _placed(count, (n - 1) / 2 * PITCH, rng)
@@ -289,13 +296,8 @@ def moving_contacts(counts=CONTACT_COUNTS, *, n=16, frames=100, repeat=3):
     """
     out = {}
     for count in counts:
-        grid, stress = moving_contact_frames(count, frames, n=n)
-        with one_blas_thread():  # (_QUIET) its factorization too
-            solver = Reconstructor(grid)
-        found = [len(solver.solve(b).contacts) for b in stress]  # the untimed turn
-        wall, cpu, _ = timed_in_rounds(solver.solve, stress, repeat)
-        out[count] = dict(spread(wall, cpu), solves=wall.size, frames=len(stress),
-                          found=float(np.median(found)))
+        wall, cpu, found = _solved_in_rounds(*moving_contact_frames(count, frames, n=n), repeat)
+        out[count] = dict(spread(wall, cpu), solves=wall.size, frames=frames, found=found)
     return out
 
 def press_frames(n, frames, *, seed=_PRESS_SEED):
