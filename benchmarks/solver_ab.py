@@ -1,5 +1,5 @@
 """The solver of the working tree against the solver of a commit, timed in one process:
-``python -m benchmarks.solver_ab REV [--contacts 1 2 3] [--frames 20] [--rounds 5] [--given]``.
+``python -m benchmarks.solver_ab REV [--contacts 1 2 3] [--frames 20] [--rounds 5] [--given] [--moving]``.
 
 On a shared virtual machine two runs of the same code a few minutes apart differ
 by up to a quarter (``docs/efficiency.md``), more than most speed changes. So a
@@ -9,7 +9,9 @@ folder under its commit id, so its numba cache survives between runs) is loaded
 beside the working tree's under another name, each builds its own
 :class:`solver.Reconstructor` of the bench's skin, and both solve the same
 frames (:func:`measurement.bench.contact_frames`: one, two and three contacts on
-16x16 at 1% noise) in rounds over all frames, alternating which goes first
+16x16 at 1% noise; with ``--moving`` the same kinds of contacts in motion, frames in
+order as playback and a live board give them,
+:func:`measurement.bench.moving_contact_frames`) in rounds over all frames, alternating which goes first
 from frame to frame, so that a hiccup of the machine falls on both alike.
 
 Prints per contact count the CPU time per automatic solve (or per solve at
@@ -37,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from measurement.bench import contact_frames
+from measurement.bench import contact_frames, moving_contact_frames
 from measurement.timing import machine
 
 __all__ = ["solver_at", "paired_times", "compare", "main"]
@@ -125,13 +127,17 @@ def paired_times(solve_a, solve_b, items, rounds):
     return a, b, answers
 
 
-def compare(tree, base, *, contacts=(1, 2, 3), frames=20, rounds=5, given=False, label="base", out=None):
+def compare(tree, base, *, contacts=(1, 2, 3), frames=20, rounds=5, given=False, moving=False, label="base",
+            out=None):
     """Time two solver packages on the bench's frames, alternating (module notes); print a line per count.
 
     Parameters
     ----------
     tree, base : module
         Two ``solver`` packages (this tree's, and :func:`solver_at`'s).
+    moving : bool
+        The frames of contacts in motion, in order (:func:`~measurement.bench.moving_contact_frames`)
+        instead of unrelated ones.
     label : str
         How ``base`` is named in the lines.
 
@@ -146,7 +152,7 @@ def compare(tree, base, *, contacts=(1, 2, 3), frames=20, rounds=5, given=False,
     parameters = dict(shear_ratio=0.3, shear_direction=np.radians(30.0)) if given else {}
     results = {}
     for count in contacts:
-        grid, stress = contact_frames(count, frames)
+        grid, stress = (moving_contact_frames if moving else contact_frames)(count, frames)
         skin = dict(nx=grid.shape[1], ny=grid.shape[0], pitch=grid.pitch, thickness=grid.thickness,
                     poisson_ratio=grid.poisson_ratio)  # each package's own SensorGrid, of the same skin
         ours = tree.Reconstructor(tree.SensorGrid.regular(**skin))
@@ -182,6 +188,8 @@ def _parser():
     parser.add_argument("--rounds", type=int, default=5, help="timed rounds over all frames (default 5)")
     parser.add_argument("--given", action="store_true",
                         help="solve at given parameters (ratio 0.3, direction 30 deg) instead of automatic")
+    parser.add_argument("--moving", action="store_true",
+                        help="contacts in motion, frames solved in order (as playback and a live board)")
     return parser
 
 
@@ -197,11 +205,12 @@ def main(argv=None) -> int:
     import solver as tree
 
     kind = "solve at given parameters" if args.given else "automatic solve"
+    frames = "frames of contacts in motion, in order" if args.moving else "frames"
     print(f"machine: {machine()}")
     print(f"this tree's solver ({Path(tree.__file__).parent}) against {args.revision} ({base.__name__}), "
-          f"CPU ms per {kind}, {args.rounds} rounds of {args.frames} frames, alternating:", flush=True)
+          f"CPU ms per {kind}, {args.rounds} rounds of {args.frames} {frames}, alternating:", flush=True)
     compare(tree, base, contacts=args.contacts, frames=args.frames, rounds=args.rounds, given=args.given,
-            label=args.revision)
+            moving=args.moving, label=args.revision)
     return 0
 
 

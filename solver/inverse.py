@@ -283,7 +283,7 @@ class DenseSolver:
         if recent is not None and recent[0].key == key:
             seen, start, solved_for = recent
         else:
-            seen, solved_for = self._frame(b), None
+            seen, solved_for = self._frame(b, like=None if recent is None else recent[0]), None
             start = None if recent is None else recent[1]
         if seen.over:
             return self._beyond_budget(b, seen, shear_ratio, shear_direction, exact, direction)
@@ -595,17 +595,18 @@ class DenseSolver:
         kept = (evidence >= BROAD_EVIDENCE) & (evidence >= FAINT_NODE_EVIDENCE * np.sqrt(weights.sum(axis=1)))
         return np.concatenate([[False], kept])[labels]
 
-    def _frame(self, b: np.ndarray) -> SeenFrame:
-        # The frame's contacts, and the contact fit's view of it (SeenFrame.of)
+    def _frame(self, b: np.ndarray, *, like: SeenFrame | None = None) -> SeenFrame:
+        # The frame's contacts, and the contact fit's view of it (SeenFrame.of; ``like`` the frame
+        # solved before, whose view it shares where its contacts cover the same nodes)
         normal = self._normal.solve(b)
         faint = self.faint_contacts(b, normal)
-        return self._seen(b, normal, *self.contact_labels(normal, faint=faint), faint)
+        return self._seen(b, normal, *self.contact_labels(normal, faint=faint), faint, like=like)
 
-    def _seen(self, b, normal, labels, near, faint) -> SeenFrame:
+    def _seen(self, b, normal, labels, near, faint, *, like=None) -> SeenFrame:
         return SeenFrame.of(b, normal, labels, near, faint, grid=self.grid, normal_inverse=self._normal,
                             fit_budget=self.fit_budget, fit_columns=self._fit_columns,
                             subdivision=self.subdivision, whole_columns=self.matrix.T,
-                            max_shear_ratio=self.max_shear_ratio, neighbours=self._neighbours)
+                            max_shear_ratio=self.max_shear_ratio, neighbours=self._neighbours, like=like)
 
     def _residual(self, x: np.ndarray, b: np.ndarray) -> float:
         return _relative(self.matrix @ x - b, b)

@@ -55,12 +55,14 @@ class SeenFrame:
     faint: np.ndarray      # (m,) bool, read-only: cores of light loads (DenseSolver.faint_contacts)
     over: int = 0          # the contacts' nodes when more than the fit's budget (then no frame)
     fallback: str = ""     # why the fit takes whole cells instead of sub-cells, if it does
+    near: np.ndarray | None = None   # (m, K) bool, read-only: the sensors near each contact
 
     @classmethod
     def of(cls, b: np.ndarray, normal: np.ndarray, labels: np.ndarray, near: np.ndarray, faint: np.ndarray, *,
            grid: SensorGrid,
            normal_inverse, fit_budget: int, fit_columns: np.ndarray, subdivision: int,
-           whole_columns: np.ndarray, max_shear_ratio: float, neighbours: tuple) -> SeenFrame:
+           whole_columns: np.ndarray, max_shear_ratio: float, neighbours: tuple,
+           like: SeenFrame | None = None) -> SeenFrame:
         """The frame's contacts, and the contact fit's view of it.
 
         The view: sub-cell columns of every contact's region and the sensors
@@ -92,6 +94,11 @@ class SeenFrame:
         max_shear_ratio : float
         neighbours : tuple of two ndarrays of int
             :attr:`solver.functional.FunctionalInput.neighbours`.
+        like : SeenFrame or None, optional
+            A frame seen before with the same skin and settings (in playback
+            and live mode the frame before): where this frame's contacts
+            cover the same nodes with the same sensors near them, its view
+            shares that frame's matrices (the same arrays as gathered anew).
         """
         m = grid.size
         # A damped normal-only solve (a thick layer) turns noise into contacts whose totals say
@@ -115,10 +122,26 @@ class SeenFrame:
                 left_out = int(np.count_nonzero(evidence >= NOISE_EVIDENCE) - np.count_nonzero(kept))
             labels = np.concatenate([[0], np.cumsum(kept) * kept])[labels]
             near = np.ascontiguousarray(near[:, kept])
+        if (like is not None and like.frame is not None and not left_out and like.near is not None
+                and np.array_equal(labels, like.labels) and np.array_equal(near, like.near)):
+            # A contact that has not moved a node since (playback and live mode, mostly): the same
+            # columns and rows, only the stress on them is new (the gather is a third of a
+            # one-contact frame's set-up)
+            rows = np.flatnonzero(near.any(axis=1))
+            shared = like.frame
+            frame = FunctionalInput(
+                stress=b[rows], fit_x=shared.fit_x, fit_y=shared.fit_y, fit_z=shared.fit_z,
+                column_contact=shared.column_contact, row_contact=shared.row_contact,
+                column_node=shared.column_node, max_shear_ratio=max_shear_ratio, neighbours=neighbours,
+                column_id=shared.column_id)
+            return cls(key=b.tobytes(), frame=frame, normal=read_only(normal), labels=like.labels,
+                       nodes=like.nodes, weights=like.weights, at_edge=like.at_edge, region=like.region,
+                       faint=read_only(faint, bool), fallback=like.fallback, near=like.near)
         nodes = labels == np.arange(1, near.shape[1] + 1)[:, None]  # (K, m)
         seen = dict(key=b.tobytes(), normal=read_only(normal), labels=labels, nodes=read_only(nodes, bool),
                     weights=nodes.astype(float), at_edge=(nodes & grid.border).any(axis=1),
-                    region=read_only(labels > 0, bool), faint=read_only(faint, bool))
+                    region=read_only(labels > 0, bool), faint=read_only(faint, bool),
+                    near=read_only(near, bool))
         if near.shape[1] == 0:
             return cls(frame=None, **seen)
         covered = int(np.count_nonzero(labels))

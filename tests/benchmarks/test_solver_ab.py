@@ -9,6 +9,7 @@ import pytest
 
 import solver
 from benchmarks import solver_ab
+from measurement.bench import moving_contact_frames
 
 
 def test_a_commits_solver_is_loaded_beside_the_trees_under_its_own_name(tmp_path):
@@ -44,6 +45,16 @@ def test_the_same_solver_against_itself_gives_the_same_answers():
     results = solver_ab.compare(solver, solver, contacts=(2,), frames=2, rounds=1, label="itself", out=out)
     assert results[2]["apart"] == 0.0 and results[2]["tree"].size == results[2]["base"].size == 2
     assert "2 contacts: this tree median" in out.getvalue() and "itself median" in out.getvalue()
+
+
+def test_contacts_in_motion_are_the_bench_frames_in_order(monkeypatch):
+    # --moving: the frames of measurement.bench.moving_contact_frames, each solver solving them in order
+    seen = []
+    monkeypatch.setattr(solver_ab, "moving_contact_frames",
+                        lambda count, frames: seen.append((count, frames)) or moving_contact_frames(count, frames))
+    results = solver_ab.compare(solver, solver, contacts=(1,), frames=3, rounds=1, moving=True,
+                                out=io.StringIO())
+    assert seen == [(1, 3)] and results[1]["apart"] == 0.0 and results[1]["tree"].size == 3
 
 
 def test_the_command_refuses_a_bad_revision(capsys):
