@@ -122,21 +122,31 @@ class SeenFrame:
                 left_out = int(np.count_nonzero(evidence >= NOISE_EVIDENCE) - np.count_nonzero(kept))
             labels = np.concatenate([[0], np.cumsum(kept) * kept])[labels]
             near = np.ascontiguousarray(near[:, kept])
-        if (like is not None and like.frame is not None and not left_out and like.near is not None
+        covered = int(np.count_nonzero(labels))
+        source, cells, fallback = fit_columns, subdivision ** 2, []
+        if covered > budget and cells > 1:
+            # whole cells: a quarter of the columns, the same compressive, friction-shaped fit
+            source, cells = whole_columns, 1
+            fallback.append(f"whole-cell fit: the contacts cover {covered} nodes, more than the sub-cell "
+                            f"fit's budget of {fit_budget} (fit_budget)")
+        if left_out:
+            fallback.append(f"{left_out} contact(s) of weaker evidence left out: the fit's budget of "
+                            f"{WHOLE_CELLS * budget} nodes ({WHOLE_CELLS} x fit_budget) held the strongest")
+        fallback = "; ".join(fallback)
+        if (like is not None and like.frame is not None and like.fallback == fallback
                 and np.array_equal(labels, like.labels) and np.array_equal(near, like.near)):
             # A contact that has not moved a node since (playback and live mode, mostly): the same
             # columns and rows, only the stress on them is new (the gather is a third of a
             # one-contact frame's set-up)
-            rows = np.flatnonzero(near.any(axis=1))
             shared = like.frame
             frame = FunctionalInput(
-                stress=b[rows], fit_x=shared.fit_x, fit_y=shared.fit_y, fit_z=shared.fit_z,
-                column_contact=shared.column_contact, row_contact=shared.row_contact,
+                stress=b[np.flatnonzero(near.any(axis=1))], fit_x=shared.fit_x, fit_y=shared.fit_y,
+                fit_z=shared.fit_z, column_contact=shared.column_contact, row_contact=shared.row_contact,
                 column_node=shared.column_node, max_shear_ratio=max_shear_ratio, neighbours=neighbours,
                 column_id=shared.column_id)
             return cls(key=b.tobytes(), frame=frame, normal=read_only(normal), labels=like.labels,
                        nodes=like.nodes, weights=like.weights, at_edge=like.at_edge, region=like.region,
-                       faint=read_only(faint, bool), fallback=like.fallback, near=like.near)
+                       faint=read_only(faint, bool), fallback=fallback, near=like.near)
         nodes = labels == np.arange(1, near.shape[1] + 1)[:, None]  # (K, m)
         seen = dict(key=b.tobytes(), normal=read_only(normal), labels=labels, nodes=read_only(nodes, bool),
                     weights=nodes.astype(float), at_edge=(nodes & grid.border).any(axis=1),
@@ -144,19 +154,9 @@ class SeenFrame:
                     near=read_only(near, bool))
         if near.shape[1] == 0:
             return cls(frame=None, **seen)
-        covered = int(np.count_nonzero(labels))
         if covered > WHOLE_CELLS * budget:
             return cls(frame=None, over=covered, **seen)
-        source, cells = fit_columns, subdivision ** 2
-        if covered > budget and cells > 1:
-            # whole cells: a quarter of the columns, the same compressive, friction-shaped fit
-            source, cells = whole_columns, 1
-            seen["fallback"] = (f"whole-cell fit: the contacts cover {covered} nodes, more than the sub-cell "
-                                f"fit's budget of {fit_budget} (fit_budget)")
-        if left_out:
-            seen["fallback"] = "; ".join(filter(None, [seen.get("fallback", ""), (
-                f"{left_out} contact(s) of weaker evidence left out: the fit's budget of "
-                f"{WHOLE_CELLS * budget} nodes ({WHOLE_CELLS} x fit_budget) held the strongest")]))
+        seen["fallback"] = fallback
         stress, fit, contact, node, column_id, row_contact = fit_view(b, labels, near, source, cells)
         fit, n = fit.T, column_id.size  # (R, 3n), each column contiguous
         frame = FunctionalInput(stress=stress, fit_x=fit[:, :n], fit_y=fit[:, n:2 * n], fit_z=fit[:, 2 * n:],

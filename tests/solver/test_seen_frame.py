@@ -69,3 +69,7 @@ def test_a_frame_whose_contacts_cover_the_same_nodes_shares_the_view_of_the_fram
         playing.solve(moved)
         assert not np.array_equal(playing._recent[0].labels, seen.labels)
         assert playing._recent[0].frame.fit_z is not seen.frame.fit_z
+        # a frame seen with another fallback (a budget's whole cells, contacts left out) is not shared
+        other = dataclasses.replace(before, fallback="whole-cell fit: ...")
+        assert playing._frame(np.asarray(after), like=other).frame.fit_z is not before.frame.fit_z
+        assert playing._frame(np.asarray(after), like=before).frame.fit_z is before.frame.fit_z
