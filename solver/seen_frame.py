@@ -47,10 +47,10 @@ class SeenFrame:
     key: bytes             # the stress's bytes
     frame: FunctionalInput | None    # the contact fit's view; None without a compressive contact
     normal: np.ndarray     # (m,) read-only: the normal-only solution its contacts were found in
-    labels: np.ndarray     # (m,) contact 1..K of each node, 0 outside every contact
+    labels: np.ndarray     # (m,) int, read-only: contact 1..K of each node, 0 outside every contact
     nodes: np.ndarray      # (K, m) bool, read-only: each contact's region (Contact.nodes)
-    weights: np.ndarray    # (K, m) float: the same, to sum each contact's forces in one product
-    at_edge: np.ndarray    # (K,) bool: the region touches the skin's border
+    weights: np.ndarray    # (K, m) float, read-only: the same, to sum each contact's forces in one product
+    at_edge: np.ndarray    # (K,) bool, read-only: the region touches the skin's border
     region: np.ndarray     # (m,) bool, read-only: every contact's nodes
     faint: np.ndarray      # (m,) bool, read-only: cores of light loads (DenseSolver.faint_contacts)
     over: int = 0          # the contacts' nodes when more than the fit's budget (then no frame)
@@ -148,8 +148,10 @@ class SeenFrame:
                        nodes=like.nodes, weights=like.weights, at_edge=like.at_edge, region=like.region,
                        faint=read_only(faint, bool), fallback=fallback, near=like.near)
         nodes = labels == np.arange(1, near.shape[1] + 1)[:, None]  # (K, m)
-        seen = dict(key=b.tobytes(), normal=read_only(normal), labels=labels, nodes=read_only(nodes, bool),
-                    weights=nodes.astype(float), at_edge=(nodes & grid.border).any(axis=1),
+        # read-only: a frame's contacts are shared with the frames after it that cover the same nodes
+        seen = dict(key=b.tobytes(), normal=read_only(normal), labels=read_only(labels, np.int64),
+                    nodes=read_only(nodes, bool), weights=read_only(nodes, float),
+                    at_edge=read_only((nodes & grid.border).any(axis=1), bool),
                     region=read_only(labels > 0, bool), faint=read_only(faint, bool),
                     near=read_only(near, bool))
         if near.shape[1] == 0:
