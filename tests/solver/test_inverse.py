@@ -412,7 +412,8 @@ def test_a_slider_move_on_the_frame_just_solved_gives_a_fresh_solves_answer(monk
     moved, fresh = DenseSolver(grid), DenseSolver(grid)
     moved.solve(b)
     framed, original = [], moved._frame
-    monkeypatch.setattr(moved, "_frame", lambda stress, **options: framed.append(1) or original(stress, **options))
+    monkeypatch.setattr(moved, "_frame",
+                        lambda stress, **options: framed.append(1) or original(stress, **options))
     for mu, theta in [(0.3, 0.7), (0.32, 0.7), (0.6, -1.0), (0.0, 0.0), (1.2, 3.0)]:
         slid = moved.solve(b, shear_ratio=mu, shear_direction=theta)
         fresh.solve(other)  # so that fresh fits b from scratch

@@ -284,7 +284,8 @@ def test_windows_of_one_shape_keep_their_own_last_frame(monkeypatch):
     assert region.factorizations == 1
     framed = []
     original = DenseSolver._frame
-    monkeypatch.setattr(DenseSolver, "_frame", lambda self, b, **options: framed.append(1) or original(self, b, **options))
+    monkeypatch.setattr(DenseSolver, "_frame",
+                        lambda self, b, **options: framed.append(1) or original(self, b, **options))
     for ratio in (0.25, 0.35, 0.25):  # slider moves on the frame shown: no window is set up again
         moved = region.solve(stress, shear_ratio=ratio, shear_direction=0.1)
     assert framed == []
