@@ -439,16 +439,23 @@ def _prominent_peaks(grid, normal, threshold, separation):
     return peaks
 
 
+def _bump_field(grid, rng, bumps, widest):
+    # noise of 0.05 and round bumps of height 0.3 to 1 on the 15 x 9 skin, their squared width 0.5 to
+    # ``widest`` pitches^2; ``bumps`` a count, or (low, high) for one drawn after the noise
+    x, y = (grid.positions / grid.pitch).T
+    values = 0.05 * rng.standard_normal(grid.size)
+    for _ in range(bumps if isinstance(bumps, int) else int(rng.integers(*bumps))):
+        cx, cy = rng.uniform(-7, 7), rng.uniform(-4, 4)
+        values += rng.uniform(0.3, 1.0) * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / rng.uniform(0.5, widest))
+    return values
+
+
 @pytest.mark.parametrize("seed", range(12))
 def test_the_pieces_of_a_patch_are_its_prominent_peaks(plain, seed):
     # random fields of a few bumps and noise: as many pieces as prominent peaks (brute force)
     rng = np.random.default_rng(seed)  # one field per seed
     grid = plain.grid
-    x, y = (grid.positions / grid.pitch).T
-    normal = 0.05 * rng.standard_normal(grid.size)
-    for _ in range(int(rng.integers(1, 5))):
-        cx, cy = rng.uniform(-7, 7), rng.uniform(-4, 4)
-        normal += rng.uniform(0.3, 1.0) * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / rng.uniform(0.5, 3.0))
+    normal = _bump_field(grid, rng, (1, 5), 3.0)
     # distinct values: the brute force and the merge tree order ties alike only by chance
     normal += 1e-9 * rng.standard_normal(grid.size)
     core = np.zeros(grid.size, np.int64)
@@ -500,11 +507,7 @@ def _saddle_by_level_sets(grid, values, cores, p, q):
 def test_the_saddle_of_two_cores_is_the_highest_level_a_path_between_them_keeps_to(plain, seed):
     rng = np.random.default_rng(seed)  # one field per seed
     grid = plain.grid
-    x, y = (grid.positions / grid.pitch).T
-    values = 0.05 * rng.standard_normal(grid.size)
-    for _ in range(4):
-        cx, cy = rng.uniform(-7, 7), rng.uniform(-4, 4)
-        values += rng.uniform(0.3, 1.0) * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / rng.uniform(0.5, 2.0))
+    values = _bump_field(grid, rng, 4, 2.0)
     cores = np.zeros(grid.size, np.int64)
     count = search._components(np.where(values > 0.3 * values.max(), 0, -1), *plain._adjacent, cores)
     saddle = search._saddles(values, cores, count, plain._adjacent)
