@@ -29,13 +29,15 @@ from scipy.spatial import cKDTree
 
 from solver import Reconstructor, loads
 from solver.checks import one_of, real_number
+from solver.efficiency import ContactFit
 from solver.geometry import SensorGrid
 
 from .bounds import contact_bounds
 from .tables import Column, format_table, print_report, value
 
 __all__ = ["ContactScene", "KINDS", "STANDARD_KINDS", "TUNING_SEED", "VALIDATION_SEED", "scene_cases",
-           "evaluate", "summarize", "format_scenes", "format_summary", "main"]
+           "evaluate", "summarize", "format_scenes", "format_summary", "decision_curve",
+           "format_decision_curve", "main"]
 
 KINDS = ("pinch", "two", "three", "edge", "beside")
 # The kinds a set holds unless others are asked for: the tables of docs/efficiency.md were measured
@@ -225,7 +227,8 @@ def evaluate(scenes, make_solver=None, *, solve=None, bounds: bool = True) -> li
         One row per true contact: the scene, the true and reconstructed shear,
         the tangential error over ``|F|``, the direction error (degrees, true
         ratio >= 0.2), the normal total error, ``ms`` and ``cpu_ms`` of the
-        solve, and at the bound (nan when ``bounds`` is False): the Wald
+        solve, the shear evidence ``F`` of the reconstructed contact it is
+        matched to (nan when none), and at the bound (nan when ``bounds`` is False): the Wald
         test's miss probability (``bound_miss``) and an unbiased estimate's
         median errors (``bound_tangential``, ``bound_direction``).
     """
@@ -262,6 +265,7 @@ def evaluate(scenes, make_solver=None, *, solve=None, bounds: bool = True) -> li
                 direction_deg=(abs(math.degrees(math.remainder(turn, 2 * math.pi)))
                                if contact.shear_ratio > 0 else math.nan),
                 normal_total=abs(total[2] - true_total[2]) / true_total[2],
+                evidence=found.evidence if found is not None else math.nan,
                 contacts_found=len(result.contacts), bound_miss=at_bound[k][0],
                 bound_tangential=at_bound[k][1], bound_direction=at_bound[k][2], ms=ms, cpu_ms=cpu_ms))
     return rows
@@ -355,8 +359,81 @@ def format_summary(summary: dict) -> str:
     ])
 
 
+def decision_curve(scenes, *, shrinkages=(1.0, 1.5, 2.0, 3.0, 4.0, 6.0)) -> list[dict]:
+    """How the shear decision trades false for missed shear on scenes of several contacts.
+
+    A contact keeps shear exactly when its evidence ``F`` exceeds the
+    shrinkage ``c`` (:class:`~solver.efficiency.ContactFit`). Unlike a lone
+    contact's, the evidence of contacts that share sensors depends on ``c``
+    itself (which of them have their own gain refitted), so every scene is
+    solved again with each ``c``. Beside each count: the Wald test at the
+    Cramér-Rao bound at the false rate the solver reached
+    (:func:`measurement.bounds.contact_bounds`; one free force per node,
+    support known), and the median ``F`` of the shear-free contacts (a
+    calibrated ``F`` with two parameters has a median of about 0.7 and
+    exceeds 2 on about 13% of them).
+
+    Parameters
+    ----------
+    scenes : list of ContactScene
+        With noise (the bound scales with it).
+    shrinkages : sequence of float, optional
+        The shrinkages ``c`` scored, each > 0.
+
+    Returns
+    -------
+    list of dict
+        Per shrinkage: ``false`` of ``free`` (shear-free contacts given
+        shear), ``missed`` of ``sheared`` (ratio >= 0.2 given none),
+        ``bound_missed`` (the expected count the Wald test at the bound misses
+        at the false rate ``false / free``, kept within half a contact of 0 and 1) and
+        ``free_evidence`` (the median ``F`` of the shear-free contacts).
+
+    Raises
+    ------
+    ValueError
+        For no scenes, a scene without noise, or no shrinkage or one not > 0.
+    """
+    scenes = list(scenes)
+    if not scenes:
+        raise ValueError("scenes must hold at least one scene, got none")
+    if not all(scene.frame.noise > 0 for scene in scenes):
+        raise ValueError("scenes must have noise > 0 (the bound scales with it), got a noise-free scene")
+    shrinkages = [real_number("shrinkages", c, rule="> 0", valid=lambda v: v > 0) for c in shrinkages]
+    if not shrinkages:
+        raise ValueError("shrinkages must hold at least one shrinkage, got none")
+    # the bound of every contact once: the Wald test's miss at any false rate comes from it
+    bounds = [bound for scene in scenes for bound in contact_bounds(
+        scene.frame, totals=[truth[:, 2].sum() for truth in scene.truths])]
+    out = []
+    for c in shrinkages:
+        rows = evaluate(scenes, lambda grid, c=c: Reconstructor(grid, efficiency=ContactFit(shrinkage=c)),
+                        bounds=False)
+        free = [r for r in rows if r["true_ratio"] == 0]
+        sheared = [(r, b) for r, b in zip(rows, bounds, strict=True) if r["true_ratio"] >= 0.2]
+        false = sum(r["ratio"] > 0 for r in free)
+        rate = min(max(false, 0.5), len(free) - 0.5) / len(free) if free else math.nan
+        out.append(dict(
+            shrinkage=c, false=false, free=len(free), missed=sum(r["ratio"] == 0 for r, _ in sheared),
+            sheared=len(sheared),
+            bound_missed=float(sum(b.miss(false_rate=rate) for _, b in sheared)) if free else math.nan,
+            free_evidence=float(np.median([r["evidence"] for r in free])) if free else math.nan))
+    return out
+
+
+def format_decision_curve(curve) -> str:
+    """The rows of :func:`decision_curve`, one line per shrinkage."""
+    return format_table(curve, (
+        Column("c", 4, value("shrinkage", "g")),
+        Column("shear on shear-free", 19, lambda r: f"{r['false']} of {r['free']}", gap=2),
+        Column("missed", 10, lambda r: f"{r['missed']} of {r['sheared']}", gap=2),
+        Column("Wald test at the bound: missed", 30, value("bound_missed", ".1f"), gap=2),
+        Column("median F, shear-free", 20, value("free_evidence", ".2f"), gap=2)))
+
+
 def main(argv=None):
-    """``python -m measurement.scenes [--set tuning|validation] [--noise N] [--kinds ...]``."""
+    """``python -m measurement.scenes [--set tuning|validation] [--noise N] [--kinds ...] [--seeds ...]
+    [--decision-curve]``."""
     parser = argparse.ArgumentParser(prog="python -m measurement.scenes",
                                      description="Per-contact accuracy on scenes of several contacts.")
     parser.add_argument("--set", choices=("validation", "tuning"), default="validation",
@@ -367,11 +444,27 @@ def main(argv=None):
                         help=f"default {' '.join(STANDARD_KINDS)}")
     parser.add_argument("--repeats", type=int, default=3, help="scenes of each kind per thickness")
     parser.add_argument("--quiet", action="store_true", help="the summary only")
+    parser.add_argument("--decision-curve", action="store_true",
+                        help="false against missed shear for each shrinkage c (every scene solved again "
+                             "with each), beside the Wald test at the Cramer-Rao bound at the same false "
+                             "rate")
+    parser.add_argument("--seeds", type=int, nargs="+", metavar="SEED",
+                        help="the scenes of these seeds instead of the set's (for --decision-curve over "
+                             "more scenes than one set holds)")
     args = parser.parse_args(argv)
-    seed = VALIDATION_SEED if args.set == "validation" else TUNING_SEED
-    scenes = scene_cases(seed=seed, noise=args.noise, kinds=args.kinds, repeats=args.repeats)
+    if args.decision_curve and not args.noise > 0:
+        parser.error("--decision-curve needs --noise > 0 (the bound scales with it)")
+    seeds = args.seeds or [VALIDATION_SEED if args.set == "validation" else TUNING_SEED]
+    scenes = [scene for seed in seeds
+              for scene in scene_cases(seed=seed, noise=args.noise, kinds=args.kinds, repeats=args.repeats)]
+    name = f"{args.set} set (seed {seeds[0]})" if not args.seeds else f"seeds {' '.join(map(str, seeds))}"
+    if args.decision_curve:
+        print(f"shear decision, {name}: {len(scenes)} scenes, noise {args.noise:g}; shear kept when F > c "
+              f"(default c = {ContactFit().shrinkage:g})")
+        print(format_decision_curve(decision_curve(scenes)))
+        return
     rows = evaluate(scenes, bounds=args.noise > 0)
-    print_report(format_scenes(rows), f"{args.set} set (seed {seed}), noise {args.noise:g}",
+    print_report(format_scenes(rows), f"{name}, noise {args.noise:g}",
                  format_summary(summarize(rows)), quiet=args.quiet)
 
 

@@ -5,12 +5,15 @@ import math
 import numpy as np
 import pytest
 
+from measurement.bounds import contact_bounds
 from measurement.scenes import (
     KINDS,
     STANDARD_KINDS,
     TUNING_SEED,
     VALIDATION_SEED,
+    decision_curve,
     evaluate,
+    format_decision_curve,
     format_scenes,
     format_summary,
     main,
@@ -80,6 +83,64 @@ def test_counts_and_the_bound_beside_them():
     assert s["tangential"] == pytest.approx(0.1) and s["direction"] == pytest.approx(90.5)
     # the bound's medians: tangential over every contact, direction over the sheared ones
     assert s["bound_tangential"] == pytest.approx(0.06) and s["bound_direction"] == pytest.approx(8.0)
+
+
+def test_the_decision_curve_counts_what_a_solver_with_each_shrinkage_decides():
+    # two-contact scenes of the tuning set at h/p 1, 1% noise
+    scenes = scene_cases(seed=TUNING_SEED, kinds=("two",), repeats=3, thickness_ratios=(1.0,))
+    low, high = decision_curve(scenes, shrinkages=(0.5, 8.0))
+    assert [row["shrinkage"] for row in (low, high)] == [0.5, 8.0]
+    from solver import Reconstructor
+    from solver.efficiency import ContactFit
+
+    rows = evaluate(scenes, lambda grid: Reconstructor(grid, efficiency=ContactFit(shrinkage=8.0)), bounds=False)
+    free = [r for r in rows if r["true_ratio"] == 0]
+    sheared = [r for r in rows if r["true_ratio"] >= 0.2]
+    assert (high["false"], high["free"]) == (sum(r["ratio"] > 0 for r in free), len(free))
+    assert (high["missed"], high["sheared"]) == (sum(r["ratio"] == 0 for r in sheared), len(sheared))
+    assert high["free_evidence"] == pytest.approx(np.median([r["evidence"] for r in free]))
+    # a larger shrinkage gives shear less often: fewer false, more missed, and the bound at its lower
+    # false rate misses more
+    assert low["false"] >= high["false"] and low["missed"] <= high["missed"] and low["missed"] < high["missed"]
+    assert 0 <= low["bound_missed"] <= high["bound_missed"] <= high["sheared"]
+    # the bound's count is the Wald test's at the false rate reached (half a contact from 0 and 1)
+    rate = min(max(high["false"], 0.5), high["free"] - 0.5) / high["free"]
+    bounds = [b for scene in scenes
+              for b in contact_bounds(scene.frame, totals=[t[:, 2].sum() for t in scene.truths])]
+    expected = sum(b.miss(false_rate=rate) for r, b in zip(rows, bounds, strict=True) if r["true_ratio"] >= 0.2)
+    assert high["bound_missed"] == pytest.approx(expected)
+    table = format_decision_curve([low, high]).splitlines()
+    assert len(table) == 3 and "Wald test at the bound" in table[0]
+    assert f"{high['false']} of {high['free']}" in table[2]
+    with pytest.raises(ValueError, match="scenes must hold at least one scene, got none"):
+        decision_curve([])
+    with pytest.raises(ValueError, match="scenes must have noise > 0"):
+        decision_curve(scene_cases(seed=TUNING_SEED, noise=0.0, kinds=("two",), repeats=1,
+                                   thickness_ratios=(1.0,)))
+    with pytest.raises(ValueError, match="shrinkages must be > 0, got 0"):
+        decision_curve(scenes, shrinkages=(0,))
+    with pytest.raises(ValueError, match="shrinkages must hold at least one shrinkage, got none"):
+        decision_curve(scenes, shrinkages=())
+
+
+def test_the_command_prints_the_decision_curve(capsys, monkeypatch):
+    import measurement.scenes as scenes
+
+    seen = {}
+
+    def curve(scenes_given, **options):
+        seen["count"] = len(scenes_given)
+        return [dict(shrinkage=2.0, false=3, free=20, missed=5, sheared=60, bound_missed=4.5, free_evidence=0.8)]
+
+    monkeypatch.setattr(scenes, "decision_curve", curve)
+    main(["--decision-curve", "--seeds", "5", "6", "--kinds", "two", "--repeats", "1"])
+    out = capsys.readouterr().out
+    # two seeds, one scene per thickness (three) each
+    assert seen["count"] == 6
+    assert "seeds 5 6: 6 scenes" in out and "3 of 20" in out and "4.5" in out
+    with pytest.raises(SystemExit):
+        main(["--decision-curve", "--noise", "0"])
+    assert "--decision-curve needs --noise > 0" in capsys.readouterr().err
 
 
 def test_bad_arguments_are_refused(capsys):
