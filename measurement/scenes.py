@@ -281,12 +281,16 @@ def _at_bound(scene):
         return [(0.0 if c.shear_ratio > 0 else math.nan, 0.0, 0.0 if c.shear_ratio > 0 else math.nan)
                 for c in frame.contacts]
     out = []
-    # each contact's own load, simulated alone when the scene was made: not simulated again
-    totals = [truth[:, 2].sum() for truth in scene.truths]
-    for contact, bound in zip(frame.contacts, contact_bounds(frame, totals=totals), strict=True):
+    for contact, bound in zip(frame.contacts, _bounds(scene), strict=True):
         miss = bound.miss(false_rate=_FALSE_RATE) if contact.shear_ratio > 0 else math.nan
         out.append((miss, *bound.ideal_errors()))
     return out
+
+
+def _bounds(scene):
+    # every contact's bound, all estimated at once (measurement.bounds.contact_bounds); each contact's
+    # own load was simulated alone when the scene was made: not simulated again
+    return contact_bounds(scene.frame, totals=[truth[:, 2].sum() for truth in scene.truths])
 
 
 def summarize(rows) -> dict:
@@ -403,21 +407,21 @@ def decision_curve(scenes, *, shrinkages=(1.0, 1.5, 2.0, 3.0, 4.0, 6.0)) -> list
     if not shrinkages:
         raise ValueError("shrinkages must hold at least one shrinkage, got none")
     # the bound of every contact once: the Wald test's miss at any false rate comes from it
-    bounds = [bound for scene in scenes for bound in contact_bounds(
-        scene.frame, totals=[truth[:, 2].sum() for truth in scene.truths])]
+    bounds = [bound for scene in scenes for bound in _bounds(scene)]
     out = []
     for c in shrinkages:
         rows = evaluate(scenes, lambda grid, c=c: Reconstructor(grid, efficiency=ContactFit(shrinkage=c)),
                         bounds=False)
-        free = [r for r in rows if r["true_ratio"] == 0]
-        sheared = [(r, b) for r, b in zip(rows, bounds, strict=True) if r["true_ratio"] >= 0.2]
-        false = sum(r["ratio"] > 0 for r in free)
-        rate = min(max(false, 0.5), len(free) - 0.5) / len(free) if free else math.nan
+        counts = {key: value for key, value in summarize(rows).items() if key in ("false", "free", "missed",
+                                                                                  "sheared")}
+        false, free = counts["false"], counts["free"]
+        rate = min(max(false, 0.5), free - 0.5) / free if free else math.nan
         out.append(dict(
-            shrinkage=c, false=false, free=len(free), missed=sum(r["ratio"] == 0 for r, _ in sheared),
-            sheared=len(sheared),
-            bound_missed=float(sum(b.miss(false_rate=rate) for _, b in sheared)) if free else math.nan,
-            free_evidence=float(np.median([r["evidence"] for r in free])) if free else math.nan))
+            shrinkage=c, **counts,
+            bound_missed=float(sum(b.miss(false_rate=rate) for r, b in zip(rows, bounds, strict=True)
+                                   if r["true_ratio"] >= 0.2)) if free else math.nan,
+            free_evidence=float(np.median([r["evidence"] for r in rows if r["true_ratio"] == 0]))
+            if free else math.nan))
     return out
 
 
