@@ -7,8 +7,8 @@
 
 SOURCE is a serial port (``/dev/ttyACM0``), any pyserial URL (``socket://host:port``,
 ``loop://``) or ``lsl:NAME`` (an LSL stream of one channel per taxel). Every frame is
-solved (automatic parameters by default, each fit starting from the frame solved
-last; ``--solvers`` threads side by side) and its node forces published, in frame
+solved (automatic parameters by default, each fit starting from the frame its solver
+solved last; ``--solvers`` processes side by side) and its node forces published, in frame
 order, as an LSL stream of type ``TactileForce`` stamped with the frame's receive
 time on LSL's clock. ``--record`` writes the raw frames
 as ``tactile-record`` does (crash-safe MCAP); ``--forces`` keeps the forces of
@@ -30,6 +30,7 @@ No Qt.
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import os
 import shutil
@@ -47,6 +48,7 @@ from ..model.captions import KERNEL_HELP
 from ..model.force_log import ForceLog, leftover_spools, recover
 from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceStream
 from ..model.movie_settings import check_movie_parameters
+from ..model.solver_process import SolverProcess, warm
 from ..sources.lsl_inlet import URL_PREFIX
 from .board_options import add_board_arguments, check_duration, print_messages, seconds_left, stop_on_signals
 
@@ -54,17 +56,16 @@ __all__ = ["main", "open_source", "status_line", "final_lines"]
 
 PROG = "tactile-stream"
 LSL_WAIT_S = 3.0  # how long a lsl:NAME source is looked for on the network
-# Python's GIL switch interval while streaming (its default is 0.005 s). The reader and the solver
-# share the GIL; at the default, the reader's thousand wake-ups a second each force the solver to
-# hand it over and wait to get it back. Given parameters, 1000 frames/s in, 4 to 5 s runs on the
-# 2-core machine at load 2 to 3: 90 to 380 solves/s at 0.005 s, 700 to 780 at 0.02 s, 900 at
-# 0.05 s. The solver releases the GIL in its compiled and BLAS calls many times a frame, so the
-# reader still gets it within a fraction of a millisecond (no frame lost at the board at 0.05 s).
+# Python's GIL switch interval while streaming (its default is 0.005 s). With one solver (a thread of
+# this process) the reader and the solver share the GIL; at the default, the reader's thousand
+# wake-ups a second each force the solver to hand it over and wait to get it back. Given parameters,
+# 1000 frames/s in, 4 to 5 s runs on the 2-core machine at load 2 to 3: 90 to 380 solves/s at
+# 0.005 s, 700 to 780 at 0.02 s, 900 at 0.05 s. The solver releases the GIL in its compiled and BLAS
+# calls many times a frame, so the reader still gets it within a fraction of a millisecond.
 SWITCH_INTERVAL_S = 0.05
-# Most solver threads by default. Two on the 2-core machine, 1 kHz board, 20 s runs alternating
-# one and two threads: automatic 1.29 to 1.34 times the solves/s, given parameters 1.02 to 1.08,
-# normal only none skipped; a third thread added nothing (305 against 313 solves/s, automatic):
-# the solves' Python shares one GIL (docs/interop.md).
+# Most solver processes by default: one per core. On the 2-core machine, 1 kHz board, 60 s runs with
+# the automatic solve alternating with two threads of this process: 0 and ... frames skipped against
+# 4,522 and 10,210 (docs/interop.md).
 MOST_SOLVERS = 2
 
 
@@ -109,14 +110,15 @@ def _parser() -> argparse.ArgumentParser:
                         help=f"frames that may wait for the solver (default {DEFAULT_QUEUE_FRAMES}); a frame "
                              "arriving at a full queue skips the oldest")
     parser.add_argument("--solvers", type=int, default=default_solvers(), metavar="N",
-                        help="threads solving frames side by side, out of order (each may run on a core of "
-                             "its own); the forces are still published in frame order (default: the cores "
-                             f"this process may use, at most {MOST_SOLVERS}; here {default_solvers()})")
+                        help="solvers working side by side, out of order: 1 is a thread of this process, "
+                             "more are processes of their own, each on a core; the forces are still "
+                             "published in frame order (default: the cores this process may use, at most "
+                             f"{MOST_SOLVERS}; here {default_solvers()})")
     return parser
 
 
 def default_solvers() -> int:
-    """Solver threads by default: one per core this process may use, at most :data:`MOST_SOLVERS`."""
+    """Solvers by default: one per core this process may use, at most :data:`MOST_SOLVERS`."""
     return max(1, min(MOST_SOLVERS, _cpus()))
 
 
@@ -135,7 +137,7 @@ def _check(parser, args):
     if args.queue < 1:
         parser.error(f"--queue must be a whole number of frames >= 1, got {args.queue}")
     if args.solvers < 1:
-        parser.error(f"--solvers must be a whole number of threads >= 1, got {args.solvers}")
+        parser.error(f"--solvers must be a whole number of solvers >= 1, got {args.solvers}")
     if not args.name.strip():
         parser.error(f"--name must name the LSL stream, got {args.name!r}")
     if args.no_lsl and args.stress:
@@ -265,7 +267,11 @@ def main(argv=None) -> int:
     failed = print_messages(source)
     grid = source.grid
     solver = settings.build(grid)
-    _warm(solver, grid)
+    try:
+        solvers = _solvers(solver, settings, args.solvers)
+    except RuntimeError as exc:
+        print(f"{PROG}: {exc}", file=sys.stderr)
+        return 1
     outlet = log = None
     if not args.no_lsl:
         from ..sources.lsl import ForceOutlet
@@ -274,6 +280,7 @@ def main(argv=None) -> int:
             outlet = ForceOutlet(grid, name=args.name, source_id=f"{PROG} {args.source}", stress=args.stress)
         except (OSError, RuntimeError) as exc:  # liblsl could not make the outlet (RuntimeError: pylsl's)
             print(f"{PROG}: cannot publish over LSL: {exc}", file=sys.stderr)
+            _close(solvers)
             return 1
     if args.forces is not None:
         try:
@@ -284,23 +291,25 @@ def main(argv=None) -> int:
                   file=sys.stderr)
             if outlet is not None:
                 outlet.close()
+            _close(solvers)
             return 1
     switch_interval = sys.getswitchinterval()
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     try:
-        return _stream(args, source, solver, settings, outlet, log, stop, failed)
+        return _stream(args, source, solvers, settings, outlet, log, stop, failed)
     finally:
         sys.setswitchinterval(switch_interval)
+        _close(solvers)
         if outlet is not None:
             outlet.close()
         if log is not None:
             log.close()
 
 
-def _stream(args, source, solver, settings, outlet, log, stop, failed) -> int:
-    stream = ForceStream(source, solver, _publisher(source, outlet, log, stress=args.stress),
+def _stream(args, source, solvers, settings, outlet, log, stop, failed) -> int:
+    stream = ForceStream(source, solvers, _publisher(source, outlet, log, stress=args.stress),
                          shear_ratio=settings.shear_ratio, shear_direction=settings.shear_direction,
-                         queue_frames=args.queue, solvers=args.solvers)
+                         queue_frames=args.queue)
     stream.start()  # before the board: its first frame is followed too
     try:
         source.start()
@@ -318,7 +327,7 @@ def _stream(args, source, solver, settings, outlet, log, stop, failed) -> int:
             print(f"{PROG}: cannot record: {exc}", file=sys.stderr)
             return 1
     where = "nothing (--no-lsl)" if outlet is None else f"LSL stream {args.name!r} (type TactileForce)"
-    threads = f"{args.solvers} solver thread{'s' if args.solvers > 1 else ''}"
+    threads = "1 solver thread" if args.solvers == 1 else f"{args.solvers} solver processes"
     print(f"streaming forces of {args.source} to {where} ({threads})"
           + (f", recording to {args.record}" if recorder else "") + "; Ctrl+C stops", flush=True)
     start = time.monotonic()
@@ -373,16 +382,35 @@ def _publisher(source, outlet, log, *, stress: bool):
     return publish
 
 
-def _warm(solver, grid) -> None:
-    # the numba core compiled (or loaded from its cache) and this skin's matrices touched before the first
-    # frame: a first solve of a second would skip the frames of that second
-    import numpy as np
+def _solvers(solver, settings, count: int) -> list:
+    """The stream's solvers: ``solver`` itself for one, else ``count`` processes, each building its own.
 
-    from solver.warmup import warm_up
+    Raises
+    ------
+    RuntimeError
+        When a process could not build its solver (the ones started are ended first).
+    """
+    if count == 1:
+        warm(solver)
+        return [solver]
+    build = functools.partial(settings.build, solver.grid)
+    started = []
+    try:
+        # started together, then waited for: each takes a second or two to import and warm up
+        for k in range(count):
+            started.append(SolverProcess(build, name=f"{PROG} solver {k + 1}", wait=False))
+        for process in started:
+            process.wait_ready()
+    except BaseException:
+        _close(started)
+        raise
+    return started
 
-    warm_up()
-    x, y = grid.positions.T
-    solver.solve(1e3 * np.exp(-((x - x.mean()) ** 2 + (y - y.mean()) ** 2) / (2 * grid.pitch ** 2)))
+
+def _close(solvers) -> None:
+    for solver in solvers:
+        if isinstance(solver, SolverProcess):
+            solver.close()  # a second close of the same one does nothing
 
 
 def _size(spool: Path) -> str:

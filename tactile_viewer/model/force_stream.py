@@ -2,14 +2,18 @@
 
 :class:`ForceStream` follows a source's ``frames_produced`` (every frame, in
 order, on the reader's thread) into a bounded queue, and its solver threads
-take them oldest first: each solves a frame with the stream's solver (whose
-automatic fit starts from the frame solved last, by any of them) and hands the
-frame and its :class:`solver.Reconstruction` to ``publish`` (an LSL outlet, a
-force log). With several threads, frames are solved side by side, out of
-order, on as many cores; ``publish`` still takes them one at a time, in frame
-order: a frame solved before the one taken ahead of it waits, solved, while its
-thread goes on to the next frame, and the thread that solves the frame whose
-turn it is publishes it and every solved one after it.
+take them oldest first: each solves with its solver (automatic fits start from
+the frame that solver solved last) and hands the frame and its
+:class:`solver.Reconstruction` to ``publish`` (an LSL outlet, a force log).
+A thread's solver is the stream's one solver, shared, or its own: a
+:class:`~tactile_viewer.model.solver_process.SolverProcess`, a solver in a
+process of its own, to which the thread sends what waits (up to
+:data:`_BATCH` frames) in one round trip and waits for the answers. With
+several threads, frames are solved side by side, out of order, on as many
+cores; ``publish`` still takes them one at a time, in frame order: a frame
+solved before the one taken ahead of it waits, solved, while its thread goes on
+to the next frame, and the thread that solves the frame whose turn it is
+publishes it and every solved one after it.
 
 The reader never waits for the solver: it only appends to the queue, so the
 board is read and recorded at its own pace whatever the solver does. When the
@@ -53,6 +57,10 @@ __all__ = ["StreamFigures", "ForceStream", "DEFAULT_QUEUE_FRAMES"]
 # than the board skips frames within that much latency instead of falling ever further behind.
 DEFAULT_QUEUE_FRAMES = 200
 
+# Most frames sent to a solver process in one round trip. Only a stream that has fallen behind has
+# more than one waiting; a batch of 8 one-contact frames adds about 10 ms to the first one's latency.
+_BATCH = 8
+
 # latency histogram: log-spaced bins from 1 us to 100 s, 1.2% wide (1600 over 8 decades)
 _EDGES = np.logspace(-6, 2, 1601)
 
@@ -85,8 +93,8 @@ class StreamFigures:
         Seconds from a frame's receive stamp to its publication: the median and
         99th percentile over the interval (nan when nothing was published).
     cpu : float
-        The process's CPU time over the interval in percent of one core (200
-        is two cores busy).
+        CPU time over the interval in percent of one core (200 is two cores
+        busy): this process's and its solver processes'.
     """
 
     elapsed: float
@@ -110,9 +118,12 @@ class ForceStream:
     ----------
     source : Source
         Where frames come from (its ``frames_produced``); started and stopped by its owner.
-    solver : solver.Reconstructor
+    solver : solver.Reconstructor or sequence of them
         Solves each frame (``solver.solve(stress, shear_ratio=..., shear_direction=...)``), on
-        this stream's threads (a solver's solves may run side by side: it keeps no per-call state).
+        this stream's threads: one solver shared by ``solvers`` threads (its solves may run side
+        by side: it keeps no per-call state), or a sequence, one thread for each (a
+        :class:`~tactile_viewer.model.solver_process.SolverProcess` each: solves in processes of
+        their own, which share no GIL).
     publish : callable
         ``publish(frame, result)`` with the :class:`~tactile_viewer.sources.source.SourceFrame`
         and its :class:`solver.Reconstruction`, on one of the stream's threads, one call at a
@@ -124,18 +135,18 @@ class ForceStream:
         Frames that may wait for the solver (default :data:`DEFAULT_QUEUE_FRAMES`); a frame
         arriving at a full queue skips the oldest.
     solvers : int, optional
-        Threads solving frames side by side (default 1). The solver's compiled and BLAS work
-        releases Python's GIL, so the threads overlap there: on the project's 2-core machine two
-        threads solved 1.3 times as many frames a second as one with automatic parameters, 1.05
-        times with given ones (``docs/interop.md``).
+        Threads sharing one ``solver`` (default 1; a sequence of solvers sets it). The solver's
+        compiled and BLAS work releases Python's GIL, so the threads overlap there: on the
+        project's 2-core machine two threads solved 1.3 times as many frames a second as one with
+        automatic parameters, 1.05 times with given ones (``docs/interop.md``).
     clock : callable, optional
         Seconds on the clock of the frames' receive stamps (default ``source.now``).
 
     Raises
     ------
     ValueError
-        For ``queue_frames`` or ``solvers`` not a whole number >= 1, or a clock neither given
-        nor the source's.
+        For ``queue_frames`` or ``solvers`` not a whole number >= 1, an empty sequence of solvers
+        or ``solvers`` other than its length, or a clock neither given nor the source's.
     """
 
     def __init__(self, source: Source, solver, publish, *, shear_ratio: float | None = None,
@@ -143,6 +154,16 @@ class ForceStream:
                  solvers: int = 1, clock=None):
         self.queue_frames = whole_number("queue_frames", queue_frames, low=1)
         self.solvers = whole_number("solvers", solvers, low=1)
+        if isinstance(solver, (list, tuple)):
+            if not solver:
+                raise ValueError("solver must be a solver or a sequence of one or more, got an empty one")
+            if solvers not in (1, len(solver)):
+                raise ValueError(f"solvers must be left out or equal the {len(solver)} solvers given, "
+                                 f"got {solvers}")
+            self.solvers = len(solver)
+            self._each = tuple(solver)
+        else:
+            self._each = (solver,) * self.solvers
         clock = clock if clock is not None else getattr(source, "now", None)
         if not callable(clock):
             raise ValueError(f"clock must be given for a source without a now() clock, got {source!r}")
@@ -170,8 +191,8 @@ class ForceStream:
         """Follow the source's frames and start solving them."""
         with self._ready:
             self._run_start = self._interval = self._mark()
-        self._threads = [threading.Thread(target=self._run, name=f"force stream {k + 1}", daemon=True)
-                         for k in range(self.solvers)]
+        self._threads = [threading.Thread(target=self._run, args=(solver,), name=f"force stream {k + 1}",
+                                          daemon=True) for k, solver in enumerate(self._each)]
         for thread in self._threads:
             thread.start()
         self.source.frames_produced.connect(self._take)
@@ -207,7 +228,9 @@ class ForceStream:
 
     # -- the solver's thread --------------------------------------------------------------------------
 
-    def _run(self) -> None:
+    def _run(self, solver) -> None:
+        # a solver in another process takes what waits, up to _BATCH frames, in one round trip
+        most = _BATCH if hasattr(solver, "solve_each") else 1
         with one_blas_thread():  # a frame's products are small: one BLAS thread (solver.threads)
             while True:
                 with self._ready:
@@ -215,22 +238,21 @@ class ForceStream:
                         self._ready.wait()
                     if not self._queue:
                         return
-                    frame = self._queue.popleft()
-                    turn = self._taken
-                    self._taken += 1
-                self._solve(frame, turn)
+                    frames = [self._queue.popleft() for _ in range(min(most, len(self._queue)))]
+                    first = self._taken
+                    self._taken += len(frames)
+                self._solve(solver, frames, first)
 
-    def _solve(self, frame: SourceFrame, turn: int) -> None:
+    def _solve(self, solver, frames: list[SourceFrame], first: int) -> None:
         started = time.perf_counter()
-        result = error = None
-        try:
-            result = self.solver.solve(frame.stress, **self.parameters)
-        except Exception as exc:  # noqa: BLE001 (one bad frame must not end the stream: counted, said)
-            error = exc
+        answers = _answers(solver, [frame.stress for frame in frames], self.parameters)
+        solve_time = (time.perf_counter() - started) / len(frames)
         with self._lock:
-            self._solved[turn] = (frame, result, error, time.perf_counter() - started)
+            for turn, frame, (result, error) in zip(range(first, first + len(frames)), frames, answers,
+                                                    strict=True):
+                self._solved[turn] = (frame, result, error, solve_time)
             if self._publishing:
-                return  # the thread publishing takes it in its turn; this one solves the next frame
+                return  # the thread publishing takes them in their turn; this one solves the next frames
             self._publishing = True
         # Publish in order every solved frame whose turn has come. A thread that waited here for the
         # frame taken ahead of its own could not solve meanwhile: with two threads, whenever the
@@ -286,8 +308,20 @@ class ForceStream:
         return _figures(self._run_start, mark, waiting, math.nan, median, p99)
 
     def _mark(self) -> tuple:
-        # (wall seconds, process CPU seconds, counts) at one instant; counts read under the lock
-        return time.monotonic(), time.process_time(), dict(self._counts)
+        # (wall seconds, CPU seconds of this process and of the solvers' own, counts) at one instant;
+        # counts read under the lock
+        own = sum(getattr(solver, "cpu_time", 0.0) for solver in {id(s): s for s in self._each}.values())
+        return time.monotonic(), time.process_time() + own, dict(self._counts)
+
+
+def _answers(solver, stresses: list, parameters: dict) -> list:
+    # (result, None) or (None, exception) for each frame: one bad frame must not end the stream
+    try:
+        if hasattr(solver, "solve_each"):
+            return solver.solve_each(stresses, **parameters)
+        return [(solver.solve(stress, **parameters), None) for stress in stresses]
+    except Exception as exc:  # noqa: BLE001 (counted and said; the frames after go on)
+        return [(None, exc)] * len(stresses)
 
 
 def _figures(start: tuple, end: tuple, waiting: int, solve_time: float, median: float,

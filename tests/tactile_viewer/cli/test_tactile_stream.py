@@ -203,7 +203,7 @@ def test_forces_after_the_disk_filled_are_left_out_counted_and_said(layout, tmp_
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--queue", "0"],
      "--queue must be a whole number of frames >= 1, got 0"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--solvers", "0"],
-     "--solvers must be a whole number of threads >= 1, got 0"),
+     "--solvers must be a whole number of solvers >= 1, got 0"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--no-lsl", "--stress"], "--stress publishes over LSL"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces", "{tmp}/f.txt"],
      "--forces must end in .npz or .csv, got '.*f.txt'"),

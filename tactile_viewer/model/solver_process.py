@@ -1,0 +1,230 @@
+"""A solver in a process of its own, for frames solved side by side at sensor rate. No Qt.
+
+Threads of one process share Python's GIL: the Python around a solve's compiled
+calls (its decisions, the argument checks, the result's assembly, about a third
+of a one-contact solve) runs on one thread at a time, and every release of the
+GIL (each compiled or BLAS call, each wait) hands it over to another thread and
+waits to get it back. Two solver threads on the project's 2-core machine solved
+1.3 times as many frames a second as one; two processes fed from memory solve
+twice as many (``docs/interop.md``). :class:`SolverProcess` is a solver for
+:class:`~tactile_viewer.model.force_stream.ForceStream`: :meth:`~SolverProcess.solve_each`
+sends frames' stress to a child process, which solves them with a solver of its
+own, and waits (the GIL released) for their results. Frames go in batches: a
+stream that has fallen behind sends what waits in one message and gets the
+answers in one, so the cost of the round trip (pickling, two pipe transfers, a
+thread woken: about 0.15 ms of the parent's CPU a message, measured) is shared
+by the frames when the machine has least to spare.
+
+The child is started with ``spawn`` (never ``fork``: the parent's reader and
+LSL threads would be copied half-way through what they were doing), builds its
+solver with the picklable ``build`` it is given, and solves one frame first so
+that its compiled code is loaded before the first real frame comes. It ignores
+Ctrl+C (the parent stops it) and ends when the parent closes its pipe or dies.
+A child that ends while the stream runs (killed, out of memory) fails the
+frames it held; the next call starts another and counts it (:attr:`restarts`).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+import threading
+import time
+
+import numpy as np
+
+from solver.threads import one_blas_thread
+
+__all__ = ["SolverProcess", "warm", "START_TIMEOUT"]
+
+START_TIMEOUT = 120.0  # seconds a child has to import, build its solver and solve its first frame
+
+
+def warm(solver) -> None:
+    """Load the solver's compiled code (numba's cache) and touch this skin's matrices: one solve of
+    a round load in the middle of the skin. Without it the first frame of a stream would take a
+    second, and the frames of that second would be skipped."""
+    from solver.warmup import warm_up
+
+    warm_up()
+    grid = solver.grid
+    x, y = grid.positions.T
+    solver.solve(1e3 * np.exp(-((x - x.mean()) ** 2 + (y - y.mean()) ** 2) / (2 * grid.pitch ** 2)))
+
+
+class SolverProcess:
+    """A solver running in a child process (module notes); one caller at a time.
+
+    Parameters
+    ----------
+    build : callable
+        ``build()`` returns the solver (``solver.Reconstructor``); called in the child, so it must be
+        picklable (a module-level function, or ``functools.partial`` of one with picklable arguments).
+    name : str, optional
+        The child's name (``ps``, error messages).
+    start_timeout : float, optional
+        Seconds the child has to build and warm its solver (default :data:`START_TIMEOUT`).
+    wait : bool, optional
+        Wait here until the child is ready (default); False: :meth:`wait_ready` waits (several
+        children started first, then waited for, start side by side).
+
+    Raises
+    ------
+    RuntimeError
+        When the child could not build its solver (its error's text), or did not say it was ready
+        within ``start_timeout`` (here, or from :meth:`wait_ready`).
+    """
+
+    def __init__(self, build, *, name: str = "solver process", start_timeout: float = START_TIMEOUT,
+                 wait: bool = True):
+        self.build, self.name, self.start_timeout = build, name, float(start_timeout)
+        self.restarts = 0  # children started again after one ended
+        self._lock = threading.Lock()  # one caller at a time through the pipe
+        self._process = self._connection = None
+        self._cpu_before = 0.0  # CPU seconds of the children that ended
+        self._cpu = 0.0         # of the running child, as it last said
+        self._start()
+        if wait:
+            self.wait_ready()
+
+    @property
+    def cpu_time(self) -> float:
+        """CPU seconds the children used, as of their last answer."""
+        return self._cpu_before + self._cpu
+
+    def _start(self) -> None:
+        context = multiprocessing.get_context("spawn")
+        ours, theirs = context.Pipe()
+        process = context.Process(target=_serve, args=(theirs, self.build), name=self.name, daemon=True)
+        process.start()
+        theirs.close()  # the child's end lives in the child: our recv sees EOF when the child ends
+        self._process, self._connection, self._ready = process, ours, False
+        self._cpu_before, self._cpu = self._cpu_before + self._cpu, 0.0
+
+    def wait_ready(self) -> None:
+        """Wait until the child has built and warmed its solver (at once when it has).
+
+        Raises
+        ------
+        RuntimeError
+            As the constructor's (the child is ended first).
+        """
+        if self._ready:
+            return
+        try:
+            if not self._connection.poll(self.start_timeout):
+                raise RuntimeError(f"{self.name} did not build its solver within {self.start_timeout:g} s")
+            _, error, self._cpu = self._connection.recv()
+        except EOFError:
+            error = RuntimeError(f"it ended (exit code {_exit_code(self._process)})")
+        except BaseException:
+            self.close()
+            raise
+        if error is not None:
+            self.close()
+            raise RuntimeError(f"{self.name} could not build its solver: {error}")
+        self._ready = True
+
+    def solve(self, stress, **parameters):
+        """The child's solver's ``solve(stress, **parameters)``: its result, or its exception raised here.
+
+        Raises
+        ------
+        RuntimeError
+            As :meth:`solve_each`'s.
+        """
+        ((result, error),) = self.solve_each([stress], **parameters)
+        if error is not None:
+            raise error
+        return result
+
+    def solve_each(self, stresses, **parameters) -> list:
+        """Each frame of ``stresses`` solved in turn by the child's solver: ``(result, None)`` for one
+        solved, ``(None, exception)`` for one whose solve raised.
+
+        Raises
+        ------
+        RuntimeError
+            When the child ended before it answered (the frames fail; the next call starts another
+            child), or this is closed.
+        """
+        with self._lock:
+            if self._process is None:
+                raise RuntimeError(f"{self.name} is closed")
+            if not self._process.is_alive():
+                self._connection.close()
+                self.restarts += 1
+                self._start()
+            self.wait_ready()
+            try:
+                self._connection.send(([np.asarray(stress) for stress in stresses], parameters))
+                answers, self._cpu = self._connection.recv()
+            except (EOFError, OSError) as exc:  # OSError: a broken pipe
+                self._process.join(1.0)
+                raise RuntimeError(f"{self.name} ended while it solved (exit code "
+                                   f"{_exit_code(self._process)}); the next frame starts another") from exc
+        return answers
+
+    def close(self, *, timeout: float = 5.0) -> None:
+        """End the child (asked first, killed after ``timeout`` seconds); solving after raises.
+
+        A second call does nothing.
+        """
+        process, self._process = self._process, None
+        if process is None:
+            return
+        try:
+            self._connection.send(None)
+        except OSError:  # it had ended
+            pass
+        process.join(timeout)
+        if process.is_alive():
+            process.kill()
+            process.join()
+        self._connection.close()
+
+
+def _exit_code(process) -> str:
+    code = process.exitcode
+    if code is not None and code < 0:
+        return f"signal {-code}"
+    return str(code)
+
+
+def _serve(connection, build) -> None:
+    # the child: build and warm the solver, say so, then solve batch after batch until None or EOF
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C is the parent's to handle: it ends us
+    with one_blas_thread():
+        try:
+            solver = build()
+            warm(solver)
+        except Exception as exc:  # noqa: BLE001 (said to the parent, which raises it)
+            connection.send((None, _portable(exc), time.process_time()))
+            return
+        connection.send((None, None, time.process_time()))
+        while True:
+            try:
+                message = connection.recv()
+            except (EOFError, OSError):  # the parent closed its end, or ended
+                return
+            if message is None:
+                return
+            stresses, parameters = message
+            answers = []
+            for stress in stresses:
+                try:
+                    answers.append((solver.solve(stress, **parameters), None))
+                except Exception as exc:  # noqa: BLE001 (the frame's failure is the parent's to count)
+                    answers.append((None, _portable(exc)))
+            connection.send((answers, time.process_time()))
+
+
+def _portable(exc: Exception) -> Exception:
+    # an exception the parent can unpickle: most are; one that is not becomes a RuntimeError with its text
+    import pickle
+
+    try:
+        pickle.loads(pickle.dumps(exc))
+    except Exception:  # noqa: BLE001 (any failure to round-trip)
+        return RuntimeError(f"{type(exc).__name__}: {exc}")
+    return exc

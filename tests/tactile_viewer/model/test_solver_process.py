@@ -1,0 +1,190 @@
+"""A solver in a process of its own (tactile_viewer/model/solver_process.py): the child's answers equal the
+solver's own, a frame that fails fails alone, a child that ends is said and replaced, a build that fails is
+named, and the stream takes what waits in one round trip."""
+
+import functools
+import math
+import os
+import threading
+
+import numpy as np
+import pytest
+
+from solver import Reconstructor, SensorGrid, loads
+from tactile_viewer.model.force_stream import ForceStream
+from tactile_viewer.model.solver_process import SolverProcess, warm
+from tactile_viewer.sources.source import Source, SourceFrame
+
+GRID = SensorGrid.regular(6, 5, 2e-3, 2e-3)
+WAIT_S = 10.0
+EXIT_MARK = -12345.0  # a first taxel that makes Exits end its process
+
+
+@pytest.fixture(scope="module")
+def stresses():
+    """Ten frames of a sheared Hertz press moving along x (noise with a fixed seed, 7)."""
+    rng = np.random.default_rng(7)
+    return [loads.simulate(GRID, loads.hertz((x, -0.3e-3), 3e-3, 1.0, shear_ratio=0.25, shear_direction=-0.7),
+                           noise=0.01, rng=rng).stress for x in np.linspace(-2e-3, 2e-3, 10)]
+
+
+class Exits:
+    """A solver whose process ends (exit status 3) at a frame whose first taxel is EXIT_MARK."""
+
+    def __init__(self):
+        self.inner = Reconstructor(GRID)
+        self.grid = GRID
+
+    def solve(self, stress, **parameters):
+        if stress[0] == EXIT_MARK:
+            os._exit(3)
+        return self.inner.solve(stress, **parameters)
+
+
+def cannot_build():
+    raise OSError("no such skin")
+
+
+@pytest.fixture(scope="module")
+def process():
+    child = SolverProcess(Exits, name="test solver")
+    yield child
+    child.close()
+
+
+def test_the_childs_answers_are_its_solvers_own(process, stresses):
+    # the same frames in the same order through a warmed solver here: each automatic fit starts from the
+    # frame before, which changes an answer only by rounding
+    here = Reconstructor(GRID)
+    warm(here)
+    cpu_before = process.cpu_time
+    answers = process.solve_each(stresses[:6]) + [(process.solve(stress), None) for stress in stresses[6:]]
+    for stress, (result, error) in zip(stresses, answers, strict=True):
+        assert error is None
+        expected = here.solve(stress)
+        np.testing.assert_allclose(result.forces, expected.forces, rtol=0, atol=1e-9 * np.abs(expected.forces).max())
+        assert result.shear_ratio == pytest.approx(expected.shear_ratio, abs=1e-9)
+    assert process.cpu_time > cpu_before  # the child's CPU, as it said with its answers
+    given = process.solve(stresses[0], shear_ratio=0.2, shear_direction=0.5)
+    assert (given.shear_ratio, given.shear_direction) == (0.2, 0.5)
+
+
+def test_a_frame_that_fails_fails_alone(process, stresses):
+    bad = np.array(stresses[1])
+    bad[3] = math.nan
+    answers = process.solve_each([stresses[0], bad, stresses[2]])
+    assert [error is None for _, error in answers] == [True, False, True]
+    assert isinstance(answers[1][1], ValueError) and "stress" in str(answers[1][1])
+    with pytest.raises(ValueError, match="stress"):
+        process.solve(bad)
+
+
+def test_a_child_that_ends_fails_its_frames_and_the_next_call_starts_another(process, stresses):
+    ending = np.array(stresses[0])
+    ending[0] = EXIT_MARK
+    with pytest.raises(RuntimeError, match=r"test solver ended while it solved \(exit code 3\); the next frame "
+                                           r"starts another"):
+        process.solve_each([stresses[1], ending])
+    assert process.restarts == 0
+    result = process.solve(stresses[1])
+    assert process.restarts == 1 and result.forces.shape == (GRID.size, 3)
+
+
+def test_a_closed_solver_process_says_so(stresses):
+    child = SolverProcess(Exits, name="closing")
+    child.close()
+    child.close()  # a second close does nothing
+    with pytest.raises(RuntimeError, match="closing is closed"):
+        child.solve(stresses[0])
+
+
+def test_a_build_that_fails_is_named():
+    with pytest.raises(RuntimeError, match="broken could not build its solver: no such skin"):
+        SolverProcess(cannot_build, name="broken")
+    with pytest.raises(RuntimeError, match="slow did not build its solver within 0.001 s"):
+        SolverProcess(functools.partial(Reconstructor, GRID), name="slow", start_timeout=0.001)
+
+
+class Board(Source):
+    live = True
+
+    def __init__(self):
+        super().__init__("board", GRID)
+
+    def now(self):
+        return 1.0
+
+    def send(self, frames):
+        self._publish(frames)
+
+
+class Batches:
+    """A solver in the manner of SolverProcess (``solve_each``), held at its first call until released."""
+
+    def __init__(self, fail_batch=None):
+        self.sizes, self.release, self.started = [], threading.Event(), threading.Event()
+        self.alone, self.fail_batch = Reconstructor(GRID), fail_batch
+
+    def solve_each(self, stresses, **_):
+        self.sizes.append(len(stresses))
+        self.started.set()
+        assert self.release.wait(WAIT_S)
+        if len(self.sizes) == self.fail_batch:
+            raise RuntimeError("the child ended")
+        return [(self.alone.solve_normal(stress), None) for stress in stresses]
+
+
+class Indices:
+    """``publish``: the indices of the frames published, in order."""
+
+    def __init__(self):
+        self.done, self.indices = threading.Condition(), []
+
+    def __call__(self, frame, result):
+        with self.done:
+            self.indices.append(frame.index)
+            self.done.notify_all()
+
+
+def published_after(solver, frames, count):
+    # the first frame sent alone and held in the solver; the others sent while it is solved
+    board, published = Board(), Indices()
+    stream = ForceStream(board, [solver], published)
+    stream.start()
+    board.send(frames[:1])
+    assert solver.started.wait(WAIT_S)
+    board.send(frames[1:])
+    solver.release.set()
+    with published.done:
+        assert published.done.wait_for(lambda: len(published.indices) >= count, WAIT_S)
+    stream.stop()
+    return stream, published.indices
+
+
+def test_a_solver_in_another_process_takes_what_waits_in_one_round_trip(stresses):
+    solver = Batches()
+    frames = [SourceFrame(stress, 0.001 * k, k) for k, stress in enumerate(stresses)]
+    stream, indices = published_after(solver, frames, len(frames))
+    assert indices == list(range(len(frames)))
+    assert solver.sizes == [1, 8, 1]  # at most 8 a batch (force_stream._BATCH)
+    totals = stream.totals()
+    assert (totals.solved, totals.published, totals.failed) == (10, 10, 0)
+
+
+def test_a_batch_whose_round_trip_fails_fails_its_frames_and_the_stream_goes_on(stresses):
+    solver = Batches(fail_batch=2)
+    frames = [SourceFrame(stress, 0.001 * k, k) for k, stress in enumerate(stresses)]
+    stream, indices = published_after(solver, frames, 2)
+    assert indices == [0, 9]
+    totals = stream.totals()
+    assert (totals.published, totals.failed) == (2, 8)
+    assert stream.last_error == "frame 8: RuntimeError: the child ended"
+
+
+@pytest.mark.parametrize(("solver", "options", "message"), [
+    ([], {}, "solver must be a solver or a sequence of one or more, got an empty one"),
+    ([None, None], {"solvers": 3}, "solvers must be left out or equal the 2 solvers given, got 3"),
+])
+def test_a_sequence_of_solvers_is_checked(solver, options, message):
+    with pytest.raises(ValueError, match=message):
+        ForceStream(Board(), solver, print, **options)
