@@ -229,7 +229,8 @@ class ForceStream:
     # -- the solver's thread --------------------------------------------------------------------------
 
     def _run(self, solver) -> None:
-        # a solver in another process takes what waits, up to _BATCH frames, in one round trip
+        # a solver in another process takes its share of what waits, up to _BATCH frames, in one round
+        # trip (a thread that took all would leave the others idle)
         most = _BATCH if hasattr(solver, "solve_each") else 1
         with one_blas_thread():  # a frame's products are small: one BLAS thread (solver.threads)
             while True:
@@ -238,7 +239,8 @@ class ForceStream:
                         self._ready.wait()
                     if not self._queue:
                         return
-                    frames = [self._queue.popleft() for _ in range(min(most, len(self._queue)))]
+                    share = -(-len(self._queue) // self.solvers)  # rounded up
+                    frames = [self._queue.popleft() for _ in range(min(most, share))]
                     first = self._taken
                     self._taken += len(frames)
                 self._solve(solver, frames, first)
