@@ -123,10 +123,13 @@ class Batches:
 
     def __init__(self, fail_batch=None):
         self.sizes, self.release, self.started = [], threading.Event(), threading.Event()
+        self.took = threading.Condition()
         self.alone, self.fail_batch = Reconstructor(GRID), fail_batch
 
     def solve_each(self, stresses, **_):
-        self.sizes.append(len(stresses))
+        with self.took:
+            self.sizes.append(len(stresses))
+            self.took.notify_all()
         self.started.set()
         assert self.release.wait(WAIT_S)
         if len(self.sizes) == self.fail_batch:
@@ -188,3 +191,27 @@ def test_a_batch_whose_round_trip_fails_fails_its_frames_and_the_stream_goes_on(
 def test_a_sequence_of_solvers_is_checked(solver, options, message):
     with pytest.raises(ValueError, match=message):
         ForceStream(Board(), solver, print, **options)
+
+
+def test_solvers_in_other_processes_each_take_their_share_of_what_waits(stresses):
+    # both solvers held at their first frame while eight more come: the first released takes half of the
+    # eight (one that took all would leave the other idle once it is free)
+    board, published = Board(), Indices()
+    first, second = Batches(), Batches()
+    stream = ForceStream(board, [first, second], published)
+    frames = [SourceFrame(stress, 0.001 * k, k) for k, stress in enumerate(stresses)]
+    stream.start()
+    board.send(frames[:1])
+    board.send(frames[1:2])
+    assert first.started.wait(WAIT_S) and second.started.wait(WAIT_S)
+    board.send(frames[2:])
+    first.release.set()
+    with first.took:
+        assert first.took.wait_for(lambda: len(first.sizes) >= 2, WAIT_S)
+    second.release.set()
+    with published.done:
+        assert published.done.wait_for(lambda: len(published.indices) == len(frames), WAIT_S)
+    stream.stop()
+    assert published.indices == list(range(len(frames)))
+    assert first.sizes[:2] == [1, 4] and second.sizes[0] == 1
+    assert sum(first.sizes) + sum(second.sizes) == len(frames)
