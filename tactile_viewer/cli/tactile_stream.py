@@ -8,7 +8,8 @@
 SOURCE is a serial port (``/dev/ttyACM0``), any pyserial URL (``socket://host:port``,
 ``loop://``) or ``lsl:NAME`` (an LSL stream of one channel per taxel). Every frame is
 solved (automatic parameters by default, each fit starting from the frame its solver
-solved last; ``--solvers`` processes side by side) and its node forces published, in frame
+solved last; ``--solvers`` side by side: processes of their own, or one thread) and its node
+forces published, in frame
 order, as an LSL stream of type ``TactileForce`` stamped with the frame's receive
 time on LSL's clock. ``--record`` writes the raw frames
 as ``tactile-record`` does (crash-safe MCAP); ``--forces`` keeps the forces of
@@ -33,6 +34,7 @@ import argparse
 import functools
 import math
 import os
+import pickle
 import shutil
 import sys
 import time
@@ -63,9 +65,10 @@ LSL_WAIT_S = 3.0  # how long a lsl:NAME source is looked for on the network
 # 0.005 s, 700 to 780 at 0.02 s, 900 at 0.05 s. The solver releases the GIL in its compiled and BLAS
 # calls many times a frame, so the reader still gets it within a fraction of a millisecond.
 SWITCH_INTERVAL_S = 0.05
-# Most solver processes by default: one per core. On the 2-core machine, 1 kHz board, 60 s runs with
-# the automatic solve alternating with two threads of this process: 0 and 471 frames skipped against
-# 4,522 and 10,210 (docs/interop.md).
+# Most solvers by default (one per core, as processes). Measured on the 2-core machine only (1 kHz
+# board, 60 s runs with the automatic solve alternating with two threads of one process: 0 and 471
+# frames skipped against 4,522 and 10,210, docs/interop.md); more processes, each about 265 MB for a
+# 16x16 skin, were not measured.
 MOST_SOLVERS = 2
 
 
@@ -266,11 +269,10 @@ def main(argv=None) -> int:
         return 2 if not args.source.startswith(URL_PREFIX) else 1
     failed = print_messages(source)
     grid = source.grid
-    solver = settings.build(grid)
     try:
-        solvers = _solvers(solver, settings, args.solvers)
-    except RuntimeError as exc:
-        print(f"{PROG}: {exc}", file=sys.stderr)
+        solvers = _solvers(settings, grid, args.solvers)
+    except (RuntimeError, OSError, pickle.PicklingError) as exc:
+        print(f"{PROG}: --solvers {args.solvers}: cannot start the solvers: {exc}", file=sys.stderr)
         return 1
     outlet = log = None
     if not args.no_lsl:
@@ -284,7 +286,7 @@ def main(argv=None) -> int:
             return 1
     if args.forces is not None:
         try:
-            log = ForceLog(grid, kernel=solver.kernel, mode=settings.mode, source=args.source,
+            log = ForceLog(grid, kernel=settings.kernel, mode=settings.mode, source=args.source,
                            spool_beside=args.forces)
         except OSError as exc:
             print(f"{PROG}: --forces {args.forces}: cannot keep the forces beside it: {exc.strerror or exc}",
@@ -356,6 +358,10 @@ def _stream(args, source, solvers, settings, outlet, log, stop, failed) -> int:
         print(line, flush=True)
     if stream.last_error:
         print(f"{PROG}: the last frame that failed: {stream.last_error}", file=sys.stderr, flush=True)
+    restarts = sum(getattr(solver, "restarts", 0) for solver in solvers)
+    if restarts:
+        times = "once" if restarts == 1 else f"{restarts} times"
+        print(f"{PROG}: solver processes that ended were started again {times}", file=sys.stderr, flush=True)
     if recorder is not None:
         unwritten = recorder.added - recorder.written + recorder.dropped
         print(f"recorded {recorder.written} frames to {args.record}"
@@ -382,18 +388,20 @@ def _publisher(source, outlet, log, *, stress: bool):
     return publish
 
 
-def _solvers(solver, settings, count: int) -> list:
-    """The stream's solvers: ``solver`` itself for one, else ``count`` processes, each building its own.
+def _solvers(settings, grid, count: int) -> list:
+    """The stream's solvers: one built and warmed here (a thread of this process), or ``count``
+    processes, each building and warming its own.
 
     Raises
     ------
-    RuntimeError
-        When a process could not build its solver (the ones started are ended first).
+    RuntimeError, OSError
+        When a solver could not be built or a process started (the ones started are ended first).
     """
     if count == 1:
+        solver = settings.build(grid)
         warm(solver)
         return [solver]
-    build = functools.partial(settings.build, solver.grid)
+    build = functools.partial(settings.build, grid)
     started = []
     try:
         # started together, then waited for: each takes a second or two to import and warm up

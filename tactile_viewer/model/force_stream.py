@@ -5,10 +5,13 @@ order, on the reader's thread) into a bounded queue, and its solver threads
 take them oldest first: each solves with its solver (automatic fits start from
 the frame that solver solved last) and hands the frame and its
 :class:`solver.Reconstruction` to ``publish`` (an LSL outlet, a force log).
-A thread's solver is the stream's one solver, shared, or its own: a
-:class:`~tactile_viewer.model.solver_process.SolverProcess`, a solver in a
-process of its own, to which the thread sends what waits (up to
-:data:`_BATCH` frames) in one round trip and waits for the answers. With
+A thread's solver is the stream's one solver, shared, taken a frame at a time,
+or its own: a :class:`~tactile_viewer.model.solver_process.SolverProcess`, a
+solver in a process of its own, to which the thread sends its share of what
+waits (up to :data:`~tactile_viewer.model.solver_process.BATCH_FRAMES` frames)
+in one round trip and waits for the answers. A solver process that ends fails
+the frames it held (counted) and is started again; its thread waits for the
+new one before it takes frames. With
 several threads, frames are solved side by side, out of order, on as many
 cores; ``publish`` still takes them one at a time, in frame order: a frame
 solved before the one taken ahead of it waits, solved, while its thread goes on
@@ -26,9 +29,9 @@ rate), and nothing is ever held back silently.
 Latency is the time from a frame's receive stamp (the reader's clock, set
 when its bytes were read) to the moment ``publish`` returned.
 :meth:`ForceStream.figures` gives it, with the counts, solves per second and
-the process's CPU use, for the interval since its last call and for the whole
-run (percentiles of the whole run from a histogram with 1.2% wide bins, so a
-run of hours keeps a fixed memory).
+the CPU used (this process's and its solver processes'), for the interval
+since its last call and for the whole run (percentiles of the whole run from a
+histogram with 1.2% wide bins, so a run of hours keeps a fixed memory).
 
 The forces published are kept for a force file by
 :class:`~tactile_viewer.model.force_log.ForceLog`.
@@ -41,6 +44,7 @@ import math
 import threading
 import time
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,16 +54,12 @@ from solver.threads import one_blas_thread
 
 from ..sources.source import Source, SourceFrame
 
-__all__ = ["StreamFigures", "ForceStream", "DEFAULT_QUEUE_FRAMES"]
+__all__ = ["StreamFigures", "ForceStream", "DEFAULT_QUEUE_FRAMES", "solve_each"]
 
 # Frames that may wait for the solver: 0.2 s of a 1 kHz board. A hiccup of the machine (another
 # process, a garbage collection) shorter than that is caught up without a skip; a solver slower
 # than the board skips frames within that much latency instead of falling ever further behind.
 DEFAULT_QUEUE_FRAMES = 200
-
-# Most frames sent to a solver process in one round trip. Only a stream that has fallen behind has
-# more than one waiting; a batch of 8 one-contact frames adds about 10 ms to the first one's latency.
-_BATCH = 8
 
 # latency histogram: log-spaced bins from 1 us to 100 s, 1.2% wide (1600 over 8 decades)
 _EDGES = np.logspace(-6, 2, 1601)
@@ -88,7 +88,8 @@ class StreamFigures:
     solve_rate : float
         Frames solved per second over the interval.
     solve_time : float
-        Median seconds of one solve over the interval (nan when none, and for the whole run).
+        Median seconds of one solve over the interval (nan when none, and for the whole run); for
+        a solver process, its round trip over the frames it took.
     latency_median, latency_p99 : float
         Seconds from a frame's receive stamp to its publication: the median and
         99th percentile over the interval (nan when nothing was published).
@@ -112,18 +113,18 @@ class StreamFigures:
 
 
 class ForceStream:
-    """Solve and publish every frame of a live source, on a thread of its own (module notes).
+    """Solve and publish every frame of a live source, on threads of its own (module notes).
 
     Parameters
     ----------
     source : Source
         Where frames come from (its ``frames_produced``); started and stopped by its owner.
-    solver : solver.Reconstructor or sequence of them
-        Solves each frame (``solver.solve(stress, shear_ratio=..., shear_direction=...)``), on
-        this stream's threads: one solver shared by ``solvers`` threads (its solves may run side
-        by side: it keeps no per-call state), or a sequence, one thread for each (a
-        :class:`~tactile_viewer.model.solver_process.SolverProcess` each: solves in processes of
-        their own, which share no GIL).
+    solver : solver.Reconstructor, SolverProcess or sequence of them
+        Solves each frame (``solver.solve(stress, shear_ratio=..., shear_direction=...)``, or a
+        :class:`~tactile_viewer.model.solver_process.SolverProcess`'s ``solve_each``), on this
+        stream's threads: one solver shared by ``solvers`` threads (its solves may run side by
+        side: it keeps no per-call state), or a sequence, one thread for each (solver processes
+        share no GIL).
     publish : callable
         ``publish(frame, result)`` with the :class:`~tactile_viewer.sources.source.SourceFrame`
         and its :class:`solver.Reconstruction`, on one of the stream's threads, one call at a
@@ -154,16 +155,16 @@ class ForceStream:
                  solvers: int = 1, clock=None):
         self.queue_frames = whole_number("queue_frames", queue_frames, low=1)
         self.solvers = whole_number("solvers", solvers, low=1)
-        if isinstance(solver, (list, tuple)):
+        if isinstance(solver, Sequence):
             if not solver:
                 raise ValueError("solver must be a solver or a sequence of one or more, got an empty one")
             if solvers not in (1, len(solver)):
                 raise ValueError(f"solvers must be left out or equal the {len(solver)} solvers given, "
                                  f"got {solvers}")
             self.solvers = len(solver)
-            self._each = tuple(solver)
+            self._each = tuple(map(_own, solver))
         else:
-            self._each = (solver,) * self.solvers
+            self._each = (_own(solver),) * self.solvers
         clock = clock if clock is not None else getattr(source, "now", None)
         if not callable(clock):
             raise ValueError(f"clock must be given for a source without a now() clock, got {source!r}")
@@ -229,25 +230,35 @@ class ForceStream:
     # -- the solver's thread --------------------------------------------------------------------------
 
     def _run(self, solver) -> None:
-        # a solver in another process takes its share of what waits, up to _BATCH frames, in one round
-        # trip (a thread that took all would leave the others idle)
-        most = _BATCH if hasattr(solver, "solve_each") else 1
         with one_blas_thread():  # a frame's products are small: one BLAS thread (solver.threads)
-            while True:
+            while not solver.closed:
+                try:
+                    # a solver process started again is ready before its thread takes frames, which
+                    # would wait in it, and every frame after them for their turn to be published
+                    solver.wait_ready()
+                except Exception as exc:  # noqa: BLE001 (the thread ends; the others take the frames)
+                    with self._lock:
+                        self.last_error = f"{type(exc).__name__}: {exc}"
+                    return
                 with self._ready:
                     while not self._queue and not self._stopping:
                         self._ready.wait()
                     if not self._queue:
                         return
+                    # a solver in another process takes its share of what waits in one round trip
+                    # (taking all would leave the others idle), a thread of this one frame at a time
                     share = -(-len(self._queue) // self.solvers)  # rounded up
-                    frames = [self._queue.popleft() for _ in range(min(most, share))]
+                    frames = [self._queue.popleft() for _ in range(min(solver.batch, share))]
                     first = self._taken
                     self._taken += len(frames)
                 self._solve(solver, frames, first)
 
     def _solve(self, solver, frames: list[SourceFrame], first: int) -> None:
         started = time.perf_counter()
-        answers = _answers(solver, [frame.stress for frame in frames], self.parameters)
+        try:
+            answers = solver.solve_each([frame.stress for frame in frames], **self.parameters)
+        except Exception as exc:  # noqa: BLE001 (a failed round trip fails its frames; the stream goes on)
+            answers = [(None, exc)] * len(frames)
         solve_time = (time.perf_counter() - started) / len(frames)
         with self._lock:
             for turn, frame, (result, error) in zip(range(first, first + len(frames)), frames, answers,
@@ -312,18 +323,41 @@ class ForceStream:
     def _mark(self) -> tuple:
         # (wall seconds, CPU seconds of this process and of the solvers' own, counts) at one instant;
         # counts read under the lock
-        own = sum(getattr(solver, "cpu_time", 0.0) for solver in {id(s): s for s in self._each}.values())
+        own = sum(solver.cpu_time for solver in {id(s): s for s in self._each}.values())
         return time.monotonic(), time.process_time() + own, dict(self._counts)
 
 
-def _answers(solver, stresses: list, parameters: dict) -> list:
-    # (result, None) or (None, exception) for each frame: one bad frame must not end the stream
-    try:
-        if hasattr(solver, "solve_each"):
-            return solver.solve_each(stresses, **parameters)
-        return [(solver.solve(stress, **parameters), None) for stress in stresses]
-    except Exception as exc:  # noqa: BLE001 (counted and said; the frames after go on)
-        return [(None, exc)] * len(stresses)
+def solve_each(solver, stresses, parameters: dict) -> list:
+    """``(result, None)`` for each frame ``solver.solve`` solved, ``(None, exception)`` for each it
+    raised on: one bad frame must not end a stream (here, or in a solver process)."""
+    answers = []
+    for stress in stresses:
+        try:
+            answers.append((solver.solve(stress, **parameters), None))
+        except Exception as exc:  # noqa: BLE001 (counted and said by the stream)
+            answers.append((None, exc))
+    return answers
+
+
+class _InThread:
+    # a solver solved on the stream's own threads, seen as the stream's solvers are (SolverProcess)
+    batch = 1          # one frame a take: the other threads share the solver and take the next ones
+    closed = False
+    cpu_time = 0.0     # in this process's own
+
+    def __init__(self, solver):
+        self.solver = solver
+
+    def wait_ready(self) -> None:
+        pass
+
+    def solve_each(self, stresses, **parameters) -> list:
+        return solve_each(self.solver, stresses, parameters)
+
+
+def _own(solver):
+    # a solver of the stream's own kind (solve_each and the rest) as it is; a plain one wrapped
+    return solver if hasattr(solver, "solve_each") else _InThread(solver)
 
 
 def _figures(start: tuple, end: tuple, waiting: int, solve_time: float, median: float,

@@ -12,8 +12,9 @@ sends frames' stress to a child process, which solves them with a solver of its
 own, and waits (the GIL released) for their results. Frames go in batches: a
 stream that has fallen behind sends what waits in one message and gets the
 answers in one, so the cost of the round trip (pickling, two pipe transfers, a
-thread woken: about 0.15 ms of the parent's CPU a message, measured) is shared
-by the frames when the machine has least to spare.
+process and a thread woken: about 0.13 ms of the parent's CPU and 0.15 ms of the
+child's a message on the project's VM, measured) is shared by the frames when
+the machine has least to spare.
 
 The child is started with ``spawn`` (never ``fork``: the parent's reader and
 LSL threads would be copied half-way through what they were doing), builds its
@@ -21,7 +22,8 @@ solver with the picklable ``build`` it is given, and solves one frame first so
 that its compiled code is loaded before the first real frame comes. It ignores
 Ctrl+C (the parent stops it) and ends when the parent closes its pipe or dies.
 A child that ends while the stream runs (killed, out of memory) fails the
-frames it held; the next call starts another and counts it (:attr:`restarts`).
+frames it held; another is started at once and counted (:attr:`restarts`), and
+the next call waits for it.
 """
 
 from __future__ import annotations
@@ -30,14 +32,19 @@ import multiprocessing
 import signal
 import threading
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
 from solver.threads import one_blas_thread
 
-__all__ = ["SolverProcess", "warm", "START_TIMEOUT"]
+__all__ = ["SolverProcess", "warm", "START_TIMEOUT", "BATCH_FRAMES"]
 
 START_TIMEOUT = 120.0  # seconds a child has to import, build its solver and solve its first frame
+# Most frames sent in one round trip. Only a stream that has fallen behind has more than one
+# waiting; a batch of 8 one-contact frames adds about 10 ms to the first one's latency.
+BATCH_FRAMES = 8
+_STOPPING = (signal.SIGINT, signal.SIGTERM)
 
 
 def warm(solver) -> None:
@@ -54,6 +61,9 @@ def warm(solver) -> None:
 
 class SolverProcess:
     """A solver running in a child process (module notes); one caller at a time.
+
+    What :class:`~tactile_viewer.model.force_stream.ForceStream` asks of a solver of its own:
+    :meth:`solve_each`, :meth:`wait_ready`, :attr:`closed`, :attr:`cpu_time` and :attr:`batch`.
 
     Parameters
     ----------
@@ -73,7 +83,11 @@ class SolverProcess:
     RuntimeError
         When the child could not build its solver (its error's text), or did not say it was ready
         within ``start_timeout`` (here, or from :meth:`wait_ready`).
+    OSError
+        When the child could not be started (no memory, too many open files).
     """
+
+    batch = BATCH_FRAMES  # most frames a caller sends in one round trip
 
     def __init__(self, build, *, name: str = "solver process", start_timeout: float = START_TIMEOUT,
                  wait: bool = True):
@@ -81,8 +95,8 @@ class SolverProcess:
         self.restarts = 0  # children started again after one ended
         self._lock = threading.Lock()  # one caller at a time through the pipe
         self._process = self._connection = None
-        self._cpu_before = 0.0  # CPU seconds of the children that ended
-        self._cpu = 0.0         # of the running child, as it last said
+        self._ready = False
+        self._cpu = (0.0, 0.0)  # CPU seconds of the children that ended, and of the running one as it said
         self._start()
         if wait:
             self.wait_ready()
@@ -90,16 +104,23 @@ class SolverProcess:
     @property
     def cpu_time(self) -> float:
         """CPU seconds the children used, as of their last answer."""
-        return self._cpu_before + self._cpu
+        ended, running = self._cpu
+        return ended + running
+
+    @property
+    def closed(self) -> bool:
+        """True after :meth:`close`, or once a child could not be started or built again."""
+        return self._process is None
 
     def _start(self) -> None:
         context = multiprocessing.get_context("spawn")
         ours, theirs = context.Pipe()
         process = context.Process(target=_serve, args=(theirs, self.build), name=self.name, daemon=True)
-        process.start()
+        with _quiet_signals():
+            process.start()
         theirs.close()  # the child's end lives in the child: our recv sees EOF when the child ends
+        self._cpu = (self.cpu_time, 0.0)
         self._process, self._connection, self._ready = process, ours, False
-        self._cpu_before, self._cpu = self._cpu_before + self._cpu, 0.0
 
     def wait_ready(self) -> None:
         """Wait until the child has built and warmed its solver (at once when it has).
@@ -107,22 +128,27 @@ class SolverProcess:
         Raises
         ------
         RuntimeError
-            As the constructor's (the child is ended first).
+            As the constructor's, or when this is closed (the child is ended first; solving after
+            raises).
         """
         if self._ready:
             return
+        process, connection = self._process, self._connection
+        if process is None:
+            raise RuntimeError(f"{self.name} is closed")
         try:
-            if not self._connection.poll(self.start_timeout):
+            if not connection.poll(self.start_timeout):
                 raise RuntimeError(f"{self.name} did not build its solver within {self.start_timeout:g} s")
-            _, error, self._cpu = self._connection.recv()
+            _, error, cpu = connection.recv()
         except EOFError:
-            error = RuntimeError(f"it ended (exit code {_exit_code(self._process)})")
+            error = RuntimeError(f"it ended (exit code {_exit_code(process)})")
         except BaseException:
             self.close()
             raise
         if error is not None:
             self.close()
             raise RuntimeError(f"{self.name} could not build its solver: {error}")
+        self._cpu = (self._cpu[0], cpu)
         self._ready = True
 
     def solve(self, stress, **parameters):
@@ -145,43 +171,73 @@ class SolverProcess:
         Raises
         ------
         RuntimeError
-            When the child ended before it answered (the frames fail; the next call starts another
-            child), or this is closed.
+            When the child ended before it answered (its frames fail; another child is started at
+            once, and :meth:`wait_ready` or the next call waits for it), or this is closed.
         """
         with self._lock:
-            if self._process is None:
-                raise RuntimeError(f"{self.name} is closed")
-            if not self._process.is_alive():
-                self._connection.close()
-                self.restarts += 1
-                self._start()
+            if self._process is not None and not self._process.is_alive():  # ended between two calls
+                self._restart()
             self.wait_ready()
+            process, connection = self._process, self._connection
             try:
-                self._connection.send(([np.asarray(stress) for stress in stresses], parameters))
-                answers, self._cpu = self._connection.recv()
-            except (EOFError, OSError) as exc:  # OSError: a broken pipe
-                self._process.join(1.0)
-                raise RuntimeError(f"{self.name} ended while it solved (exit code "
-                                   f"{_exit_code(self._process)}); the next frame starts another") from exc
+                connection.send(([np.asarray(stress) for stress in stresses], parameters))
+                answers, cpu = connection.recv()
+            except (EOFError, OSError) as exc:  # OSError: a broken pipe, or closed meanwhile
+                process.join(1.0)
+                ended = RuntimeError(f"{self.name} ended while it solved (exit code {_exit_code(process)})"
+                                     + ("" if self.closed else "; another is started"))
+                if not self.closed:
+                    self._restart()
+                raise ended from exc
+            self._cpu = (self._cpu[0], cpu)
         return answers
+
+    def _restart(self) -> None:
+        # another child in place of one that ended, not waited for: its first caller waits
+        self._connection.close()
+        self.restarts += 1
+        try:
+            self._start()
+        except BaseException:
+            self._process = None
+            raise
 
     def close(self, *, timeout: float = 5.0) -> None:
         """End the child (asked first, killed after ``timeout`` seconds); solving after raises.
 
         A second call does nothing.
         """
-        process, self._process = self._process, None
+        process, connection = self._process, self._connection
+        self._process, self._ready = None, False
         if process is None:
             return
         try:
-            self._connection.send(None)
+            connection.send(None)
         except OSError:  # it had ended
             pass
         process.join(timeout)
         if process.is_alive():
             process.kill()
             process.join()
-        self._connection.close()
+        connection.close()
+
+
+@contextmanager
+def _quiet_signals():
+    # A child is a new Python, which handles Ctrl+C and SIGTERM by dying with a traceback until it
+    # reaches _serve's own handling, a second or two into its imports; sent to the terminal's or a
+    # service's whole process group, they would reach it while it starts. A signal ignored when it
+    # starts stays ignored in it. Signals can only be set on the main thread: a child started again
+    # by a solver thread is started without this.
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = {number: signal.signal(number, signal.SIG_IGN) for number in _STOPPING}
+    try:
+        yield
+    finally:
+        for number, handler in before.items():
+            signal.signal(number, handler)
 
 
 def _exit_code(process) -> str:
@@ -193,15 +249,19 @@ def _exit_code(process) -> str:
 
 def _serve(connection, build) -> None:
     # the child: build and warm the solver, say so, then solve batch after batch until None or EOF
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl+C is the parent's to handle: it ends us
+    from .force_stream import solve_each
+
+    for number in _STOPPING:  # the parent stops us, after the frames it still wants (module notes)
+        signal.signal(number, signal.SIG_IGN)
     with one_blas_thread():
         try:
             solver = build()
             warm(solver)
         except Exception as exc:  # noqa: BLE001 (said to the parent, which raises it)
-            connection.send((None, _portable(exc), time.process_time()))
+            _answer(connection, (None, _portable(exc), time.process_time()))
             return
-        connection.send((None, None, time.process_time()))
+        if not _answer(connection, (None, None, time.process_time())):
+            return
         while True:
             try:
                 message = connection.recv()
@@ -210,13 +270,25 @@ def _serve(connection, build) -> None:
             if message is None:
                 return
             stresses, parameters = message
-            answers = []
-            for stress in stresses:
-                try:
-                    answers.append((solver.solve(stress, **parameters), None))
-                except Exception as exc:  # noqa: BLE001 (the frame's failure is the parent's to count)
-                    answers.append((None, _portable(exc)))
-            connection.send((answers, time.process_time()))
+            answers = solve_each(solver, stresses, parameters)
+            if not _answer(connection, (answers, time.process_time())):
+                return
+
+
+def _answer(connection, message) -> bool:
+    # False when the parent is gone. An answer that does not pickle (a result the solver should never
+    # give) fails its frames rather than this child.
+    try:
+        connection.send(message)
+    except (BrokenPipeError, EOFError, OSError):
+        return False
+    except Exception as exc:  # noqa: BLE001 (pickling: any error)
+        failed = RuntimeError(f"the solver's answer could not be sent back: {type(exc).__name__}: {exc}")
+        if len(message) == 3:  # the first: ready, or why not
+            return _answer(connection, (None, failed, message[2]))
+        answers, cpu = message
+        return _answer(connection, ([(None, failed)] * len(answers), cpu))
+    return True
 
 
 def _portable(exc: Exception) -> Exception:

@@ -121,17 +121,19 @@ def unique_name():
     return f"tactile-stream-test-{uuid.uuid4().hex[:12]}"
 
 
-def test_every_frame_is_solved_published_and_recorded(layout, tmp_path, capsys, handlers):
+@pytest.mark.parametrize("solvers", [1, 2])  # a thread of the command's process; two processes of their own
+def test_every_frame_is_solved_published_and_recorded(layout, tmp_path, capsys, handlers, solvers):
     name = unique_name()
     board = PtyBoard(name)
     record, forces = tmp_path / "take.mcap", tmp_path / "take.forces.npz"
-    code, out, err = run([board.url, "--layout", layout, "--name", name, "--record", record, "--forces", forces],
-                         capsys)
+    code, out, err = run([board.url, "--layout", layout, "--name", name, "--record", record, "--forces", forces,
+                          "--solvers", solvers], capsys)
     board.thread.join(WAIT_S)
     assert board.error is None, board.error
     assert code == 0, err
     last = [line for line in out.splitlines() if line.startswith("stopped after")][-1]
     assert f"{FRAMES} frames received, {FRAMES} solved and published, 0 skipped, 0 failed" in last
+    assert ("(1 solver thread)" if solvers == 1 else f"({solvers} solver processes)") in out
     assert "lost 0, rejected 0" in last
     # the plain pylsl inlet: every frame, 3 channels a node, in newtons, equal to the solver's own forces
     recording = load(record)
@@ -235,6 +237,16 @@ def test_an_existing_output_is_not_replaced_without_overwrite(layout, tmp_path, 
     assert ended.value.code == 2
     assert f"{option} {path} exists: not replacing it (--overwrite replaces it)" in capsys.readouterr().err
     assert path.read_bytes() == b"kept"
+
+
+def test_solvers_that_cannot_start_are_named(layout, capsys, monkeypatch):
+    def cannot_start(*_, **__):
+        raise OSError("Cannot allocate memory")
+
+    monkeypatch.setattr(tactile_stream, "SolverProcess", cannot_start)
+    code, out, err = run(["socket://127.0.0.1:9", "--layout", layout, "--solvers", 2], capsys)
+    assert code == 1
+    assert "tactile-stream: --solvers 2: cannot start the solvers: Cannot allocate memory" in err
 
 
 def test_a_layout_that_cannot_be_read_is_named(tmp_path, capsys):

@@ -12,7 +12,7 @@ import pytest
 
 from solver import Reconstructor, SensorGrid, loads
 from tactile_viewer.model.force_stream import ForceStream
-from tactile_viewer.model.solver_process import SolverProcess, warm
+from tactile_viewer.model.solver_process import BATCH_FRAMES, SolverProcess, warm
 from tactile_viewer.sources.source import Source, SourceFrame
 
 GRID = SensorGrid.regular(6, 5, 2e-3, 2e-3)
@@ -82,12 +82,12 @@ def test_a_frame_that_fails_fails_alone(process, stresses):
 def test_a_child_that_ends_fails_its_frames_and_the_next_call_starts_another(process, stresses):
     ending = np.array(stresses[0])
     ending[0] = EXIT_MARK
-    with pytest.raises(RuntimeError, match=r"test solver ended while it solved \(exit code 3\); the next frame "
-                                           r"starts another"):
+    with pytest.raises(RuntimeError, match=r"test solver ended while it solved \(exit code 3\); another is "
+                                           r"started"):
         process.solve_each([stresses[1], ending])
-    assert process.restarts == 0
+    assert process.restarts == 1 and not process.closed  # started at once, waited for by the next call
     result = process.solve(stresses[1])
-    assert process.restarts == 1 and result.forces.shape == (GRID.size, 3)
+    assert result.forces.shape == (GRID.size, 3)
 
 
 def test_a_closed_solver_process_says_so(stresses):
@@ -119,16 +119,24 @@ class Board(Source):
 
 
 class Batches:
-    """A solver in the manner of SolverProcess (``solve_each``), held at its first call until released."""
+    """A solver in the manner of SolverProcess (``solve_each``), held at its first call until released;
+    each call counts a second of CPU."""
+
+    batch, closed = BATCH_FRAMES, False
 
     def __init__(self, fail_batch=None):
         self.sizes, self.release, self.started = [], threading.Event(), threading.Event()
         self.took = threading.Condition()
+        self.cpu_time = 0.0
         self.alone, self.fail_batch = Reconstructor(GRID), fail_batch
+
+    def wait_ready(self):
+        pass
 
     def solve_each(self, stresses, **_):
         with self.took:
             self.sizes.append(len(stresses))
+            self.cpu_time += 1.0
             self.took.notify_all()
         self.started.set()
         assert self.release.wait(WAIT_S)
@@ -169,9 +177,10 @@ def test_a_solver_in_another_process_takes_what_waits_in_one_round_trip(stresses
     frames = [SourceFrame(stress, 0.001 * k, k) for k, stress in enumerate(stresses)]
     stream, indices = published_after(solver, frames, len(frames))
     assert indices == list(range(len(frames)))
-    assert solver.sizes == [1, 8, 1]  # at most 8 a batch (force_stream._BATCH)
+    assert solver.sizes == [1, 8, 1]  # at most BATCH_FRAMES a batch
     totals = stream.totals()
     assert (totals.solved, totals.published, totals.failed) == (10, 10, 0)
+    assert totals.cpu >= 100 * 3 / totals.elapsed  # the solver's own CPU counted: a second a call
 
 
 def test_a_batch_whose_round_trip_fails_fails_its_frames_and_the_stream_goes_on(stresses):
@@ -215,3 +224,31 @@ def test_solvers_in_other_processes_each_take_their_share_of_what_waits(stresses
     assert published.indices == list(range(len(frames)))
     assert first.sizes[:2] == [1, 4] and second.sizes[0] == 1
     assert sum(first.sizes) + sum(second.sizes) == len(frames)
+
+
+class CannotStart:
+    """A solver process that could not be started again: its thread ends, the others take the frames."""
+
+    batch, closed, cpu_time = BATCH_FRAMES, False, 0.0
+
+    def wait_ready(self):
+        self.closed = True
+        raise RuntimeError("test solver could not build its solver: no memory")
+
+    def solve_each(self, stresses, **_):
+        raise AssertionError("a closed solver was given frames")
+
+
+def test_a_solver_that_cannot_start_again_leaves_the_frames_to_the_others(stresses):
+    board, published, working = Board(), Indices(), Batches()
+    working.release.set()
+    stream = ForceStream(board, [CannotStart(), working], published)
+    frames = [SourceFrame(stress, 0.001 * k, k) for k, stress in enumerate(stresses)]
+    stream.start()
+    board.send(frames)
+    with published.done:
+        assert published.done.wait_for(lambda: len(published.indices) == len(frames), WAIT_S)
+    stream.stop()
+    assert published.indices == list(range(len(frames)))
+    assert stream.totals().failed == 0
+    assert stream.last_error == "RuntimeError: test solver could not build its solver: no memory"
