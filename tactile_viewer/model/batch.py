@@ -103,10 +103,14 @@ class BatchSettings:
         """``"auto"`` (parameters found for each frame) or ``"manual"``, as force exports say."""
         return "auto" if self.shear_ratio is None else "manual"
 
+    @property
+    def configuration(self):
+        """The preset's :class:`solver.quality.Configuration` (None: the standard solve)."""
+        return None if self.preset is None else CONFIGURATIONS[PRESET_NAMES.index(self.preset)]
+
     def build(self, grid: SensorGrid):
         """The solver the viewer builds for ``grid`` with this kernel and preset."""
-        configuration = None if self.preset is None else CONFIGURATIONS[PRESET_NAMES.index(self.preset)]
-        return ViewerModel.build(grid, self.kernel, configuration)
+        return ViewerModel.build(grid, self.kernel, self.configuration)
 
     def fields(self) -> dict:
         """The settings as JSON values (what an output's record names)."""

@@ -239,6 +239,14 @@ def test_an_existing_output_is_not_replaced_without_overwrite(layout, tmp_path, 
     assert path.read_bytes() == b"kept"
 
 
+def test_a_normal_only_solve_runs_on_one_thread_by_default_any_other_on_a_process_per_core(monkeypatch):
+    monkeypatch.setattr(tactile_stream, "_cpus", lambda: 8)
+    assert tactile_stream.default_solvers(settings_from_preset("normal only")) == 1
+    assert tactile_stream.default_solvers(settings_from_preset(None)) == tactile_stream.MOST_SOLVERS == 2
+    monkeypatch.setattr(tactile_stream, "_cpus", lambda: 1)
+    assert tactile_stream.default_solvers(settings_from_preset(None)) == 1
+
+
 def test_solvers_that_cannot_start_are_named(layout, capsys, monkeypatch):
     def cannot_start(*_, **__):
         raise OSError("Cannot allocate memory")
