@@ -123,7 +123,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def default_solvers(settings=None) -> int:
     """Solvers by default: one per core this process may use, at most :data:`MOST_SOLVERS`; one for
-    a normal-only solve (``settings``' path ``normal``). A normal-only solve (about 0.08 ms) costs
+    a normal-only solve (``settings``' path ``normal``). A normal-only solve (under 0.1 ms) costs
     less than a process's round trip (0.28 ms of CPU): at 1 kHz one thread used 37% CPU, two
     processes 74%, neither skipping a frame (docs/interop.md)."""
     configuration = None if settings is None else settings.configuration
@@ -281,7 +281,8 @@ def main(argv=None) -> int:
     try:
         solvers = _solvers(settings, grid, args.solvers)
     except (RuntimeError, OSError, pickle.PicklingError) as exc:
-        print(f"{PROG}: --solvers {args.solvers}: cannot start the solvers: {exc}", file=sys.stderr)
+        what = "the solver" if args.solvers == 1 else f"{args.solvers} solver processes"
+        print(f"{PROG}: cannot start {what}: {exc}", file=sys.stderr)
         return 1
     outlet = log = None
     if not args.no_lsl:
@@ -342,7 +343,7 @@ def _stream(args, source, solvers, settings, outlet, log, stop, failed) -> int:
     print(f"streaming forces of {args.source} to {where} ({threads})"
           + (f", recording to {args.record}" if recorder else "") + "; Ctrl+C stops", flush=True)
     start = time.monotonic()
-    said_failure = said_full = False
+    said_failure = said_full = said_solver = False
     try:
         while not stop.wait(min(1.0, seconds_left(start, args.duration))):
             elapsed = time.monotonic() - start
@@ -354,6 +355,13 @@ def _stream(args, source, solvers, settings, outlet, log, stop, failed) -> int:
             if stream.last_error and not said_failure:  # the first; the count goes on in the lines
                 print(f"{PROG}: a frame failed: {stream.last_error}", file=sys.stderr, flush=True)
                 said_failure = True
+            if stream.solver_error and not said_solver:
+                print(f"{PROG}: a solver stopped: {stream.solver_error}", file=sys.stderr, flush=True)
+                said_solver = True
+            if not stream.solvers_left:  # every frame from now on would be skipped
+                print(f"{PROG}: no solver is left; stopping", file=sys.stderr, flush=True)
+                failed.set()
+                break
             if recorder is not None and source.recorder is None:  # a write error or a reconnection
                 failed.set()
                 break

@@ -171,6 +171,8 @@ class ForceStream:
         self.source, self.solver, self.publish, self.clock = source, solver, publish, clock
         self.parameters = {"shear_ratio": shear_ratio, "shear_direction": shear_direction}
         self.last_error = ""  # why the last failed frame failed ("" when none did)
+        self.solver_error = ""  # why the last solver that stopped for good did ("" when none did)
+        self._ended = 0  # solver threads ended before the stream stopped (their solver could not go on)
         self._queue: deque = deque()
         self._lock = threading.Lock()
         self._ready = threading.Condition(self._lock)      # a frame queued, or stopping
@@ -231,14 +233,15 @@ class ForceStream:
 
     def _run(self, solver) -> None:
         with one_blas_thread():  # a frame's products are small: one BLAS thread (solver.threads)
-            while not solver.closed:
+            while True:
                 try:
                     # a solver process started again is ready before its thread takes frames, which
                     # would wait in it, and every frame after them for their turn to be published
                     solver.wait_ready()
                 except Exception as exc:  # noqa: BLE001 (the thread ends; the others take the frames)
                     with self._lock:
-                        self.last_error = f"{type(exc).__name__}: {exc}"
+                        self.solver_error = f"{type(exc).__name__}: {exc}"
+                        self._ended += 1
                     return
                 with self._ready:
                     while not self._queue and not self._stopping:
@@ -296,6 +299,12 @@ class ForceStream:
             self._solve_times.append(solve_time)
             self._latencies.append(latency)
             self._histogram[np.searchsorted(_EDGES, latency)] += 1
+
+    @property
+    def solvers_left(self) -> int:
+        """Solver threads still able to solve: all but those whose solver stopped for good
+        (:attr:`solver_error` says why); at 0 every frame from then on is skipped."""
+        return self.solvers - self._ended
 
     # -- figures (any thread) -------------------------------------------------------------------------
 

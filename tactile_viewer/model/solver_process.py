@@ -93,9 +93,11 @@ class SolverProcess:
                  wait: bool = True):
         self.build, self.name, self.start_timeout = build, name, float(start_timeout)
         self.restarts = 0  # children started again after one ended
-        self._lock = threading.Lock()  # one caller at a time through the pipe
+        # one caller at a time through the pipe (and starting children); re-entrant: solve_each
+        # waits for readiness under it
+        self._lock = threading.RLock()
         self._process = self._connection = None
-        self._ready = False
+        self._ready = self._closed = False
         self._cpu = (0.0, 0.0)  # CPU seconds of the children that ended, and of the running one as it said
         self._start()
         if wait:
@@ -110,46 +112,63 @@ class SolverProcess:
     @property
     def closed(self) -> bool:
         """True after :meth:`close`, or once a child could not be started or built again."""
-        return self._process is None
+        return self._closed
 
     def _start(self) -> None:
+        if self._closed:
+            raise RuntimeError(f"{self.name} is closed")
         context = multiprocessing.get_context("spawn")
         ours, theirs = context.Pipe()
         process = context.Process(target=_serve, args=(theirs, self.build), name=self.name, daemon=True)
-        with _quiet_signals():
-            process.start()
-        theirs.close()  # the child's end lives in the child: our recv sees EOF when the child ends
+        try:
+            with _quiet_signals():
+                process.start()
+        except BaseException:
+            self._closed = True
+            ours.close()
+            raise
+        finally:
+            theirs.close()  # the child's end lives in the child: our recv sees EOF when the child ends
         self._cpu = (self.cpu_time, 0.0)
         self._process, self._connection, self._ready = process, ours, False
 
     def wait_ready(self) -> None:
-        """Wait until the child has built and warmed its solver (at once when it has).
+        """Wait until the child has built and warmed its solver (at once when it has); a child that
+        ended since the last call (killed while idle) is replaced first.
 
         Raises
         ------
         RuntimeError
             As the constructor's, or when this is closed (the child is ended first; solving after
             raises).
+        OSError
+            When a child could not be started again (this is closed).
         """
-        if self._ready:
-            return
-        process, connection = self._process, self._connection
-        if process is None:
-            raise RuntimeError(f"{self.name} is closed")
-        try:
-            if not connection.poll(self.start_timeout):
-                raise RuntimeError(f"{self.name} did not build its solver within {self.start_timeout:g} s")
-            _, error, cpu = connection.recv()
-        except EOFError:
-            error = RuntimeError(f"it ended (exit code {_exit_code(process)})")
-        except BaseException:
-            self.close()
-            raise
-        if error is not None:
-            self.close()
-            raise RuntimeError(f"{self.name} could not build its solver: {error}")
-        self._cpu = (self._cpu[0], cpu)
-        self._ready = True
+        with self._lock:
+            process = self._process  # close() may run meanwhile on another thread: it does not wait
+            if self._closed or process is None:
+                raise RuntimeError(f"{self.name} is closed")
+            if self._ready and not process.is_alive():  # ended while idle: before frames wait in it
+                self._restart()
+                process = self._process
+            if self._ready:
+                return
+            connection = self._connection
+            try:
+                if not connection.poll(self.start_timeout):
+                    raise RuntimeError(f"{self.name} did not build its solver within "
+                                       f"{self.start_timeout:g} s")
+                _, error, cpu = connection.recv()
+            except EOFError:
+                error = RuntimeError(f"it ended (exit code {_exit_code(process)})")
+            except BaseException:
+                self.close()
+                raise
+            if error is not None:
+                self.close()
+                raise RuntimeError(f"{self.name} could not build its solver: {error}")
+            self._cpu = (self._cpu[0], cpu)
+            self._ready = True
 
     def solve(self, stress, **parameters):
         """The child's solver's ``solve(stress, **parameters)``: its result, or its exception raised here.
@@ -175,8 +194,6 @@ class SolverProcess:
             once, and :meth:`wait_ready` or the next call waits for it), or this is closed.
         """
         with self._lock:
-            if self._process is not None and not self._process.is_alive():  # ended between two calls
-                self._restart()
             self.wait_ready()
             process, connection = self._process, self._connection
             try:
@@ -184,23 +201,22 @@ class SolverProcess:
                 answers, cpu = connection.recv()
             except (EOFError, OSError) as exc:  # OSError: a broken pipe, or closed meanwhile
                 process.join(1.0)
-                ended = RuntimeError(f"{self.name} ended while it solved (exit code {_exit_code(process)})"
-                                     + ("" if self.closed else "; another is started"))
-                if not self.closed:
+                ended = f"{self.name} ended while it solved (exit code {_exit_code(process)})"
+                if self._closed:
+                    raise RuntimeError(ended) from exc
+                try:
                     self._restart()
-                raise ended from exc
+                except Exception as failure:  # noqa: BLE001 (said with the end it followed)
+                    raise RuntimeError(f"{ended}; another could not be started: {failure}") from exc
+                raise RuntimeError(f"{ended}; another is started") from exc
             self._cpu = (self._cpu[0], cpu)
         return answers
 
     def _restart(self) -> None:
         # another child in place of one that ended, not waited for: its first caller waits
         self._connection.close()
+        self._start()
         self.restarts += 1
-        try:
-            self._start()
-        except BaseException:
-            self._process = None
-            raise
 
     def close(self, *, timeout: float = 5.0) -> None:
         """End the child (asked first, killed after ``timeout`` seconds); solving after raises.
@@ -208,7 +224,8 @@ class SolverProcess:
         A second call does nothing.
         """
         process, connection = self._process, self._connection
-        self._process, self._ready = None, False
+        self._closed, self._ready = True, False
+        self._process = None
         if process is None:
             return
         try:
@@ -270,7 +287,8 @@ def _serve(connection, build) -> None:
             if message is None:
                 return
             stresses, parameters = message
-            answers = solve_each(solver, stresses, parameters)
+            answers = [(result, error if error is None else _portable(error))
+                       for result, error in solve_each(solver, stresses, parameters)]
             if not _answer(connection, (answers, time.process_time())):
                 return
 

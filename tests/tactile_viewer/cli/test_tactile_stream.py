@@ -5,6 +5,7 @@ import errno
 import os
 import re
 import signal
+import socket
 import threading
 import time
 import tty
@@ -247,6 +248,39 @@ def test_a_normal_only_solve_runs_on_one_thread_by_default_any_other_on_a_proces
     assert tactile_stream.default_solvers(settings_from_preset(None)) == 1
 
 
+class StopsAfterStart:
+    """In place of SolverProcess: ready when the command starts it, unable to go on once the stream asks."""
+
+    batch, closed, cpu_time, restarts = 8, False, 0.0, 0
+
+    def __init__(self, build, *, name, wait=True):
+        self.name, self.asked = name, 0
+
+    def wait_ready(self):
+        self.asked += 1
+        if self.asked > 1:
+            self.closed = True
+            raise RuntimeError(f"{self.name} could not build its solver: no memory")
+
+    def solve_each(self, stresses, **_):
+        raise AssertionError("a stopped solver was given frames")
+
+    def close(self):
+        pass
+
+
+def test_a_stream_with_no_solver_left_says_so_and_stops(layout, capsys, handlers, monkeypatch):
+    monkeypatch.setattr(tactile_stream, "SolverProcess", StopsAfterStart)
+    with socket.create_server(("127.0.0.1", 0)) as board:  # a board that connects and sends nothing
+        port = board.getsockname()[1]
+        code, out, err = run([f"socket://127.0.0.1:{port}", "--layout", layout, "--no-lsl", "--solvers", 2],
+                             capsys)
+    assert code == 1
+    assert "tactile-stream: a solver stopped: RuntimeError: tactile-stream solver " in err
+    assert "could not build its solver: no memory" in err
+    assert "tactile-stream: no solver is left; stopping" in err
+
+
 def test_solvers_that_cannot_start_are_named(layout, capsys, monkeypatch):
     def cannot_start(*_, **__):
         raise OSError("Cannot allocate memory")
@@ -254,7 +288,7 @@ def test_solvers_that_cannot_start_are_named(layout, capsys, monkeypatch):
     monkeypatch.setattr(tactile_stream, "SolverProcess", cannot_start)
     code, out, err = run(["socket://127.0.0.1:9", "--layout", layout, "--solvers", 2], capsys)
     assert code == 1
-    assert "tactile-stream: --solvers 2: cannot start the solvers: Cannot allocate memory" in err
+    assert "tactile-stream: cannot start 2 solver processes: Cannot allocate memory" in err
 
 
 def test_a_layout_that_cannot_be_read_is_named(tmp_path, capsys):

@@ -88,6 +88,11 @@ def test_a_child_that_ends_fails_its_frames_and_the_next_call_starts_another(pro
     assert process.restarts == 1 and not process.closed  # started at once, waited for by the next call
     result = process.solve(stresses[1])
     assert result.forces.shape == (GRID.size, 3)
+    # one that ends while idle is replaced before frames are sent to it
+    process._process.kill()
+    process._process.join()
+    assert process.solve(stresses[1]).forces.shape == (GRID.size, 3)
+    assert process.restarts == 2
 
 
 def test_a_closed_solver_process_says_so(stresses):
@@ -250,5 +255,6 @@ def test_a_solver_that_cannot_start_again_leaves_the_frames_to_the_others(stress
         assert published.done.wait_for(lambda: len(published.indices) == len(frames), WAIT_S)
     stream.stop()
     assert published.indices == list(range(len(frames)))
-    assert stream.totals().failed == 0
-    assert stream.last_error == "RuntimeError: test solver could not build its solver: no memory"
+    assert stream.totals().failed == 0 and stream.last_error == ""
+    assert stream.solver_error == "RuntimeError: test solver could not build its solver: no memory"
+    assert stream.solvers_left == 1
