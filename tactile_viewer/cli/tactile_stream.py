@@ -48,7 +48,7 @@ from ..io.layout import LayoutError, load_layout
 from ..model.batch import PRESET_NAMES, settings_from_preset
 from ..model.captions import KERNEL_HELP
 from ..model.force_log import ForceLog, leftover_spools, recover
-from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceStream
+from ..model.force_stream import DEFAULT_QUEUE_FRAMES, FASTER_MEMBER, ForceStream
 from ..model.movie_settings import check_movie_parameters
 from ..model.solver_process import SolverProcess, warm
 from ..sources.lsl_inlet import URL_PREFIX
@@ -70,6 +70,10 @@ SWITCH_INTERVAL_S = 0.05
 # frames skipped against 4,522 and 10,210, docs/interop.md); more processes, each about 265 MB for a
 # 16x16 skin, were not measured.
 MOST_SOLVERS = 2
+# Frames waiting at which a stream catches up with the faster member (--catch-up): half the default
+# queue, so frames are solved faster well before any is skipped. The preset it is (faster_settings):
+FASTER_PRESET = "layer, whole-cell profile"
+DEFAULT_CATCH_UP = DEFAULT_QUEUE_FRAMES // 2
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -112,6 +116,11 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--queue", type=int, default=DEFAULT_QUEUE_FRAMES, metavar="FRAMES",
                         help=f"frames that may wait for the solver (default {DEFAULT_QUEUE_FRAMES}); a frame "
                              "arriving at a full queue skips the oldest")
+    parser.add_argument("--catch-up", type=int, default=DEFAULT_CATCH_UP, metavar="FRAMES",
+                        help="with the standard automatic solve: once this many frames wait, solve them with "
+                             f"{FASTER_MEMBER} (faster, less accurate; each such frame says so in the "
+                             "force file and the counts) until the stream has caught up (default "
+                             f"{DEFAULT_CATCH_UP}; 0: never, skip frames instead)")
     parser.add_argument("--solvers", type=int, metavar="N",
                         help="solvers working side by side, out of order: 1 is a thread of this process, "
                              "more are processes of their own, each on a core; the forces are still "
@@ -146,6 +155,8 @@ def _check(parser, args):
     check_duration(parser, args)
     if args.queue < 1:
         parser.error(f"--queue must be a whole number of frames >= 1, got {args.queue}")
+    if args.catch_up < 0:
+        parser.error(f"--catch-up must be a whole number of frames >= 0 (0: never), got {args.catch_up}")
     if args.solvers is not None and args.solvers < 1:
         parser.error(f"--solvers must be a whole number of solvers >= 1, got {args.solvers}")
     if not args.name.strip():
@@ -213,6 +224,8 @@ def status_line(elapsed: float, figures, source) -> str:
             f"{sum(source.rejected().values())}  {source.state}")
     if source.error:
         text += f" ({source.error})"
+    if figures.faster:
+        text += f"  CATCHING UP: {figures.faster} frames solved by {FASTER_MEMBER}"
     if figures.skipped:
         text += f"  FALLING BEHIND: {figures.skipped} frames skipped"
     if figures.failed:
@@ -223,9 +236,10 @@ def status_line(elapsed: float, figures, source) -> str:
 def final_lines(totals, source, cpus: int) -> list[str]:
     """What is printed when the stream stops: the whole run's figures."""
     stats = source.stats
+    faster = f" ({totals.faster} of them by {FASTER_MEMBER}, catching up)" if totals.faster else ""
     lines = [f"stopped after {totals.elapsed:.1f} s: {totals.received} frames received, {totals.published} "
-             f"solved and published, {totals.skipped} skipped, {totals.failed} failed; latency median "
-             f"{_ms(totals.latency_median)} ms, p99 {_ms(totals.latency_p99)} ms; "
+             f"solved and published{faster}, {totals.skipped} skipped, {totals.failed} failed; latency "
+             f"median {_ms(totals.latency_median)} ms, p99 {_ms(totals.latency_p99)} ms; "
              f"{totals.solve_rate:.1f} solves/s; CPU {totals.cpu:.0f}% (of {100 * cpus}%); lost "
              f"{stats.lost}, rejected {sum(source.rejected().values())}"]
     if totals.skipped:
@@ -279,7 +293,7 @@ def main(argv=None) -> int:
     failed = print_messages(source)
     grid = source.grid
     try:
-        solvers = _solvers(settings, grid, args.solvers)
+        solvers, faster = _solvers(settings, grid, args.solvers)
     except (RuntimeError, OSError, pickle.PicklingError) as exc:
         what = "the solver" if args.solvers == 1 else f"{args.solvers} solver processes"
         print(f"{PROG}: cannot start {what}: {exc}", file=sys.stderr)
@@ -308,7 +322,7 @@ def main(argv=None) -> int:
     switch_interval = sys.getswitchinterval()
     sys.setswitchinterval(SWITCH_INTERVAL_S)
     try:
-        return _stream(args, source, solvers, settings, outlet, log, stop, failed)
+        return _stream(args, source, solvers, faster, settings, outlet, log, stop, failed)
     finally:
         sys.setswitchinterval(switch_interval)
         _close(solvers)
@@ -318,10 +332,10 @@ def main(argv=None) -> int:
             log.close()
 
 
-def _stream(args, source, solvers, settings, outlet, log, stop, failed) -> int:
+def _stream(args, source, solvers, faster, settings, outlet, log, stop, failed) -> int:
     stream = ForceStream(source, solvers, _publisher(source, outlet, log, stress=args.stress),
                          shear_ratio=settings.shear_ratio, shear_direction=settings.shear_direction,
-                         queue_frames=args.queue)
+                         queue_frames=args.queue, faster=faster, catch_up=args.catch_up or None)
     stream.start()  # before the board: its first frame is followed too
     try:
         source.start()
@@ -375,7 +389,7 @@ def _stream(args, source, solvers, settings, outlet, log, stop, failed) -> int:
         print(line, flush=True)
     if stream.last_error:
         print(f"{PROG}: the last frame that failed: {stream.last_error}", file=sys.stderr, flush=True)
-    restarts = sum(getattr(solver, "restarts", 0) for solver in solvers)
+    restarts = sum(solver.restarts for solver in _processes(solvers))
     if restarts:
         times = "once" if restarts == 1 else f"{restarts} times"
         print(f"{PROG}: solver processes that ended were started again {times}", file=sys.stderr, flush=True)
@@ -405,37 +419,57 @@ def _publisher(source, outlet, log, *, stress: bool):
     return publish
 
 
-def _solvers(settings, grid, count: int) -> list:
-    """The stream's solvers: one built and warmed here (a thread of this process), or ``count``
-    processes, each building and warming its own.
+def faster_settings(settings):
+    """What a stream that has fallen behind solves with (``--catch-up``): for the standard automatic
+    solve, the automatic fit on whole cells (the trade-off tool's faster member, about a third of
+    the standard solve's time); None for any other setting (given parameters and the presets are
+    fast already, or chosen)."""
+    if settings.preset is not None or settings.mode != "auto":
+        return None
+    return replace(settings, preset=FASTER_PRESET)
+
+
+def _solvers(settings, grid, count: int) -> tuple:
+    """The stream's solver and the faster member beside it, both built and warmed here (a thread of
+    this process), or a list of ``count`` processes, each building and warming its own (and no
+    faster member here).
 
     Raises
     ------
     RuntimeError, OSError
         When a solver could not be built or a process started (the ones started are ended first).
     """
+    faster = faster_settings(settings)
     if count == 1:
         solver = settings.build(grid)
         warm(solver)
-        return [solver]
+        quick = None if faster is None else faster.build(grid)
+        if quick is not None:
+            warm(quick)
+        return solver, quick
     build = functools.partial(settings.build, grid)
+    quick = None if faster is None else functools.partial(faster.build, grid)
     started = []
     try:
         # started together, then waited for: each takes a second or two to import and warm up
         for k in range(count):
-            started.append(SolverProcess(build, name=f"{PROG} solver {k + 1}", wait=False))
+            started.append(SolverProcess(build, faster=quick, name=f"{PROG} solver {k + 1}", wait=False))
         for process in started:
             process.wait_ready()
     except BaseException:
         _close(started)
         raise
-    return started
+    return started, None
+
+
+def _processes(solvers) -> list:
+    return [solver for solver in solvers if isinstance(solver, SolverProcess)] \
+        if isinstance(solvers, list) else []
 
 
 def _close(solvers) -> None:
-    for solver in solvers:
-        if isinstance(solver, SolverProcess):
-            solver.close()  # a second close of the same one does nothing
+    for solver in _processes(solvers):
+        solver.close()  # a second close of the same one does nothing
 
 
 def _size(spool: Path) -> str:

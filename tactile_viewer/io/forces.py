@@ -8,7 +8,10 @@ s, ``shear_ratio (T,)``, ``shear_direction (T,)`` rad, ``efficiency (T,)``,
 ``residual (T,)``, ``condition (T,)``, ``positions (m, 2)`` m, ``nx``, ``ny``,
 ``pitch``, ``thickness`` (m), ``poisson_ratio`` (the elastomer's nu),
 ``sensor_size`` (side of a square taxel, m; 0: point sensors), ``kernel``,
-``mode`` ("auto" or "manual"), ``source`` (the recording's path).
+``mode`` ("auto" or "manual"), ``source`` (the recording's path), ``fallback
+(T,)`` str: why a frame's forces are a cheaper member than the solver's
+accurate path, and which ("" for a frame that took it; an export from before it
+reads as all "").
 
 Per-contact totals (both formats): the contacts of each frame as the solver
 found them, largest normal force first, each with its identity
@@ -27,7 +30,8 @@ per-contact totals follow the node rows as ``#`` lines in the header's
 ``key=value`` form, so a reader that skips ``#`` lines reads the node table
 alone, as before: the header's ``contact_columns=frame,t,identity,Fx,Fy,Fz,x,y``
 (newtons, metres) names the fields of each ``# contact=...`` line, one per frame
-and contact.
+and contact. A frame solved by a cheaper member has a ``# fallback=FRAME,TEXT``
+line after them (the text may hold commas: the first one ends the frame).
 """
 
 from __future__ import annotations
@@ -41,10 +45,12 @@ from solver.arrays import read_only
 
 from .recording import written_whole
 
-__all__ = ["ForceTable", "save_forces", "load_forces", "CSV_COLUMNS", "CONTACT_COLUMNS", "CONTACT_TAG"]
+__all__ = ["ForceTable", "save_forces", "load_forces", "CSV_COLUMNS", "CONTACT_COLUMNS", "CONTACT_TAG",
+           "FALLBACK_TAG"]
 
 CSV_COLUMNS = ("frame", "t", "node", "x", "y", "Fx", "Fy", "Fz", "shear_ratio", "shear_direction_deg")
 CONTACT_TAG = "contact"  # the key of each "# contact=..." line of the CSV (one per frame and contact)
+FALLBACK_TAG = "fallback"  # the key of each "# fallback=..." line of the CSV (a frame off the accurate path)
 CONTACT_COLUMNS = ("frame", "t", "identity", "Fx", "Fy", "Fz", "x", "y")
 
 
@@ -59,6 +65,8 @@ class ForceTable:
     :func:`contact_arrays`); None (the default) is no contacts, ``K = 0``.
     ``forces`` is float64, or float32 or float64 kept as given when it is
     read-only already (a memory-mapped spool: :class:`~tactile_viewer.model.force_log.ForceLog`).
+    ``fallback (T,)`` is each frame's :attr:`solver.Reconstruction.fallback` (None, the default:
+    every frame took the accurate path).
     """
 
     forces: np.ndarray
@@ -81,6 +89,7 @@ class ForceTable:
     contact_identity: np.ndarray | None = None
     contact_force: np.ndarray | None = None
     contact_centre: np.ndarray | None = None
+    fallback: np.ndarray | None = None
 
     def __post_init__(self):
         forces = self.forces
@@ -92,6 +101,10 @@ class ForceTable:
                      "condition", "positions"):
             object.__setattr__(self, name, read_only(getattr(self, name), int if name == "frames" else float))
         count = len(self.frames)
+        fallback = np.full(count, "") if self.fallback is None else np.asarray(self.fallback, str)
+        if fallback.shape != (count,):
+            raise ValueError(f"fallback must be (T,) for the T = {count} frames, got shape {fallback.shape}")
+        object.__setattr__(self, "fallback", read_only(fallback, str))
         for name, tail, dtype in (("contact_identity", (), np.int64), ("contact_force", (3,), float),
                                   ("contact_centre", (2,), float)):
             value = getattr(self, name)
@@ -121,7 +134,7 @@ def save_forces(table: ForceTable, path, *, source: str = "") -> Path:
                                 poisson_ratio=table.poisson_ratio, sensor_size=table.sensor_size,
                                 kernel=table.kernel, mode=table.mode, source=source,
                                 contact_identity=table.contact_identity, contact_force=table.contact_force,
-                                contact_centre=table.contact_centre)
+                                contact_centre=table.contact_centre, fallback=table.fallback)
     elif path.suffix.lower() == ".csv":
         with written_whole(path) as temporary, open(temporary, "w", encoding="utf-8", newline="\n") as handle:
             _write_csv(handle, table, source, nx, ny)
@@ -160,6 +173,8 @@ def _write_csv(handle, table: ForceTable, source: str, nx: int, ny: int) -> None
         values = (*table.contact_force[row, slot], *table.contact_centre[row, slot])
         handle.write(f"# {CONTACT_TAG}={table.frames[row]:d},{table.t[row]:.6f},"
                      f"{table.contact_identity[row, slot]:d},{','.join(f'{v:.9g}' for v in values)}\n")
+    for row in np.flatnonzero(table.fallback != ""):
+        handle.write(f"# {FALLBACK_TAG}={table.frames[row]:d},{' '.join(table.fallback[row].split())}\n")
 
 
 def load_forces(path) -> dict:
@@ -175,7 +190,8 @@ def load_forces(path) -> dict:
             loaded = {k: data[k] for k in data.files}
         count = len(loaded["frames"]) if "frames" in loaded else len(loaded["forces"])
         defaults = {"contact_identity": np.zeros((count, 0), np.int64),  # an export from before them
-                    "contact_force": np.zeros((count, 0, 3)), "contact_centre": np.zeros((count, 0, 2))}
+                    "contact_force": np.zeros((count, 0, 3)), "contact_centre": np.zeros((count, 0, 2)),
+                    "fallback": np.full(count, "")}
         return defaults | loaded
     table = np.loadtxt(path, delimiter=",", skiprows=_header_lines(path), ndmin=2)  # "#" lines skipped
     frames = np.unique(table[:, 0]).astype(int)
@@ -183,9 +199,16 @@ def load_forces(path) -> dict:
     loaded = {"frames": frames, "t": table[::m, 1], "forces": table[:, 5:8].reshape(frames.size, m, 3),
               "shear_ratio": table[::m, 8], "shear_direction": np.radians(table[::m, 9])}
     # the per-contact lines, back into slots in the order written
-    tag = f"# {CONTACT_TAG}="
+    tag, fallback_tag = f"# {CONTACT_TAG}=", f"# {FALLBACK_TAG}="
+    rows, fallback = [], np.full(frames.size, "", dtype=object)
+    where = {int(k): i for i, k in enumerate(frames)}
     with open(path, encoding="utf-8") as handle:
-        rows = [[float(v) for v in line[len(tag):].split(",")] for line in handle if line.startswith(tag)]
+        for line in handle:
+            if line.startswith(tag):
+                rows.append([float(v) for v in line[len(tag):].split(",")])
+            elif line.startswith(fallback_tag):
+                frame, text = line[len(fallback_tag):].rstrip("\n").split(",", 1)
+                fallback[where[int(frame)]] = text
     per_frame: dict[int, list] = {}
     for row in rows:
         per_frame.setdefault(int(row[0]), []).append(row)
@@ -193,13 +216,13 @@ def load_forces(path) -> dict:
     identity = np.zeros((frames.size, width), np.int64)
     force = np.full((frames.size, width, 3), np.nan)
     centre = np.full((frames.size, width, 2), np.nan)
-    where = {int(k): i for i, k in enumerate(frames)}
     for k, contacts in per_frame.items():
         for slot, row in enumerate(contacts):
             identity[where[k], slot] = int(row[2])
             force[where[k], slot] = row[3:6]
             centre[where[k], slot] = row[6:8]
-    return loaded | {"contact_identity": identity, "contact_force": force, "contact_centre": centre}
+    return loaded | {"contact_identity": identity, "contact_force": force, "contact_centre": centre,
+                     "fallback": fallback.astype(str)}
 
 
 def _header_lines(path) -> int:

@@ -2,14 +2,15 @@
 
 :class:`ForceLog` takes each frame published by a
 :class:`~tactile_viewer.model.force_stream.ForceStream` (``tactile-stream
---forces``) and appends it at once to three spool files in a hidden folder
+--forces``) and appends it at once to spool files in a hidden folder
 beside the force file: the node forces (float32, 12 bytes per node), the
-frame's row (index, time, parameters, efficiency, residual, condition) and its
+frame's row (index, time, parameters, efficiency, residual, condition), its
 contacts, followed over the frames published with a
-:class:`solver.ContactTracker`. Memory does not grow with the take: a 16x16
-skin at 1 kHz puts 3.1 MB a second on disk, 11 GB an hour, and the process
-holds none of it. :meth:`ForceLog.table` maps the spool back as the viewer's
-force table (:class:`~tactile_viewer.io.forces.ForceTable`, File > Export
+:class:`solver.ContactTracker`, and, for a frame solved by a cheaper member
+than the accurate path, a line saying why (its result's ``fallback``). Memory
+does not grow with the take: a 16x16 skin at 1 kHz puts 3.1 MB a second on
+disk, 11 GB an hour, and the process holds none of it. :meth:`ForceLog.table`
+maps the spool back as the viewer's force table (:class:`~tactile_viewer.io.forces.ForceTable`, File > Export
 forces) without reading it into memory, and
 :func:`~tactile_viewer.io.forces.save_forces` writes it in pieces.
 
@@ -36,6 +37,7 @@ table, and :func:`leftover_spools` finds such spools beside a force file
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import queue
@@ -125,7 +127,7 @@ class ForceLog:
                 shape=list(grid.shape), pitch=grid.pitch, thickness=grid.thickness,
                 poisson_ratio=grid.poisson_ratio, sensor_size=grid.sensor_size,
                 positions=grid.positions.tolist())))
-            for part in ("forces", "rows", "contacts"):
+            for part in ("forces", "rows", "contacts", "fallback"):
                 self._files[part] = os.open(self.spool / part, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
         except OSError:
             self.close()
@@ -200,6 +202,9 @@ class ForceLog:
             # the row last: a frame whose row is written is whole (the table reads as many as were kept)
             _write_all(self._files["forces"], np.ascontiguousarray(result.forces, np.float32).tobytes())
             _write_all(self._files["contacts"], contacts.tobytes())
+            if result.fallback:  # a frame off the accurate path: "ROW<tab>why" (one line)
+                _write_all(self._files["fallback"],
+                           f"{self._kept}\t{' '.join(result.fallback.split())}\n".encode())
             _write_all(self._files["rows"], row.tobytes())
         except OSError as exc:
             self.failure = exc
@@ -262,13 +267,20 @@ def _spool_table(spool: Path, about: dict, kept: int, contacts: int) -> ForceTab
     flat = np.fromfile(spool / "contacts", dtype=np.float64,
                        count=contacts * len(CONTACT_FIELDS)).reshape(-1, len(CONTACT_FIELDS))
     identity, force, centre = contact_slots(flat[flat[:, 0] < kept], kept)
+    fallback = np.full(kept, "", dtype=object)
+    with contextlib.suppress(FileNotFoundError):  # a spool from before it
+        for line in (spool / "fallback").read_text(encoding="utf-8").splitlines():
+            row, _, why = line.partition("\t")
+            if row.isdigit() and int(row) < kept:  # the last line of a frame cut short may be partial
+                fallback[int(row)] = why
     return ForceTable(forces=forces, frames=rows[:, 0].astype(np.int64), t=rows[:, 1],
                       shear_ratio=rows[:, 2], shear_direction=rows[:, 3], efficiency=rows[:, 4],
                       residual=rows[:, 5], condition=rows[:, 6], positions=positions,
                       shape=tuple(about["shape"]), pitch=about["pitch"], thickness=about["thickness"],
                       kernel=about["kernel"], mode=about["mode"], source=about["source"],
                       poisson_ratio=about["poisson_ratio"], sensor_size=about["sensor_size"],
-                      contact_identity=identity, contact_force=force, contact_centre=centre)
+                      contact_identity=identity, contact_force=force, contact_centre=centre,
+                      fallback=fallback.astype(str))
 
 
 def recover(spool) -> tuple:

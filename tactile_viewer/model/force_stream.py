@@ -45,7 +45,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -54,12 +54,14 @@ from solver.threads import one_blas_thread
 
 from ..sources.source import Source, SourceFrame
 
-__all__ = ["StreamFigures", "ForceStream", "DEFAULT_QUEUE_FRAMES", "solve_each"]
+__all__ = ["StreamFigures", "ForceStream", "DEFAULT_QUEUE_FRAMES", "FASTER_MEMBER", "solve_each"]
 
 # Frames that may wait for the solver: 0.2 s of a 1 kHz board. A hiccup of the machine (another
 # process, a garbage collection) shorter than that is caught up without a skip; a solver slower
 # than the board skips frames within that much latency instead of falling ever further behind.
 DEFAULT_QUEUE_FRAMES = 200
+
+FASTER_MEMBER = "the whole-cell fit"  # what a stream catching up solves with (tactile-stream's choice)
 
 # latency histogram: log-spaced bins from 1 us to 100 s, 1.2% wide (1600 over 8 decades)
 _EDGES = np.logspace(-6, 2, 1601)
@@ -83,6 +85,9 @@ class StreamFigures:
         Frames pushed out of the full queue, oldest first: never solved.
     failed : int
         Frames whose solve or publish raised (counted, :attr:`ForceStream.last_error` says why).
+    faster : int
+        Frames solved and published by the solver's faster member while the stream caught up
+        (``catch_up``; each one's ``fallback`` says so).
     waiting : int
         Frames in the queue at the end of the interval.
     solve_rate : float
@@ -104,6 +109,7 @@ class StreamFigures:
     published: int
     skipped: int
     failed: int
+    faster: int
     waiting: int
     solve_rate: float
     solve_time: float
@@ -142,6 +148,12 @@ class ForceStream:
         automatic parameters, 1.05 times with given ones (``docs/interop.md``).
     clock : callable, optional
         Seconds on the clock of the frames' receive stamps (default ``source.now``).
+    catch_up : int or None, optional
+        Frames waiting at which a solver takes its frames to its faster member (a solver process's
+        ``faster``, or ``faster`` here), so that a stream fallen behind catches up rather than
+        skip frames; each such result's ``fallback`` says so. None (default): never.
+    faster : solver.Reconstructor, optional
+        The faster member of a ``solver`` solved on this process's threads (not a sequence).
 
     Raises
     ------
@@ -152,7 +164,7 @@ class ForceStream:
 
     def __init__(self, source: Source, solver, publish, *, shear_ratio: float | None = None,
                  shear_direction: float | None = None, queue_frames: int = DEFAULT_QUEUE_FRAMES,
-                 solvers: int = 1, clock=None):
+                 solvers: int = 1, clock=None, catch_up: int | None = None, faster=None):
         self.queue_frames = whole_number("queue_frames", queue_frames, low=1)
         self.solvers = whole_number("solvers", solvers, low=1)
         if isinstance(solver, Sequence):
@@ -162,9 +174,10 @@ class ForceStream:
                 raise ValueError(f"solvers must be left out or equal the {len(solver)} solvers given, "
                                  f"got {solvers}")
             self.solvers = len(solver)
-            self._each = tuple(map(_own, solver))
+            self._each = tuple(_own(each) for each in solver)
         else:
-            self._each = (_own(solver),) * self.solvers
+            self._each = (_own(solver, faster),) * self.solvers
+        self.catch_up = None if catch_up is None else whole_number("catch_up", catch_up, low=1)
         clock = clock if clock is not None else getattr(source, "now", None)
         if not callable(clock):
             raise ValueError(f"clock must be given for a source without a now() clock, got {source!r}")
@@ -182,7 +195,7 @@ class ForceStream:
         self._publishing = False                           # a thread is publishing the solved frames in turn
         self._stopping = False
         self._threads: list[threading.Thread] = []
-        self._counts = dict.fromkeys(("received", "solved", "published", "skipped", "failed"), 0)
+        self._counts = dict.fromkeys(("received", "solved", "published", "skipped", "failed", "faster"), 0)
         self._latencies: list[float] = []  # this interval's
         self._solve_times: list[float] = []  # this interval's
         self._histogram = np.zeros(len(_EDGES) + 1, np.int64)  # the whole run's latencies
@@ -250,23 +263,32 @@ class ForceStream:
                         return
                     # a solver in another process takes its share of what waits in one round trip
                     # (taking all would leave the others idle), a thread of this one frame at a time
-                    share = -(-len(self._queue) // self.solvers)  # rounded up
+                    behind = len(self._queue)
+                    share = -(-behind // self.solvers)  # rounded up
                     frames = [self._queue.popleft() for _ in range(min(solver.batch, share))]
                     first = self._taken
                     self._taken += len(frames)
-                self._solve(solver, frames, first)
+                hurry = self.catch_up is not None and behind >= self.catch_up and solver.has_faster
+                self._solve(solver, frames, first, behind if hurry else 0)
 
-    def _solve(self, solver, frames: list[SourceFrame], first: int) -> None:
+    def _solve(self, solver, frames: list[SourceFrame], first: int, behind: int) -> None:
+        # behind: frames that waited when these were taken, when they go to the faster member (else 0)
         started = time.perf_counter()
         try:
-            answers = solver.solve_each([frame.stress for frame in frames], **self.parameters)
+            answers = solver.solve_each([frame.stress for frame in frames], faster=bool(behind),
+                                        **self.parameters)
         except Exception as exc:  # noqa: BLE001 (a failed round trip fails its frames; the stream goes on)
             answers = [(None, exc)] * len(frames)
+        if behind:
+            why = (f"solved by the faster member ({FASTER_MEMBER}) while the stream was {behind} frames "
+                   f"behind")
+            answers = [(None if result is None else replace(result, fallback=why), error)
+                       for result, error in answers]
         solve_time = (time.perf_counter() - started) / len(frames)
         with self._lock:
             for turn, frame, (result, error) in zip(range(first, first + len(frames)), frames, answers,
                                                     strict=True):
-                self._solved[turn] = (frame, result, error, solve_time)
+                self._solved[turn] = (frame, result, error, solve_time, bool(behind))
             if self._publishing:
                 return  # the thread publishing takes them in their turn; this one solves the next frames
             self._publishing = True
@@ -281,7 +303,7 @@ class ForceStream:
                     return
             self._publish(*waiting)
 
-    def _publish(self, frame: SourceFrame, result, error, solve_time: float) -> None:
+    def _publish(self, frame: SourceFrame, result, error, solve_time: float, faster: bool) -> None:
         try:
             if error is None:
                 self.publish(frame, result)
@@ -296,6 +318,7 @@ class ForceStream:
                 return
             self._counts["solved"] += 1
             self._counts["published"] += 1
+            self._counts["faster"] += faster
             self._solve_times.append(solve_time)
             self._latencies.append(latency)
             self._histogram[np.searchsorted(_EDGES, latency)] += 1
@@ -354,19 +377,24 @@ class _InThread:
     closed = False
     cpu_time = 0.0     # in this process's own
 
-    def __init__(self, solver):
-        self.solver = solver
+    def __init__(self, solver, faster=None):
+        self.solver, self.faster = solver, faster
+
+    @property
+    def has_faster(self) -> bool:
+        return self.faster is not None
 
     def wait_ready(self) -> None:
         pass
 
-    def solve_each(self, stresses, **parameters) -> list:
-        return solve_each(self.solver, stresses, parameters)
+    def solve_each(self, stresses, *, faster: bool = False, **parameters) -> list:
+        return solve_each(self.faster if faster and self.faster is not None else self.solver, stresses,
+                          parameters)
 
 
-def _own(solver):
+def _own(solver, faster=None):
     # a solver of the stream's own kind (solve_each and the rest) as it is; a plain one wrapped
-    return solver if hasattr(solver, "solve_each") else _InThread(solver)
+    return solver if hasattr(solver, "solve_each") else _InThread(solver, faster)
 
 
 def _figures(start: tuple, end: tuple, waiting: int, solve_time: float, median: float,

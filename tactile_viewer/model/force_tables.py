@@ -70,6 +70,7 @@ def force_table(results, frames, t, grid, *, solver, mode: str, source: str = ""
         results = [tracker.update(r) for r in results]
     identity, force, centre = contact_arrays(results)
     return ForceTable(contact_identity=identity, contact_force=force, contact_centre=centre,
+                      fallback=np.array([r.fallback for r in results], dtype=str),
                       forces=np.array([r.forces for r in results]).reshape(len(results), grid.size, 3),
                       frames=np.asarray(frames), t=np.asarray(t, dtype=float), positions=grid.positions,
                       shape=tuple(grid.shape), pitch=grid.pitch, thickness=grid.thickness,

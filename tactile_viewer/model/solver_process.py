@@ -70,6 +70,9 @@ class SolverProcess:
     build : callable
         ``build()`` returns the solver (``solver.Reconstructor``); called in the child, so it must be
         picklable (a module-level function, or ``functools.partial`` of one with picklable arguments).
+    faster : callable, optional
+        As ``build``, a faster (less accurate) solver, used for the frames of a call with
+        ``faster=True`` (a stream catching up); None (default): none.
     name : str, optional
         The child's name (``ps``, error messages).
     start_timeout : float, optional
@@ -89,9 +92,9 @@ class SolverProcess:
 
     batch = BATCH_FRAMES  # most frames a caller sends in one round trip
 
-    def __init__(self, build, *, name: str = "solver process", start_timeout: float = START_TIMEOUT,
-                 wait: bool = True):
-        self.build, self.name, self.start_timeout = build, name, float(start_timeout)
+    def __init__(self, build, *, faster=None, name: str = "solver process",
+                 start_timeout: float = START_TIMEOUT, wait: bool = True):
+        self.build, self.faster, self.name, self.start_timeout = build, faster, name, float(start_timeout)
         self.restarts = 0  # children started again after one ended
         # one caller at a time through the pipe (and starting children); re-entrant: solve_each
         # waits for readiness under it
@@ -110,6 +113,11 @@ class SolverProcess:
         return ended + running
 
     @property
+    def has_faster(self) -> bool:
+        """Whether the child has a faster member (``faster`` given)."""
+        return self.faster is not None
+
+    @property
     def closed(self) -> bool:
         """True after :meth:`close`, or once a child could not be started or built again."""
         return self._closed
@@ -119,7 +127,8 @@ class SolverProcess:
             raise RuntimeError(f"{self.name} is closed")
         context = multiprocessing.get_context("spawn")
         ours, theirs = context.Pipe()
-        process = context.Process(target=_serve, args=(theirs, self.build), name=self.name, daemon=True)
+        process = context.Process(target=_serve, args=(theirs, self.build, self.faster), name=self.name,
+                                  daemon=True)
         try:
             with _quiet_signals():
                 process.start()
@@ -183,9 +192,10 @@ class SolverProcess:
             raise error
         return result
 
-    def solve_each(self, stresses, **parameters) -> list:
-        """Each frame of ``stresses`` solved in turn by the child's solver: ``(result, None)`` for one
-        solved, ``(None, exception)`` for one whose solve raised.
+    def solve_each(self, stresses, *, faster: bool = False, **parameters) -> list:
+        """Each frame of ``stresses`` solved in turn by the child's solver (its faster one with
+        ``faster``, when it has one): ``(result, None)`` for one solved, ``(None, exception)`` for one
+        whose solve raised.
 
         Raises
         ------
@@ -197,7 +207,7 @@ class SolverProcess:
             self.wait_ready()
             process, connection = self._process, self._connection
             try:
-                connection.send(([np.asarray(stress) for stress in stresses], parameters))
+                connection.send(([np.asarray(stress) for stress in stresses], parameters, faster))
                 answers, cpu = connection.recv()
             except (EOFError, OSError) as exc:  # OSError: a broken pipe, or closed meanwhile
                 process.join(1.0)
@@ -264,8 +274,8 @@ def _exit_code(process) -> str:
     return str(code)
 
 
-def _serve(connection, build) -> None:
-    # the child: build and warm the solver, say so, then solve batch after batch until None or EOF
+def _serve(connection, build, faster) -> None:
+    # the child: build and warm the solvers, say so, then solve batch after batch until None or EOF
     from .force_stream import solve_each
 
     for number in _STOPPING:  # the parent stops us, after the frames it still wants (module notes)
@@ -274,6 +284,10 @@ def _serve(connection, build) -> None:
         try:
             solver = build()
             warm(solver)
+            fast = None
+            if faster is not None:
+                fast = faster()
+                warm(fast)
         except Exception as exc:  # noqa: BLE001 (said to the parent, which raises it)
             _answer(connection, (None, _portable(exc), time.process_time()))
             return
@@ -286,9 +300,10 @@ def _serve(connection, build) -> None:
                 return
             if message is None:
                 return
-            stresses, parameters = message
+            stresses, parameters, hurry = message
+            used = fast if hurry and fast is not None else solver
             answers = [(result, error if error is None else _portable(error))
-                       for result, error in solve_each(solver, stresses, parameters)]
+                       for result, error in solve_each(used, stresses, parameters)]
             if not _answer(connection, (answers, time.process_time())):
                 return
 

@@ -10,6 +10,7 @@ import threading
 import time
 import tty
 import uuid
+from dataclasses import replace
 
 import numpy as np
 import pylsl
@@ -207,6 +208,8 @@ def test_forces_after_the_disk_filled_are_left_out_counted_and_said(layout, tmp_
      "--queue must be a whole number of frames >= 1, got 0"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--solvers", "0"],
      "--solvers must be a whole number of solvers >= 1, got 0"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--catch-up", "-1"],
+     r"--catch-up must be a whole number of frames >= 0 \(0: never\), got -1"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--no-lsl", "--stress"], "--stress publishes over LSL"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces", "{tmp}/f.txt"],
      "--forces must end in .npz or .csv, got '.*f.txt'"),
@@ -251,9 +254,9 @@ def test_a_normal_only_solve_runs_on_one_thread_by_default_any_other_on_a_proces
 class StopsAfterStart:
     """In place of SolverProcess: ready when the command starts it, unable to go on once the stream asks."""
 
-    batch, closed, cpu_time, restarts = 8, False, 0.0, 0
+    batch, closed, cpu_time, restarts, has_faster = 8, False, 0.0, 0, False
 
-    def __init__(self, build, *, name, wait=True):
+    def __init__(self, build, *, faster=None, name, wait=True):
         self.name, self.asked = name, 0
 
     def wait_ready(self):
@@ -279,6 +282,15 @@ def test_a_stream_with_no_solver_left_says_so_and_stops(layout, capsys, handlers
     assert "tactile-stream: a solver stopped: RuntimeError: tactile-stream solver " in err
     assert "could not build its solver: no memory" in err
     assert "tactile-stream: no solver is left; stopping" in err
+
+
+def test_only_the_standard_automatic_solve_catches_up_with_the_whole_cell_fit():
+    faster = tactile_stream.faster_settings(settings_from_preset(None, "cell"))
+    assert (faster.preset, faster.kernel, faster.mode) == ("layer, whole-cell profile", "cell", "auto")
+    assert faster.configuration.subdivision == 1
+    for given in (settings_from_preset("normal only"), settings_from_preset("layer, coarse search"),
+                  replace(settings_from_preset(None), shear_ratio=0.2, shear_direction=0.0)):
+        assert tactile_stream.faster_settings(given) is None
 
 
 def test_solvers_that_cannot_start_are_named(layout, capsys, monkeypatch):

@@ -3,6 +3,7 @@
 import json
 import math
 import re
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -215,6 +216,27 @@ def test_an_npz_export_from_before_the_contacts_reads_back_with_none(two_fingers
     assert back["contact_force"].shape == (2, 0, 3) and back["contact_centre"].shape == (2, 0, 2)
     np.testing.assert_array_equal(back["frames"], [1, 2])
     np.testing.assert_allclose(back["forces"], table.forces, rtol=1e-8, atol=1e-15)
+
+
+@pytest.mark.parametrize("name", ["fingers.npz", "fingers.csv"])
+def test_each_frames_fallback_is_exported_and_read_back(two_fingers, tmp_path, name):
+    recording, solver = two_fingers
+    table = reconstruct_frames(recording, solver, [1, 2, 3])
+    assert table.fallback.tolist() == ["", "", ""]  # every frame took the accurate path
+    why = "solved by the faster member (the whole-cell fit) while the stream was 120 frames behind, again"
+    marked = replace(table, fallback=["", why, ""])
+    back = load_forces(save_forces(marked, tmp_path / name))
+    assert back["fallback"].tolist() == ["", why, ""]  # a comma in the text survives the CSV
+    with pytest.raises(ValueError, match=r"fallback must be \(T,\) for the T = 3 frames, got shape \(2,\)"):
+        replace(table, fallback=["", why])
+
+
+def test_an_npz_export_from_before_the_fallbacks_reads_back_with_none(two_fingers, tmp_path):
+    recording, solver = two_fingers
+    path = save_forces(reconstruct_frames(recording, solver, [1, 2]), tmp_path / "fingers.npz")
+    with np.load(path, allow_pickle=False) as data:
+        np.savez(tmp_path / "old.npz", **{k: data[k] for k in data.files if k != "fallback"})
+    assert load_forces(tmp_path / "old.npz")["fallback"].tolist() == ["", ""]
 
 
 def test_csv_contacts_are_hash_marked_lines_that_node_readers_skip(two_fingers, tmp_path):

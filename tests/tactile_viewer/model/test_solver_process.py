@@ -6,11 +6,13 @@ import functools
 import math
 import os
 import threading
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from solver import Reconstructor, SensorGrid, loads
+from tactile_viewer.model.batch import settings_from_preset
 from tactile_viewer.model.force_stream import ForceStream
 from tactile_viewer.model.solver_process import BATCH_FRAMES, SolverProcess, warm
 from tactile_viewer.sources.source import Source, SourceFrame
@@ -258,3 +260,62 @@ def test_a_solver_that_cannot_start_again_leaves_the_frames_to_the_others(stress
     assert stream.totals().failed == 0 and stream.last_error == ""
     assert stream.solver_error == "RuntimeError: test solver could not build its solver: no memory"
     assert stream.solvers_left == 1
+
+
+class Held:
+    """A plain solver held at its first solve until released."""
+
+    def __init__(self):
+        self.release, self.started = threading.Event(), threading.Event()
+        self.alone = Reconstructor(GRID)
+
+    def solve(self, stress, **_):
+        self.started.set()
+        assert self.release.wait(WAIT_S)
+        return replace(self.alone.solve_normal(stress), fallback="")
+
+
+def test_a_stream_behind_catches_up_with_the_faster_member_and_says_so(stresses):
+    # the first frame held while nine more come: with catch_up=5 the frames taken while 5 or more wait go
+    # to the faster member, each marked, counted; the rest to the solver
+    board, published = Board(), Indices()
+    results = []
+    solver, faster = Held(), Held()
+    faster.release.set()
+    stream = ForceStream(board, solver, lambda frame, result: (results.append(result), published(frame, result)),
+                         catch_up=5, faster=faster)
+    frames = [SourceFrame(stress, 0.001 * k, k) for k, stress in enumerate(stresses)]
+    stream.start()
+    board.send(frames[:1])
+    assert solver.started.wait(WAIT_S)
+    board.send(frames[1:])
+    solver.release.set()
+    with published.done:
+        assert published.done.wait_for(lambda: len(published.indices) == len(frames), WAIT_S)
+    stream.stop()
+    assert published.indices == list(range(len(frames)))
+    # waiting when taken: 9, 8, 7, 6, 5 (faster), then 4, 3, 2, 1 (the solver)
+    marked = [bool(r.fallback) for r in results]
+    assert marked == [False] + [True] * 5 + [False] * 4
+    assert results[1].fallback == ("solved by the faster member (the whole-cell fit) while the stream was 9 "
+                                   "frames behind")
+    totals = stream.totals()
+    assert (totals.published, totals.faster, totals.skipped) == (10, 5, 0)
+
+
+def test_a_solver_process_solves_with_its_faster_member_when_asked(stresses):
+    whole_cell = functools.partial(settings_from_preset("layer, whole-cell profile").build, GRID)
+    child = SolverProcess(functools.partial(settings_from_preset(None).build, GRID), faster=whole_cell,
+                          name="two members")
+    try:
+        assert child.has_faster
+        standard, = child.solve_each(stresses[:1])
+        quick, = child.solve_each(stresses[:1], faster=True)
+    finally:
+        child.close()
+    here = whole_cell()
+    warm(here)
+    expected = here.solve(stresses[0])
+    peak = np.abs(expected.forces).max()
+    np.testing.assert_allclose(quick[0].forces, expected.forces, rtol=0, atol=1e-9 * peak)
+    assert np.abs(standard[0].forces - quick[0].forces).max() > 1e-3 * peak  # not the same member
