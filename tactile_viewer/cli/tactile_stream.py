@@ -2,7 +2,7 @@
 
 ``tactile-stream SOURCE [--layout LAYOUT.json] [--format text|binary] [--duration S] [--record OUT.mcap]
 [--forces OUT.forces.npz] [--shear-ratio R --shear-direction DEG] [--preset NAME]
-[--kernel K] [--name NAME] [--stress] [--no-lsl] [--queue FRAMES] [--solvers N]``;
+[--kernel K] [--name NAME] [--stress] [--no-lsl] [--queue FRAMES] [--catch-up FRAMES] [--solvers N]``;
 ``tactile-stream --recover SPOOL [--forces OUT] [--overwrite]``
 
 SOURCE is a serial port (``/dev/ttyACM0``), any pyserial URL (``socket://host:port``,
@@ -25,7 +25,10 @@ skipped, the queue, the latency from receive to publish (median and 99th
 percentile), the solve time and the CPU used. A solver slower than the board
 never builds a silent backlog: at most ``--queue`` frames wait, a frame arriving
 at a full queue skips the oldest, and every skipped frame is counted and said.
-No Qt.
+Before that, with the standard automatic solve, once ``--catch-up`` frames wait
+they are solved by the whole-cell fit (faster, less accurate) until the stream
+has caught up, each such frame marked (its ``fallback``, the force file) and
+counted. No Qt.
 """
 
 from __future__ import annotations
@@ -48,7 +51,7 @@ from ..io.layout import LayoutError, load_layout
 from ..model.batch import PRESET_NAMES, settings_from_preset
 from ..model.captions import KERNEL_HELP
 from ..model.force_log import ForceLog, leftover_spools, recover
-from ..model.force_stream import DEFAULT_QUEUE_FRAMES, FASTER_MEMBER, ForceStream
+from ..model.force_stream import DEFAULT_QUEUE_FRAMES, ForceStream
 from ..model.movie_settings import check_movie_parameters
 from ..model.solver_process import SolverProcess, warm
 from ..sources.lsl_inlet import URL_PREFIX
@@ -70,10 +73,10 @@ SWITCH_INTERVAL_S = 0.05
 # frames skipped against 4,522 and 10,210, docs/interop.md); more processes, each about 265 MB for a
 # 16x16 skin, were not measured.
 MOST_SOLVERS = 2
-# Frames waiting at which a stream catches up with the faster member (--catch-up): half the default
-# queue, so frames are solved faster well before any is skipped. The preset it is (faster_settings):
+# What a stream catches up with (--catch-up, by default at half the queue: frames are solved faster
+# well before any is skipped): the preset (faster_settings) and how its frames are marked.
 FASTER_PRESET = "layer, whole-cell profile"
-DEFAULT_CATCH_UP = DEFAULT_QUEUE_FRAMES // 2
+FASTER_MEMBER = "the whole-cell fit"
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -116,11 +119,11 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--queue", type=int, default=DEFAULT_QUEUE_FRAMES, metavar="FRAMES",
                         help=f"frames that may wait for the solver (default {DEFAULT_QUEUE_FRAMES}); a frame "
                              "arriving at a full queue skips the oldest")
-    parser.add_argument("--catch-up", type=int, default=DEFAULT_CATCH_UP, metavar="FRAMES",
+    parser.add_argument("--catch-up", type=int, metavar="FRAMES",
                         help="with the standard automatic solve: once this many frames wait, solve them with "
                              f"{FASTER_MEMBER} (faster, less accurate; each such frame says so in the "
-                             "force file and the counts) until the stream has caught up (default "
-                             f"{DEFAULT_CATCH_UP}; 0: never, skip frames instead)")
+                             "force file and the counts) until the stream has caught up (at most --queue; "
+                             "default half of it; 0: never, skip frames instead)")
     parser.add_argument("--solvers", type=int, metavar="N",
                         help="solvers working side by side, out of order: 1 is a thread of this process, "
                              "more are processes of their own, each on a core; the forces are still "
@@ -155,8 +158,9 @@ def _check(parser, args):
     check_duration(parser, args)
     if args.queue < 1:
         parser.error(f"--queue must be a whole number of frames >= 1, got {args.queue}")
-    if args.catch_up < 0:
-        parser.error(f"--catch-up must be a whole number of frames >= 0 (0: never), got {args.catch_up}")
+    if args.catch_up is not None and not 0 <= args.catch_up <= args.queue:
+        parser.error(f"--catch-up must be a whole number of frames from 0 (never) to --queue ({args.queue}), "
+                     f"got {args.catch_up}")
     if args.solvers is not None and args.solvers < 1:
         parser.error(f"--solvers must be a whole number of solvers >= 1, got {args.solvers}")
     if not args.name.strip():
@@ -183,6 +187,11 @@ def _check(parser, args):
         parser.error(str(exc))
     if args.solvers is None:
         args.solvers = default_solvers(settings)
+    if args.catch_up is None:
+        args.catch_up = args.queue // 2 if faster_settings(settings) is not None else 0
+    elif args.catch_up and faster_settings(settings) is None:
+        parser.error(f"--catch-up {args.catch_up}: only the standard automatic solve has a faster member to "
+                     "catch up with (given parameters and the presets do not; --catch-up 0 skips instead)")
     return settings
 
 
@@ -293,7 +302,7 @@ def main(argv=None) -> int:
     failed = print_messages(source)
     grid = source.grid
     try:
-        solvers, faster = _solvers(settings, grid, args.solvers)
+        solvers, faster = _solvers(settings, grid, args.solvers, catch_up=bool(args.catch_up))
     except (RuntimeError, OSError, pickle.PicklingError) as exc:
         what = "the solver" if args.solvers == 1 else f"{args.solvers} solver processes"
         print(f"{PROG}: cannot start {what}: {exc}", file=sys.stderr)
@@ -335,7 +344,8 @@ def main(argv=None) -> int:
 def _stream(args, source, solvers, faster, settings, outlet, log, stop, failed) -> int:
     stream = ForceStream(source, solvers, _publisher(source, outlet, log, stress=args.stress),
                          shear_ratio=settings.shear_ratio, shear_direction=settings.shear_direction,
-                         queue_frames=args.queue, faster=faster, catch_up=args.catch_up or None)
+                         queue_frames=args.queue, faster=faster, catch_up=args.catch_up or None,
+                         faster_member=FASTER_MEMBER)
     stream.start()  # before the board: its first frame is followed too
     try:
         source.start()
@@ -429,7 +439,7 @@ def faster_settings(settings):
     return replace(settings, preset=FASTER_PRESET)
 
 
-def _solvers(settings, grid, count: int) -> tuple:
+def _solvers(settings, grid, count: int, *, catch_up: bool) -> tuple:
     """The stream's solver and the faster member beside it, both built and warmed here (a thread of
     this process), or a list of ``count`` processes, each building and warming its own (and no
     faster member here).
@@ -439,7 +449,7 @@ def _solvers(settings, grid, count: int) -> tuple:
     RuntimeError, OSError
         When a solver could not be built or a process started (the ones started are ended first).
     """
-    faster = faster_settings(settings)
+    faster = faster_settings(settings) if catch_up else None  # built only to be used
     if count == 1:
         solver = settings.build(grid)
         warm(solver)

@@ -101,10 +101,15 @@ class ForceTable:
                      "condition", "positions"):
             object.__setattr__(self, name, read_only(getattr(self, name), int if name == "frames" else float))
         count = len(self.frames)
-        fallback = np.full(count, "") if self.fallback is None else np.asarray(self.fallback, str)
-        if fallback.shape != (count,):
-            raise ValueError(f"fallback must be (T,) for the T = {count} frames, got shape {fallback.shape}")
-        object.__setattr__(self, "fallback", read_only(fallback, str))
+        fallback = [""] * count if self.fallback is None else list(np.asarray(self.fallback, object).ravel())
+        if np.shape(self.fallback if self.fallback is not None else fallback) != (count,):
+            raise ValueError(f"fallback must be (T,) for the T = {count} frames, got shape "
+                             f"{np.shape(self.fallback)}")
+        if not all(isinstance(why, str) for why in fallback):
+            raise ValueError(f"fallback must hold text (\"\" for a frame on the accurate path), got "
+                             f"{next(why for why in fallback if not isinstance(why, str))!r}")
+        # one line of text each, as every format keeps it
+        object.__setattr__(self, "fallback", read_only([" ".join(why.split()) for why in fallback], str))
         for name, tail, dtype in (("contact_identity", (), np.int64), ("contact_force", (3,), float),
                                   ("contact_centre", (2,), float)):
             value = getattr(self, name)
@@ -207,7 +212,10 @@ def load_forces(path) -> dict:
             if line.startswith(tag):
                 rows.append([float(v) for v in line[len(tag):].split(",")])
             elif line.startswith(fallback_tag):
-                frame, text = line[len(fallback_tag):].rstrip("\n").split(",", 1)
+                frame, comma, text = line[len(fallback_tag):].rstrip("\n").partition(",")
+                if not comma or not frame.strip().isdigit() or int(frame) not in where:
+                    raise ValueError(f"{path}: a line {fallback_tag}FRAME,WHY must name a frame of the "
+                                     f"table, got {line.strip()!r}")
                 fallback[where[int(frame)]] = text
     per_frame: dict[int, list] = {}
     for row in rows:

@@ -351,8 +351,12 @@ def _totals(table: ForceTable, row: int, stamp: int) -> bytes:
 
 def _metadata(table: ForceTable, scales, refused, start_time: float) -> dict:
     listed = ", ".join(f"{frame}: {reason}" for frame, reason in list(refused)[:20])
+    cheaper = np.flatnonzero(table.fallback != "")
+    why = "; ".join(f"{table.frames[k]}: {table.fallback[k]}" for k in cheaper[:20])
     fields = {"source": table.source, "kernel": table.kernel, "mode": table.mode, "frames": len(table.frames),
               "refused_frames": len(refused), "refused": listed + (" ..." if len(refused) > 20 else ""),
+              # frames whose forces are a cheaper member than the accurate path, and why
+              "fallback_frames": len(cheaper), "fallback": why + (" ..." if len(cheaper) > 20 else ""),
               "start_time_s": repr(start_time), "arrow_scale_m_per_N": repr(scales[0]),
               "resultant_scale_m_per_N": repr(scales[1]), "frame_id": FRAME_ID, "pitch_m": repr(table.pitch),
               "thickness_m": repr(table.thickness), "shape": "x".join(map(str, table.shape[::-1])),

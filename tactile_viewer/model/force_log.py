@@ -70,7 +70,8 @@ ROW_FIELDS = ("frame", "t", "shear_ratio", "shear_direction", "efficiency", "res
 
 # the spool's description of the skin and the solve, written when it is made
 ABOUT = "about.json"
-SPOOL_VERSION = 1
+SPOOL_VERSION = 2  # 2: each frame's fallback beside it (a spool of 1, which has none, still recovers)
+_READ_VERSIONS = (1, 2)
 
 
 def _write_all(descriptor: int, data: bytes) -> None:
@@ -252,9 +253,10 @@ def _read_about(spool: Path) -> dict:
         raise ValueError(f"{spool} is not a force spool: it has no {ABOUT}") from None
     except json.JSONDecodeError as exc:
         raise ValueError(f"{spool / ABOUT} is not a spool's description: {exc}") from None
-    if not isinstance(about, dict) or about.get("version") != SPOOL_VERSION:
+    if not isinstance(about, dict) or about.get("version") not in _READ_VERSIONS:
         found = about.get("version") if isinstance(about, dict) else about
-        raise ValueError(f"{spool / ABOUT}: a spool of version {SPOOL_VERSION} was expected, got {found!r}")
+        raise ValueError(f"{spool / ABOUT}: a spool of version {' or '.join(map(str, _READ_VERSIONS))} was "
+                         f"expected, got {found!r}")
     return about
 
 
@@ -268,10 +270,11 @@ def _spool_table(spool: Path, about: dict, kept: int, contacts: int) -> ForceTab
                        count=contacts * len(CONTACT_FIELDS)).reshape(-1, len(CONTACT_FIELDS))
     identity, force, centre = contact_slots(flat[flat[:, 0] < kept], kept)
     fallback = np.full(kept, "", dtype=object)
-    with contextlib.suppress(FileNotFoundError):  # a spool from before it
-        for line in (spool / "fallback").read_text(encoding="utf-8").splitlines():
-            row, _, why = line.partition("\t")
-            if row.isdigit() and int(row) < kept:  # the last line of a frame cut short may be partial
+    with contextlib.suppress(FileNotFoundError):  # a spool of version 1 has none
+        # whole lines only: the last one of a frame cut short may stop anywhere, even inside its row
+        for line in (spool / "fallback").read_text(encoding="utf-8", errors="replace").split("\n")[:-1]:
+            row, tab, why = line.partition("\t")
+            if tab and row.isdigit() and int(row) < kept:
                 fallback[int(row)] = why
     return ForceTable(forces=forces, frames=rows[:, 0].astype(np.int64), t=rows[:, 1],
                       shear_ratio=rows[:, 2], shear_direction=rows[:, 3], efficiency=rows[:, 4],

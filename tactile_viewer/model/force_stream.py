@@ -54,14 +54,12 @@ from solver.threads import one_blas_thread
 
 from ..sources.source import Source, SourceFrame
 
-__all__ = ["StreamFigures", "ForceStream", "DEFAULT_QUEUE_FRAMES", "FASTER_MEMBER", "solve_each"]
+__all__ = ["StreamFigures", "ForceStream", "DEFAULT_QUEUE_FRAMES", "solve_each"]
 
 # Frames that may wait for the solver: 0.2 s of a 1 kHz board. A hiccup of the machine (another
 # process, a garbage collection) shorter than that is caught up without a skip; a solver slower
 # than the board skips frames within that much latency instead of falling ever further behind.
 DEFAULT_QUEUE_FRAMES = 200
-
-FASTER_MEMBER = "the whole-cell fit"  # what a stream catching up solves with (tactile-stream's choice)
 
 # latency histogram: log-spaced bins from 1 us to 100 s, 1.2% wide (1600 over 8 decades)
 _EDGES = np.logspace(-6, 2, 1601)
@@ -153,7 +151,10 @@ class ForceStream:
         ``faster``, or ``faster`` here), so that a stream fallen behind catches up rather than
         skip frames; each such result's ``fallback`` says so. None (default): never.
     faster : solver.Reconstructor, optional
-        The faster member of a ``solver`` solved on this process's threads (not a sequence).
+        The faster member of a ``solver`` solved on this process's threads (not with a sequence).
+    faster_member : str, optional
+        What the faster member is, in the marks of the frames it solved (default "the faster
+        member").
 
     Raises
     ------
@@ -164,7 +165,8 @@ class ForceStream:
 
     def __init__(self, source: Source, solver, publish, *, shear_ratio: float | None = None,
                  shear_direction: float | None = None, queue_frames: int = DEFAULT_QUEUE_FRAMES,
-                 solvers: int = 1, clock=None, catch_up: int | None = None, faster=None):
+                 solvers: int = 1, clock=None, catch_up: int | None = None, faster=None,
+                 faster_member: str = "the faster member"):
         self.queue_frames = whole_number("queue_frames", queue_frames, low=1)
         self.solvers = whole_number("solvers", solvers, low=1)
         if isinstance(solver, Sequence):
@@ -174,10 +176,14 @@ class ForceStream:
                 raise ValueError(f"solvers must be left out or equal the {len(solver)} solvers given, "
                                  f"got {solvers}")
             self.solvers = len(solver)
+            if faster is not None:
+                raise ValueError("faster goes with one solver solved on this process's threads; a sequence's "
+                                 "solvers bring their own (SolverProcess(faster=...))")
             self._each = tuple(_own(each) for each in solver)
         else:
             self._each = (_own(solver, faster),) * self.solvers
         self.catch_up = None if catch_up is None else whole_number("catch_up", catch_up, low=1)
+        self.faster_member = faster_member
         clock = clock if clock is not None else getattr(source, "now", None)
         if not callable(clock):
             raise ValueError(f"clock must be given for a source without a now() clock, got {source!r}")
@@ -280,9 +286,10 @@ class ForceStream:
         except Exception as exc:  # noqa: BLE001 (a failed round trip fails its frames; the stream goes on)
             answers = [(None, exc)] * len(frames)
         if behind:
-            why = (f"solved by the faster member ({FASTER_MEMBER}) while the stream was {behind} frames "
-                   f"behind")
-            answers = [(None if result is None else replace(result, fallback=why), error)
+            why = f"solved by {self.faster_member} while the stream was {behind} frames behind"
+            # the faster member's own reason (a contact left out ...) kept after it
+            answers = [(None if result is None else
+                        replace(result, fallback="; ".join(filter(None, (why, result.fallback)))), error)
                        for result, error in answers]
         solve_time = (time.perf_counter() - started) / len(frames)
         with self._lock:

@@ -209,7 +209,11 @@ def test_forces_after_the_disk_filled_are_left_out_counted_and_said(layout, tmp_
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--solvers", "0"],
      "--solvers must be a whole number of solvers >= 1, got 0"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--catch-up", "-1"],
-     r"--catch-up must be a whole number of frames >= 0 \(0: never\), got -1"),
+     r"--catch-up must be a whole number of frames from 0 \(never\) to --queue \(200\), got -1"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--queue", "50", "--catch-up", "60"],
+     r"--catch-up must be a whole number of frames from 0 \(never\) to --queue \(50\), got 60"),
+    (["socket://127.0.0.1:9", "--layout", "{layout}", "--preset", "normal only", "--catch-up", "5"],
+     "--catch-up 5: only the standard automatic solve has a faster member to catch up with"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--no-lsl", "--stress"], "--stress publishes over LSL"),
     (["socket://127.0.0.1:9", "--layout", "{layout}", "--forces", "{tmp}/f.txt"],
      "--forces must end in .npz or .csv, got '.*f.txt'"),
@@ -282,6 +286,27 @@ def test_a_stream_with_no_solver_left_says_so_and_stops(layout, capsys, handlers
     assert "tactile-stream: a solver stopped: RuntimeError: tactile-stream solver " in err
     assert "could not build its solver: no memory" in err
     assert "tactile-stream: no solver is left; stopping" in err
+
+
+def test_frames_solved_while_catching_up_are_counted_and_marked_in_the_force_file(layout, tmp_path, capsys,
+                                                                                 handlers):
+    # --catch-up 1: every frame taken finds itself waiting, so every one goes to the faster member
+    name = unique_name()
+    board = PtyBoard(name, inlet=False)
+    forces = tmp_path / "take.forces.csv"
+    code, out, err = run([board.url, "--layout", layout, "--name", name, "--catch-up", 1, "--solvers", 2,
+                          "--forces", forces], capsys)
+    board.thread.join(WAIT_S)
+    assert board.error is None, board.error
+    assert code == 0, err
+    last = [line for line in out.splitlines() if line.startswith("stopped after")][-1]
+    assert (f"{FRAMES} frames received, {FRAMES} solved and published ({FRAMES} of them by the whole-cell fit, "
+            "catching up), 0 skipped") in last
+    assert "CATCHING UP: " in out
+    marks = load_forces(forces)["fallback"]
+    assert len(marks) == FRAMES
+    assert all(re.fullmatch(r"solved by the whole-cell fit while the stream was \d+ frames behind(; .*)?", why)
+               for why in marks)
 
 
 def test_only_the_standard_automatic_solve_catches_up_with_the_whole_cell_fit():

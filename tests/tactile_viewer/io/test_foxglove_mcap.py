@@ -3,6 +3,7 @@ decoder (mcap-protobuf-support, which decodes with the schemas the file carries)
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -86,7 +87,8 @@ def grid():
 def written(grid, tmp_path_factory):
     """Frames 1, 2, 4 and 5 of a six-frame recording (frames 0 and 3 refused), written and read back."""
     stress = np.random.default_rng(3).normal(2e3, 500, size=(6, grid.size))  # fixed seed
-    table = table_of(grid, [1, 2, 4, 5], seed=5)
+    table = replace(table_of(grid, [1, 2, 4, 5], seed=5),
+                    fallback=["", "solved by the faster member while the stream was 120 frames behind", "", ""])
     path = tmp_path_factory.mktemp("fox") / "press.mcap"
     steps = []
     export = write_foxglove(path, table, stress, start_time=START, arrow_scale=0.05, resultant_scale=0.01,
@@ -188,6 +190,8 @@ def test_the_metadata_names_the_source_scales_and_the_frames_left_out(written):
     meta = written["back"]["metadata"][METADATA_NAME]
     assert meta["source"] == "takes/press.npz" and meta["kernel"] == "layer" and meta["frames"] == "4"
     assert meta["refused_frames"] == "2" and meta["refused"] == "0: stress must be finite, 3: too large"
+    assert meta["fallback_frames"] == "1"  # a frame off the accurate path, named with why
+    assert meta["fallback"] == "2: solved by the faster member while the stream was 120 frames behind"
     assert float(meta["arrow_scale_m_per_N"]) == 0.05 and float(meta["resultant_scale_m_per_N"]) == 0.01
     assert written["export"].refused == ((0, "stress must be finite"), (3, "too large"))
 

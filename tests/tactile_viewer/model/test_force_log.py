@@ -226,7 +226,7 @@ def test_what_is_not_a_readable_spool_is_refused(tmp_path, log, kill_log):
     with pytest.raises(ValueError, match="is not a spool's description"):
         force_log.recover(tmp_path)
     (tmp_path / "about.json").write_text('{"version": 7}')
-    with pytest.raises(ValueError, match="a spool of version 1 was expected, got 7"):
+    with pytest.raises(ValueError, match="a spool of version 1 or 2 was expected, got 7"):
         force_log.recover(tmp_path)
     spool = kill_log(log)  # nothing published
     with pytest.raises(ValueError, match="holds no whole frame"):

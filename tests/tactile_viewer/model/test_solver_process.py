@@ -203,6 +203,7 @@ def test_a_batch_whose_round_trip_fails_fails_its_frames_and_the_stream_goes_on(
 @pytest.mark.parametrize(("solver", "options", "message"), [
     ([], {}, "solver must be a solver or a sequence of one or more, got an empty one"),
     ([None, None], {"solvers": 3}, "solvers must be left out or equal the 2 solvers given, got 3"),
+    ([None], {"faster": object()}, "faster goes with one solver solved on this process's threads"),
 ])
 def test_a_sequence_of_solvers_is_checked(solver, options, message):
     with pytest.raises(ValueError, match=message):
@@ -263,16 +264,16 @@ def test_a_solver_that_cannot_start_again_leaves_the_frames_to_the_others(stress
 
 
 class Held:
-    """A plain solver held at its first solve until released."""
+    """A plain solver held at its first solve until released; its answers' own fallback is ``own``."""
 
-    def __init__(self):
-        self.release, self.started = threading.Event(), threading.Event()
+    def __init__(self, own=""):
+        self.release, self.started, self.own = threading.Event(), threading.Event(), own
         self.alone = Reconstructor(GRID)
 
     def solve(self, stress, **_):
         self.started.set()
         assert self.release.wait(WAIT_S)
-        return replace(self.alone.solve_normal(stress), fallback="")
+        return replace(self.alone.solve_normal(stress), fallback=self.own)
 
 
 def test_a_stream_behind_catches_up_with_the_faster_member_and_says_so(stresses):
@@ -280,7 +281,7 @@ def test_a_stream_behind_catches_up_with_the_faster_member_and_says_so(stresses)
     # to the faster member, each marked, counted; the rest to the solver
     board, published = Board(), Indices()
     results = []
-    solver, faster = Held(), Held()
+    solver, faster = Held(), Held(own="1 contact of weaker evidence left out")
     faster.release.set()
     stream = ForceStream(board, solver, lambda frame, result: (results.append(result), published(frame, result)),
                          catch_up=5, faster=faster)
@@ -297,8 +298,8 @@ def test_a_stream_behind_catches_up_with_the_faster_member_and_says_so(stresses)
     # waiting when taken: 9, 8, 7, 6, 5 (faster), then 4, 3, 2, 1 (the solver)
     marked = [bool(r.fallback) for r in results]
     assert marked == [False] + [True] * 5 + [False] * 4
-    assert results[1].fallback == ("solved by the faster member (the whole-cell fit) while the stream was 9 "
-                                   "frames behind")
+    assert results[1].fallback == ("solved by the faster member while the stream was 9 frames behind; 1 contact "
+                                   "of weaker evidence left out")  # the faster member's own reason kept
     totals = stream.totals()
     assert (totals.published, totals.faster, totals.skipped) == (10, 5, 0)
 
