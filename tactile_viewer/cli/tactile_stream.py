@@ -452,10 +452,8 @@ def _solvers(settings, grid, count: int, *, catch_up: bool) -> tuple:
     faster = faster_settings(settings) if catch_up else None  # built only to be used
     if count == 1:
         solver = settings.build(grid)
-        warm(solver)
         quick = None if faster is None else faster.build(grid)
-        if quick is not None:
-            warm(quick)
+        warm(*(s for s in (solver, quick) if s is not None))
         return solver, quick
     build = functools.partial(settings.build, grid)
     quick = None if faster is None else functools.partial(faster.build, grid)

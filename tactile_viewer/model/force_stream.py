@@ -182,6 +182,7 @@ class ForceStream:
             self._each = tuple(_own(each) for each in solver)
         else:
             self._each = (_own(solver, faster),) * self.solvers
+        self._distinct = tuple({id(s): s for s in self._each}.values())  # a shared solver once
         self.catch_up = None if catch_up is None else whole_number("catch_up", catch_up, low=1)
         self.faster_member = faster_member
         clock = clock if clock is not None else getattr(source, "now", None)
@@ -362,7 +363,7 @@ class ForceStream:
     def _mark(self) -> tuple:
         # (wall seconds, CPU seconds of this process and of the solvers' own, counts) at one instant;
         # counts read under the lock
-        own = sum(solver.cpu_time for solver in {id(s): s for s in self._each}.values())
+        own = sum(solver.cpu_time for solver in self._distinct)
         return time.monotonic(), time.process_time() + own, dict(self._counts)
 
 

@@ -47,16 +47,17 @@ BATCH_FRAMES = 8
 _STOPPING = (signal.SIGINT, signal.SIGTERM)
 
 
-def warm(solver) -> None:
-    """Load the solver's compiled code (numba's cache) and touch this skin's matrices: one solve of
-    a round load in the middle of the skin. Without it the first frame of a stream would take a
-    second, and the frames of that second would be skipped."""
+def warm(*solvers) -> None:
+    """Load the solvers' compiled code (numba's cache, once for all) and touch each one's matrices:
+    one solve of a round load in the middle of its skin. Without it the first frame of a stream
+    would take a second, and the frames of that second would be skipped."""
     from solver.warmup import warm_up
 
     warm_up()
-    grid = solver.grid
-    x, y = grid.positions.T
-    solver.solve(1e3 * np.exp(-((x - x.mean()) ** 2 + (y - y.mean()) ** 2) / (2 * grid.pitch ** 2)))
+    for solver in solvers:
+        grid = solver.grid
+        x, y = grid.positions.T
+        solver.solve(1e3 * np.exp(-((x - x.mean()) ** 2 + (y - y.mean()) ** 2) / (2 * grid.pitch ** 2)))
 
 
 class SolverProcess:
@@ -283,11 +284,8 @@ def _serve(connection, build, faster) -> None:
     with one_blas_thread():
         try:
             solver = build()
-            warm(solver)
-            fast = None
-            if faster is not None:
-                fast = faster()
-                warm(fast)
+            fast = None if faster is None else faster()
+            warm(*(s for s in (solver, fast) if s is not None))
         except Exception as exc:  # noqa: BLE001 (said to the parent, which raises it)
             _answer(connection, (None, _portable(exc), time.process_time()))
             return

@@ -153,37 +153,39 @@ class Batches:
 
 
 class Indices:
-    """``publish``: the indices of the frames published, in order."""
+    """``publish``: the indices of the frames published, and their results, in order."""
 
     def __init__(self):
-        self.done, self.indices = threading.Condition(), []
+        self.done, self.indices, self.results = threading.Condition(), [], []
 
     def __call__(self, frame, result):
         with self.done:
             self.indices.append(frame.index)
+            self.results.append(result)
             self.done.notify_all()
 
 
-def published_after(solver, frames, count):
-    # the first frame sent alone and held in the solver; the others sent while it is solved
+def published_after(solver, held, stresses, count, **options):
+    # the first frame sent alone and held in ``held`` (``solver`` or one of its solvers); the others sent
+    # while it is solved; the stream stopped once ``count`` are published
     board, published = Board(), Indices()
-    stream = ForceStream(board, [solver], published)
+    frames = [SourceFrame(stress, 0.001 * k, k) for k, stress in enumerate(stresses)]
+    stream = ForceStream(board, solver, published, **options)
     stream.start()
     board.send(frames[:1])
-    assert solver.started.wait(WAIT_S)
+    assert held.started.wait(WAIT_S)
     board.send(frames[1:])
-    solver.release.set()
+    held.release.set()
     with published.done:
         assert published.done.wait_for(lambda: len(published.indices) >= count, WAIT_S)
     stream.stop()
-    return stream, published.indices
+    return stream, published
 
 
 def test_a_solver_in_another_process_takes_what_waits_in_one_round_trip(stresses):
     solver = Batches()
-    frames = [SourceFrame(stress, 0.001 * k, k) for k, stress in enumerate(stresses)]
-    stream, indices = published_after(solver, frames, len(frames))
-    assert indices == list(range(len(frames)))
+    stream, published = published_after([solver], solver, stresses, len(stresses))
+    assert published.indices == list(range(len(stresses)))
     assert solver.sizes == [1, 8, 1]  # at most BATCH_FRAMES a batch
     totals = stream.totals()
     assert (totals.solved, totals.published, totals.failed) == (10, 10, 0)
@@ -192,9 +194,8 @@ def test_a_solver_in_another_process_takes_what_waits_in_one_round_trip(stresses
 
 def test_a_batch_whose_round_trip_fails_fails_its_frames_and_the_stream_goes_on(stresses):
     solver = Batches(fail_batch=2)
-    frames = [SourceFrame(stress, 0.001 * k, k) for k, stress in enumerate(stresses)]
-    stream, indices = published_after(solver, frames, 2)
-    assert indices == [0, 9]
+    stream, published = published_after([solver], solver, stresses, 2)
+    assert published.indices == [0, 9]
     totals = stream.totals()
     assert (totals.published, totals.failed) == (2, 8)
     assert stream.last_error == "frame 8: RuntimeError: the child ended"
@@ -279,22 +280,11 @@ class Held:
 def test_a_stream_behind_catches_up_with_the_faster_member_and_says_so(stresses):
     # the first frame held while nine more come: with catch_up=5 the frames taken while 5 or more wait go
     # to the faster member, each marked, counted; the rest to the solver
-    board, published = Board(), Indices()
-    results = []
     solver, faster = Held(), Held(own="1 contact of weaker evidence left out")
     faster.release.set()
-    stream = ForceStream(board, solver, lambda frame, result: (results.append(result), published(frame, result)),
-                         catch_up=5, faster=faster)
-    frames = [SourceFrame(stress, 0.001 * k, k) for k, stress in enumerate(stresses)]
-    stream.start()
-    board.send(frames[:1])
-    assert solver.started.wait(WAIT_S)
-    board.send(frames[1:])
-    solver.release.set()
-    with published.done:
-        assert published.done.wait_for(lambda: len(published.indices) == len(frames), WAIT_S)
-    stream.stop()
-    assert published.indices == list(range(len(frames)))
+    stream, published = published_after(solver, solver, stresses, len(stresses), catch_up=5, faster=faster)
+    results = published.results
+    assert published.indices == list(range(len(stresses)))
     # waiting when taken: 9, 8, 7, 6, 5 (faster), then 4, 3, 2, 1 (the solver)
     marked = [bool(r.fallback) for r in results]
     assert marked == [False] + [True] * 5 + [False] * 4
